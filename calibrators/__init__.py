@@ -1,0 +1,24 @@
+"""magbench's calibrators: one interface, one shared objective and counter, a registry.
+
+>>> from calibrators import make
+>>> result = make("lsq", model="nine").fit(dataset)          # doctest: +SKIP
+"""
+from simulate.sensor import ErrorParams
+
+from .base import CalibrationResult, Calibrator, Problem, SolveOutput, default_bounds
+from .objective import Budget, BudgetExhausted, CountedObjective, ScalarObjective
+from .registry import ENTRY_POINT_GROUP, available, get, make, register
+
+__all__ = [
+    "ErrorParams", "CalibrationResult", "Calibrator", "Problem",
+    "SolveOutput", "default_bounds", "Budget", "BudgetExhausted", "CountedObjective",
+    "ScalarObjective", "ENTRY_POINT_GROUP", "available", "get", "make", "register",
+    "check_calibrator",
+]
+
+
+def check_calibrator(calibrator, **kwargs):
+    """Run the conformance battery on a calibrator class or instance (see ``calibrators.checks``)."""
+    from .checks import check_calibrator as _check
+
+    return _check(calibrator, **kwargs)

@@ -1,0 +1,196 @@
+"""The one objective every calibrator minimizes, and the one counter that measures them all.
+
+Seed 000, eq. 3: ``F(X) = (1/N) sum_i (|B1_i(X)| - |B_sc,i|)^2`` with ``B1_i = M(X) (raw_i - o)``
+(CONTRACT section 1).  ``ScalarObjective`` evaluates a whole population ``X`` of shape (m, p) in one
+numpy call; ``CountedObjective`` wraps it (as COCO's observer wraps a problem) so that evaluations,
+budget and the convergence trace are measured the same way for every calibrator, whatever it does.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from simulate.sensor import PARAM_NAMES, ErrorParams
+
+ANGLE_BOUND_RAD = 0.1  # seed 000, section 2.2 step 1: search range -0.1 .. 0.1 rad
+
+
+def n_params(model: str) -> int:
+    return len(PARAM_NAMES[model])
+
+
+def identity_vector(model: str) -> np.ndarray:
+    return ErrorParams().to_vector(model)
+
+
+def correction_matrices(x: np.ndarray, model: str) -> tuple[np.ndarray, np.ndarray]:
+    """M = P(alpha, beta, gamma) K^-1 and offset o for each row of ``x`` (shape (m, p)).
+
+    Returns M of shape (m, 3, 3) and o of shape (m, 3).
+    """
+    x = np.atleast_2d(np.asarray(x, dtype=float))
+    m = x.shape[0]
+    a, b, g = x[:, 0], x[:, 1], x[:, 2]
+    if model == "nine":
+        inv_k = 1.0 / x[:, 3:6]
+        o = x[:, 6:9]
+    else:
+        inv_k = np.ones((m, 3))
+        o = np.zeros((m, 3))
+    cg = np.cos(g)
+    mat = np.zeros((m, 3, 3))
+    mat[:, 0, 0] = np.cos(a) * cg * inv_k[:, 0]
+    mat[:, 1, 0] = np.sin(g) * inv_k[:, 0]
+    mat[:, 2, 0] = np.sin(a) * cg * inv_k[:, 0]
+    mat[:, 1, 1] = np.cos(b) * inv_k[:, 1]
+    mat[:, 2, 1] = np.sin(b) * inv_k[:, 1]
+    mat[:, 2, 2] = inv_k[:, 2]
+    return mat, o
+
+
+class ScalarObjective:
+    """Scalar residuals ``r_i = |M (raw_i - o)| - F_i`` and their mean square (seed 000, eq. 3)."""
+
+    def __init__(self, raw_nT: np.ndarray, f_ref_nT: np.ndarray, model: str):
+        if model not in PARAM_NAMES:
+            raise ValueError(f"unknown model {model!r}")
+        self.raw = np.asarray(raw_nT, dtype=float)
+        self.f_ref = np.broadcast_to(np.asarray(f_ref_nT, dtype=float), (self.raw.shape[0],))
+        self.model = model
+        self.n_params = n_params(model)
+
+    def residuals_batch(self, x: np.ndarray) -> np.ndarray:
+        """Residuals for a population: (m, p) -> (m, n)."""
+        mat, o = correction_matrices(x, self.model)
+        d = self.raw[None, :, :] - o[:, None, :]  # (m, n, 3)
+        corrected = np.einsum("mij,mnj->mni", mat, d)
+        return np.sqrt(np.einsum("mni,mni->mn", corrected, corrected)) - self.f_ref[None, :]
+
+    def values(self, x: np.ndarray) -> np.ndarray:
+        """F(X) of eq. 3 for each row of a population: (m, p) -> (m,)."""
+        r = self.residuals_batch(x)
+        return np.mean(r * r, axis=1)
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        return self.residuals_batch(np.asarray(x, dtype=float)[None, :])[0]
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        """d r_i / d x (n, p), analytic: dr/dθ = u^T (dM/dθ) d, dr/do = -u^T M, u = c/|c|, d = raw - o."""
+        x = np.asarray(x, dtype=float)
+        mat, o = correction_matrices(x[None, :], self.model)
+        mat, o = mat[0], o[0]
+        d = self.raw - o
+        c = d @ mat.T
+        u = c / np.linalg.norm(c, axis=1, keepdims=True)
+        a, b, g = x[:3]
+        ik = 1.0 / x[3:6] if self.model == "nine" else np.ones(3)
+        ca, sa, cb, sb, cg, sg = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(g), np.sin(g)
+        jac = np.empty((self.raw.shape[0], self.n_params))
+        # column 0 of M depends on alpha, gamma, kx; column 1 on beta, ky; column 2 on kz
+        jac[:, 0] = (u[:, 0] * (-sa * cg) + u[:, 2] * (ca * cg)) * ik[0] * d[:, 0]
+        jac[:, 1] = (u[:, 1] * (-sb) + u[:, 2] * cb) * ik[1] * d[:, 1]
+        jac[:, 2] = (u[:, 0] * (-ca * sg) + u[:, 1] * cg + u[:, 2] * (-sa * sg)) * ik[0] * d[:, 0]
+        if self.model == "nine":
+            jac[:, 3] = -(u @ mat[:, 0]) * d[:, 0] * ik[0]
+            jac[:, 4] = -(u @ mat[:, 1]) * d[:, 1] * ik[1]
+            jac[:, 5] = -(u @ mat[:, 2]) * d[:, 2] * ik[2]
+            jac[:, 6:9] = -u @ mat
+        return jac
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        """dF/dx of eq. 3: (2/N) J^T r."""
+        return 2.0 * self.jacobian(x).T @ self.residuals(x) / self.raw.shape[0]
+
+
+@dataclass(frozen=True)
+class Budget:
+    """One budget type for every calibrator: evaluations of the objective and/or wall time."""
+
+    max_evaluations: int | None = None
+    max_time_s: float | None = None
+
+    def __post_init__(self):
+        if self.max_evaluations is not None and self.max_evaluations < 1:
+            raise ValueError("max_evaluations must be at least 1")
+        if self.max_time_s is not None and self.max_time_s <= 0:
+            raise ValueError("max_time_s must be positive")
+
+
+class BudgetExhausted(Exception):
+    """Raised by the counter when the budget is spent; the calibrator returns the best seen."""
+
+
+class CountedObjective:
+    """Wraps a ``ScalarObjective``: counts every parameter vector evaluated (one per population row,
+    one per residual vector), counts Jacobians separately, enforces the ``Budget`` exactly (a batch
+    that would overrun it is evaluated only up to the budget), and keeps the best point seen and a
+    convergence trace of (evaluations, best F, batch mean F) per call.
+    """
+
+    def __init__(self, objective: ScalarObjective, budget: Budget | None = None):
+        self.objective = objective
+        self.budget = budget or Budget()
+        self.n_evaluations = 0
+        self.n_jacobians = 0
+        self.best_x: np.ndarray | None = None
+        self.best_f = np.inf
+        self.trace: list[tuple[int, float, float]] = []
+        self._t0 = time.perf_counter()
+
+    @property
+    def model(self) -> str:
+        return self.objective.model
+
+    @property
+    def n_params(self) -> int:
+        return self.objective.n_params
+
+    def _allowance(self, m: int) -> int:
+        b = self.budget
+        if b.max_time_s is not None and time.perf_counter() - self._t0 >= b.max_time_s:
+            raise BudgetExhausted(f"time budget of {b.max_time_s} s reached")
+        if b.max_evaluations is None:
+            return m
+        left = b.max_evaluations - self.n_evaluations
+        if left <= 0:
+            raise BudgetExhausted(f"evaluation budget of {b.max_evaluations} reached")
+        return min(m, left)
+
+    def _record(self, x: np.ndarray, f: np.ndarray) -> None:
+        self.n_evaluations += len(f)
+        finite = np.where(np.isfinite(f), f, np.inf)
+        i = int(np.argmin(finite))
+        if finite[i] < self.best_f:
+            self.best_f = float(finite[i])
+            self.best_x = np.array(x[i], dtype=float)
+        self.trace.append((self.n_evaluations, self.best_f, float(np.mean(f))))
+
+    def values(self, x: np.ndarray) -> np.ndarray:
+        """F for a population (m, p) -> (m,); counts m evaluations."""
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        k = self._allowance(x.shape[0])
+        f = self.objective.values(x[:k])
+        self._record(x[:k], f)
+        if k < x.shape[0]:
+            raise BudgetExhausted(f"evaluation budget of {self.budget.max_evaluations} reached")
+        return f
+
+    def value(self, x: np.ndarray) -> float:
+        return float(self.values(np.asarray(x, dtype=float)[None, :])[0])
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """Residual vector at one point; counts one evaluation."""
+        self._allowance(1)
+        r = self.objective.residuals(x)
+        self._record(np.asarray(x, dtype=float)[None, :], np.array([np.mean(r * r)]))
+        return r
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        self.n_jacobians += 1
+        return self.objective.jacobian(x)
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        self.n_jacobians += 1
+        return self.objective.gradient(x)

@@ -1,0 +1,270 @@
+"""The dataset type and its CSV form (CONTRACT section 2).
+
+A ``Dataset`` holds raw readings in nT (sensor frame), sample times, the scalar reference magnitude,
+optional temperature and heading, and the ground truth when it was simulated (``None`` for real data).
+Arrays are copied and made read-only on construction, so no calibrator can change a user's data.
+"""
+from __future__ import annotations
+
+import io
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+UNIT_FACTORS_NT = {"nT": 1.0, "uT": 1e3, "µT": 1e3, "mG": 100.0, "G": 1e5}
+"""Multiply a value in that unit by this factor to get nT."""
+
+FIELD_COLUMNS = ("bx", "by", "bz", "f_ref", "f_meas", "f_meas_before", "f_meas_after")
+
+
+class InputError(ValueError):
+    """Bad input: the command line reports it in one line and exits with status 2."""
+
+
+def _frozen(a, dtype=float, ndim=None, name="array"):
+    if a is None:
+        return None
+    arr = np.array(a, dtype=dtype, copy=True)
+    if ndim is not None and arr.ndim != ndim:
+        raise InputError(f"{name} must have {ndim} dimension(s), got shape {arr.shape}")
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True)
+class Truth:
+    """What was simulated: the true correction (canonical form), the sensor as specified, the field."""
+
+    params: "object"  # simulate.sensor.ErrorParams: what an ideal calibrator reports
+    sensor: "object"  # simulate.sensor.SensorModel as simulated
+    field_ned_nT: tuple[float, float, float]
+    scenario: str = ""
+    seed: int | None = None
+    effects: tuple = ()
+
+    def as_dict(self) -> dict:
+        s = self.sensor
+        return {
+            "scenario": self.scenario,
+            "seed": self.seed,
+            **self.params.as_dict(),
+            "sensor": {
+                "convention": s.convention,
+                "alpha_rad": s.errors.alpha_rad,
+                "beta_rad": s.errors.beta_rad,
+                "gamma_rad": s.errors.gamma_rad,
+                "scale": list(s.errors.scale),
+                "offset_nT": list(s.errors.offset_nT),
+                "noise_nT": s.noise_nT,
+                "quantization_nT": s.quantization_nT,
+            },
+            "field_ned_nT": list(self.field_ned_nT),
+            "field_total_nT": float(np.linalg.norm(self.field_ned_nT)),
+            "effects": [dict(e) for e in self.effects],
+        }
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """Raw readings (n, 3) in nT with their reference magnitude and optional columns."""
+
+    raw_nT: np.ndarray
+    f_ref_nT: np.ndarray | None = None
+    t_s: np.ndarray | None = None
+    temp_C: np.ndarray | None = None
+    heading_deg: np.ndarray | None = None
+    truth: Truth | None = None
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        raw = _frozen(self.raw_nT, ndim=2, name="raw_nT")
+        if raw.shape[1] != 3:
+            raise InputError(f"raw_nT must have 3 columns (bx, by, bz), got {raw.shape[1]}")
+        object.__setattr__(self, "raw_nT", raw)
+        n = raw.shape[0]
+        for name in ("f_ref_nT", "t_s", "temp_C", "heading_deg"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            arr = np.asarray(value, dtype=float)
+            if arr.ndim == 0:
+                arr = np.full(n, float(arr))
+            arr = _frozen(arr, ndim=1, name=name)
+            if arr.shape[0] != n:
+                raise InputError(f"{name} has {arr.shape[0]} rows but raw_nT has {n}")
+            object.__setattr__(self, name, arr)
+        object.__setattr__(self, "meta", dict(self.meta))
+
+    def __len__(self) -> int:
+        return self.raw_nT.shape[0]
+
+    @property
+    def has_reference(self) -> bool:
+        return self.f_ref_nT is not None
+
+    def with_reference(self, f_ref_nT) -> "Dataset":
+        from dataclasses import replace
+
+        return replace(self, f_ref_nT=f_ref_nT)
+
+    # ------------------------------------------------------------------ CSV (CONTRACT section 2)
+    def to_csv(self, path, float_format: str = "%.4f") -> None:
+        import pandas as pd
+
+        cols = {}
+        if self.t_s is not None:
+            cols["t"] = self.t_s
+        cols["bx"], cols["by"], cols["bz"] = self.raw_nT.T
+        if self.f_ref_nT is not None:
+            cols["f_ref"] = self.f_ref_nT
+        if self.temp_C is not None:
+            cols["temp"] = self.temp_C
+        if self.heading_deg is not None:
+            cols["heading_deg"] = self.heading_deg
+        buf = io.StringIO()
+        for key, value in self.meta.items():
+            buf.write(f"# {key}: {value}\n")
+        pd.DataFrame(cols).to_csv(buf, index=False, float_format=float_format, lineterminator="\n")
+        Path(path).write_text(buf.getvalue(), encoding="utf-8")
+
+
+@dataclass(frozen=True)
+class ScalarSeries:
+    """A scalar-only series (seed 000's Table 2 style): total field per heading, no vector readings."""
+
+    f_meas_nT: np.ndarray
+    heading_deg: np.ndarray | None = None
+    f_ref_nT: np.ndarray | None = None
+    t_s: np.ndarray | None = None
+    temp_C: np.ndarray | None = None
+    extra: dict = field(default_factory=dict)
+    meta: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.f_meas_nT)
+
+
+def _parse_meta(lines: list[str]) -> dict:
+    meta = {}
+    for line in lines:
+        body = line.lstrip("#").strip()
+        if ":" in body:
+            key, value = body.split(":", 1)
+            meta[key.strip()] = value.strip()
+    return meta
+
+
+def guess_unit(median_magnitude: float, expected_nT: float) -> str:
+    """The unit whose conversion puts a typical magnitude nearest (in log) to the expected field."""
+    if not (median_magnitude > 0 and math.isfinite(median_magnitude)):
+        return "nT"
+    best = min(("nT", "uT", "mG", "G"),
+               key=lambda u: abs(math.log10(median_magnitude * UNIT_FACTORS_NT[u] / expected_nT)))
+    return best
+
+
+def read_csv(path, units: str = "nT", require_vector: bool = True, expected_field_nT: float | None = None):
+    """Read a data file (CONTRACT section 2) into a ``Dataset`` (or a ``ScalarSeries`` when the file has
+    ``f_meas`` instead of bx, by, bz and ``require_vector`` is false).
+
+    ``units`` applies to every field column of the file (bx, by, bz, f_ref, f_meas); the ``# field_nT:``
+    metadata line is in nT by its name.  Refuses, with an ``InputError`` naming the line, non-numeric or
+    non-finite values; refuses a file whose magnitudes look like another unit than ``units`` (compared
+    with ``expected_field_nT``, else the file's ``# field_nT:``, else the geomagnetic range).
+    """
+    import pandas as pd
+
+    path = Path(path)
+    if units not in UNIT_FACTORS_NT:
+        raise InputError(f"unknown unit {units!r}: use one of nT, uT, mG, G")
+    if not path.is_file():
+        raise InputError(f"no such file: {path}")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path} is not UTF-8 text ({exc.reason})") from None
+    lines = text.splitlines()
+    head = 0
+    while head < len(lines) and (lines[head].startswith("#") or not lines[head].strip()):
+        head += 1
+    meta = _parse_meta([ln for ln in lines[:head] if ln.startswith("#")])
+    if head >= len(lines):
+        raise InputError(f"{path} has no header row and no data")
+    try:
+        frame = pd.read_csv(io.StringIO("\n".join(lines[head:])), skipinitialspace=True)
+    except Exception as exc:  # pandas raises several parser errors
+        raise InputError(f"{path} is not a readable CSV file: {str(exc).splitlines()[0]}") from None
+    frame.columns = [str(c).strip().lower() for c in frame.columns]
+    if len(frame) == 0:
+        raise InputError(f"{path} has a header but no data rows")
+
+    has_vector = all(c in frame.columns for c in ("bx", "by", "bz"))
+    scalar_col = next((c for c in ("f_meas", "f_meas_before") if c in frame.columns), None)
+    if not has_vector and (require_vector or scalar_col is None):
+        missing = [c for c in ("bx", "by", "bz") if c not in frame.columns]
+        extra = " (it is a scalar-only series: use 'magbench diagnose')" if scalar_col else ""
+        raise InputError(f"{path} lacks column(s) {', '.join(missing)}{extra}")
+
+    def column(name, required=False):
+        if name not in frame.columns:
+            return None
+        values = pd.to_numeric(frame[name], errors="coerce").to_numpy(dtype=float)
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            rows = ", ".join(str(head + 2 + i) for i in bad[:5])
+            more = f" and {bad.size - 5} more" if bad.size > 5 else ""
+            raw_value = frame[name].iloc[bad[0]]
+            raise InputError(f"{path}: column {name} has a missing, non-numeric or non-finite value "
+                             f"({raw_value!r}) on line {rows}{more}")
+        return values
+
+    factor = UNIT_FACTORS_NT[units]
+    f_ref = column("f_ref")
+    f_ref = f_ref * factor if f_ref is not None else None
+    field_meta = meta.get("field_nT")
+    if expected_field_nT is None and field_meta is not None:
+        try:
+            expected_field_nT = float(field_meta)
+        except ValueError:
+            raise InputError(f"{path}: metadata line 'field_nT: {field_meta}' is not a number") from None
+
+    common = dict(t_s=column("t"), temp_C=column("temp"), heading_deg=column("heading_deg"))
+    meta = {**meta, "source_file": str(path), "units_read": units}
+    if has_vector:
+        raw = np.column_stack([column(c) for c in ("bx", "by", "bz")])
+        magnitude = float(np.median(np.linalg.norm(raw, axis=1)))
+    else:
+        raw = None
+        magnitude = float(np.median(column(scalar_col)))
+    check_units(magnitude, units, expected_field_nT, where=str(path))
+    if has_vector:
+        return Dataset(raw * factor, f_ref_nT=f_ref, meta=meta, **common)
+    extra = {c: column(c) * factor for c in FIELD_COLUMNS if c in frame.columns and c not in ("f_ref",)}
+    return ScalarSeries(column(scalar_col) * factor, f_ref_nT=f_ref, extra=extra, meta=meta, **common)
+
+
+def check_units(magnitude: float, units: str, expected_field_nT: float | None = None, where: str = "input") -> None:
+    """Refuse magnitudes that look like another unit than the one given.
+
+    With a known field the median magnitude, converted to nT, must lie within a factor 5 of it; without
+    one, between 1,000 and 10,000,000 nT (Earth's field is 22,000 to 67,000 nT; hard-iron offsets and
+    lab coils widen that).  The message names the unit the numbers look like.
+    """
+    nt = magnitude * UNIT_FACTORS_NT[units]
+    reference = expected_field_nT if expected_field_nT else 50000.0
+    ok = 1.0e3 <= nt <= 1.0e7
+    if expected_field_nT:
+        ok = ok and 0.2 <= nt / expected_field_nT <= 5.0
+    if not ok:
+        guess = guess_unit(magnitude, reference)
+        hint = f"they look like {guess}: read with --units {guess}" if guess != units else \
+            "check the file and the reference"
+        ref = f" against a reference of {expected_field_nT:.6g} nT" if expected_field_nT else ""
+        raise InputError(f"{where}: median field magnitude {magnitude:.4g} {units} is implausible{ref}; {hint}")
+
+
+def write_truth(truth: Truth, path) -> None:
+    Path(path).write_text(json.dumps(truth.as_dict(), indent=2) + "\n", encoding="utf-8")
