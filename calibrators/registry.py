@@ -37,8 +37,8 @@ def _load_plugins() -> None:
     for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
         try:
             cls = ep.load()
-            if getattr(cls, "name", "") != ep.name:
-                cls.name = ep.name if not getattr(cls, "name", "") else cls.name
+            if not getattr(cls, "name", ""):
+                cls.name = ep.name
             register(cls)
         except Exception as exc:  # a broken plug-in must not break the built-ins
             _plugin_errors[ep.name] = f"{type(exc).__name__}: {exc}"

@@ -24,7 +24,7 @@ class Attitudes:
 
     def body_field(self, b_ned_nT: np.ndarray) -> np.ndarray:
         """B_body = R^T · B_ned for each sample (``b_ned_nT`` of shape (3,) or (n, 3))."""
-        b = np.broadcast_to(np.asarray(b_ned_nT, dtype=float), (len(self), 3))
+        b = np.array(np.broadcast_to(np.asarray(b_ned_nT, dtype=float), (len(self), 3)))
         return self.rotation.apply(b, inverse=True)
 
 

@@ -1,0 +1,1 @@
+"""magbench's harness: runs, metrics, tables and the ``magbench`` command."""

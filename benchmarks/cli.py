@@ -1,0 +1,285 @@
+"""The ``magbench`` command (CONTRACT section 3).
+
+Exit status 0 on success, 2 on bad input or usage (one line on stderr), 1 otherwise.  ``--json``
+prints exactly one JSON object on stdout.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from simulate.dataset import InputError
+
+EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
+
+
+class UsageError(InputError):
+    pass
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a usage error in one line and exits 2."""
+
+    def error(self, message):
+        raise UsageError(f"{self.prog}: {message} (see --help)")
+
+
+def _add_reference_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("reference magnitude and units (CONTRACT section 2)")
+    g.add_argument("--units", default="nT", choices=["nT", "uT", "G", "mG"],
+                   help="unit of the file's field columns (default nT)")
+    g.add_argument("--field", type=float, metavar="NT", help="reference magnitude in nT for every row")
+    g.add_argument("--igrf", metavar="LAT,LON,ALT_KM,YYYY-MM-DD",
+                   help="reference magnitude from the IGRF-14 model at this place and date")
+
+
+def _reference_from_args(args) -> float | None:
+    """--field, else --igrf (CONTRACT section 2 order, after the file's own f_ref column)."""
+    if args.field is not None:
+        if not (math.isfinite(args.field) and args.field > 0):
+            raise InputError(f"--field must be a positive number of nT, got {args.field}")
+        return args.field
+    if args.igrf:
+        parts = args.igrf.split(",")
+        if len(parts) != 4:
+            raise InputError(f"--igrf wants LAT,LON,ALT_KM,YYYY-MM-DD, got {args.igrf!r}")
+        try:
+            lat, lon, alt = (float(v) for v in parts[:3])
+            from simulate.field import igrf_field
+
+            return igrf_field(lat, lon, alt, parts[3].strip()).total_nT
+        except ValueError as exc:
+            raise InputError(f"--igrf {args.igrf!r}: {exc}") from None
+    return None
+
+
+def load_dataset(args, require_vector: bool = True):
+    """Read FILE with the reference options; f_ref column > --field > --igrf > '# field_nT:'."""
+    from simulate.dataset import read_csv
+
+    cli_ref = _reference_from_args(args)
+    data = read_csv(args.file, units=args.units, require_vector=require_vector, expected_field_nT=cli_ref)
+    if data.f_ref_nT is None:
+        ref = cli_ref
+        if ref is None and "field_nT" in data.meta:
+            ref = float(data.meta["field_nT"])
+        if ref is not None:
+            data = data.with_reference(np.full(len(data), ref))
+    return data
+
+
+def _parse_params(items) -> dict:
+    params = {}
+    for item in items or []:
+        if "=" not in item:
+            raise InputError(f"--param wants KEY=VALUE, got {item!r}")
+        key, value = item.split("=", 1)
+        try:
+            params[key.strip()] = json.loads(value)
+        except json.JSONDecodeError:
+            params[key.strip()] = value
+    return params
+
+
+def _emit(args, obj: dict, text: str) -> None:
+    if getattr(args, "json", False):
+        sys.stdout.write(json.dumps(obj, default=_json_default) + "\n")
+    else:
+        sys.stdout.write(text.rstrip("\n") + "\n")
+
+
+def _json_default(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (np.floating, np.integer, np.bool_)):
+        return o.item()
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    raise TypeError(f"not JSON serializable: {type(o).__name__}")
+
+
+# ---------------------------------------------------------------------------------------- commands
+def cmd_list(args) -> int:
+    from calibrators import available
+    from simulate.scenarios import get_scenario, scenario_names
+    from simulate.sensor import MODELS, PARAM_NAMES
+
+    cals = [{"name": n, "models": list(c.supported_models), "stochastic": c.stochastic, "summary": c.summary,
+             "hyperparameters": c._param_names()} for n, c in sorted(available().items())]
+    scen = [{"name": n, "model": get_scenario(n).model, "description": get_scenario(n).description}
+            for n in scenario_names()]
+    effects = list_effects()
+    obj = {"calibrators": cals, "models": [{"name": m, "parameters": list(PARAM_NAMES[m])} for m in MODELS],
+           "scenarios": scen, "effects": effects}
+    lines = ["calibrators:"] + [f"  {c['name']:<10} [{', '.join(c['models'])}] {c['summary']}" for c in cals]
+    lines += ["models:"] + [f"  {m['name']:<10} {', '.join(m['parameters'])}" for m in obj["models"]]
+    lines += ["scenarios:"] + [f"  {s['name']:<13} ({s['model']}) {s['description']}" for s in scen]
+    lines += ["effects:"] + [f"  {e['name']:<13} {e['description']}" for e in effects]
+    _emit(args, obj, "\n".join(lines))
+    return EXIT_OK
+
+
+def list_effects() -> list[dict]:
+    """Effects the simulator can switch on (CONTRACT section 3 names)."""
+    return [
+        {"name": "scale", "description": "per-axis scale factors (the nine model)"},
+        {"name": "offset", "description": "per-axis offsets in nT (the nine model)"},
+        {"name": "field_drift", "description": "ambient field varying in time (VaryingField; tumble9 scenario)"},
+    ]
+
+
+def cmd_simulate(args) -> int:
+    from simulate.dataset import write_truth
+    from simulate.scenarios import get_scenario
+
+    scenario = get_scenario(args.scenario)
+    out = Path(args.out)
+    for path in filter(None, [out, Path(args.truth) if args.truth else None]):
+        if path.exists() and not args.force:
+            raise InputError(f"{path} exists; refusing to overwrite it (use --force)")
+        if not path.parent.exists():
+            raise InputError(f"directory {path.parent} does not exist")
+    data = scenario.build(args.seed)
+    data.to_csv(out)
+    if args.truth:
+        write_truth(data.truth, args.truth)
+    obj = {"scenario": scenario.name, "seed": args.seed, "out": str(out), "truth": args.truth,
+           "n_points": len(data), "model": scenario.model}
+    _emit(args, obj, f"wrote {len(data)} samples of scenario {scenario.name} (seed {args.seed}) to {out}"
+          + (f"; truth to {args.truth}" if args.truth else ""))
+    return EXIT_OK
+
+
+def cmd_calibrate(args) -> int:
+    from calibrators import make
+
+    data = load_dataset(args)
+    params = _parse_params(args.param)
+    if args.algorithm:
+        params["algorithm"] = args.algorithm
+    cal = make(args.method, model=args.model, seed=args.seed, **params)
+    result = cal.fit(data)
+    obj = result.as_dict()
+    p = result.params
+    lines = [f"{result.method} ({result.model} model), {len(data)} points, {result.status}: {result.message}",
+             f"  alpha  {p.alpha_rad: .6e} rad   beta {p.beta_rad: .6e} rad   gamma {p.gamma_rad: .6e} rad"]
+    if result.model == "nine":
+        lines.append("  scale  " + "  ".join(f"{k:.6f}" for k in p.scale)
+                     + "    offset " + "  ".join(f"{o:.2f}" for o in p.offset_nT) + " nT")
+    lines.append(f"  total-field RMS {result.rms_before_nT:.3f} -> {result.rms_after_nT:.3f} nT; "
+                 f"{result.n_evaluations} evaluations, {result.runtime_s * 1e3:.1f} ms, seed {result.seed}")
+    lines += [f"  warning: {w}" for w in result.warnings]
+    _emit(args, obj, "\n".join(lines))
+    return EXIT_OK
+
+
+def cmd_demo(args) -> int:
+    import pandas as pd
+
+    from benchmarks.runner import ARCSEC_PER_RAD, run_one
+    from calibrators import available
+    from simulate.scenarios import get_scenario
+
+    rows = []
+    for name in ("lu2014", "sphere9"):
+        scenario = get_scenario(name)
+        data = scenario.build(args.seed)
+        for method in sorted(available()):
+            rows.append(run_one(data, method, scenario.model, seed=args.seed, scenario=name))
+    frame = pd.DataFrame(rows)
+    if args.json:
+        _emit(args, {"seed": args.seed, "rows": frame.replace({np.nan: None}).to_dict(orient="records")}, "")
+        return EXIT_OK
+    lines = [f"magbench demo (seed {args.seed}): seed 000's turntable experiment (lu2014, 3 angles) and a "
+             "full-sphere 9-parameter sensor (sphere9), every registered calibrator.", ""]
+    for name, part in frame.groupby("scenario", sort=False):
+        lines.append(f"== {name}: {get_scenario(name).description}")
+        table = pd.DataFrame({
+            "method": part["method"],
+            "d_alpha\"": part.get("alpha_err_rad", np.nan) * ARCSEC_PER_RAD,
+            "d_beta\"": part.get("beta_err_rad", np.nan) * ARCSEC_PER_RAD,
+            "d_gamma\"": part.get("gamma_err_rad", np.nan) * ARCSEC_PER_RAD,
+            "rms_before_nT": part.get("rms_before_nT", np.nan),
+            "rms_after_nT": part.get("rms_after_nT", np.nan),
+            "evals": part.get("n_evaluations", np.nan),
+            "ms": part.get("runtime_s", np.nan) * 1e3,
+        })
+        if "scale_err_max" in part and part["scale_err_max"].notna().any():
+            table.insert(4, "d_scale", part["scale_err_max"])
+            table.insert(5, "d_offset_nT", part["offset_err_max_nT"])
+        lines.append(table.to_string(index=False, float_format=lambda v: f"{v:.3g}", na_rep="-"))
+        for _, r in part[part["error"] != ""].iterrows():
+            lines.append(f"  {r['method']}: not run: {r['error']}")
+        lines.append("")
+    lines.append("d_*: estimate minus truth (angles in arc-seconds); rms: total-field residual against the "
+                 "reference before and after calibration.")
+    _emit(args, {}, "\n".join(lines))
+    return EXIT_OK
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="magbench", description="Simulate tri-axial fluxgate magnetometers and benchmark "
+                     "their calibration algorithms.")
+    sub = parser.add_subparsers(dest="command", parser_class=_Parser)
+
+    p = sub.add_parser("list", help="calibrators, models, scenarios, effects")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_list)
+
+    p = sub.add_parser("simulate", help="simulate a scenario to a CSV file and its truth to JSON")
+    p.add_argument("--scenario", required=True)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", required=True, metavar="FILE.csv")
+    p.add_argument("--truth", metavar="FILE.json")
+    p.add_argument("--force", action="store_true", help="overwrite existing output files")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("calibrate", help="calibrate a data file with one method")
+    p.add_argument("file", metavar="FILE.csv")
+    p.add_argument("--method", required=True)
+    p.add_argument("--model", default="nine", choices=["angles", "nine"])
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--algorithm", help="NLopt algorithm name (method nlopt)")
+    p.add_argument("--param", action="append", metavar="KEY=VALUE", help="a hyper-parameter (repeatable)")
+    p.add_argument("--json", action="store_true")
+    _add_reference_options(p)
+    p.set_defaults(func=cmd_calibrate)
+
+    p = sub.add_parser("demo", help="simulate seed 000's experiment and a sphere, compare every calibrator")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_demo)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+        if not getattr(args, "command", None):
+            parser.print_help(sys.stderr)
+            return EXIT_USAGE
+        return args.func(args)
+    except InputError as exc:
+        sys.stderr.write(f"magbench: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}\n")
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        sys.stderr.write("magbench: interrupted\n")
+        return EXIT_FAIL
+    except Exception as exc:  # anything else is our fault: one line, status 1, traceback on request
+        if os.environ.get("MAGBENCH_DEBUG"):
+            raise
+        sys.stderr.write(f"magbench: internal error: {type(exc).__name__}: {exc} "
+                         "(set MAGBENCH_DEBUG=1 for a traceback)\n")
+        return EXIT_FAIL
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

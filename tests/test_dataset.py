@@ -1,0 +1,49 @@
+import numpy as np
+import pytest
+
+from simulate import Dataset, InputError, read_csv, simulate
+
+
+def test_csv_round_trip(tmp_path):
+    data = simulate("lu2014", 4)
+    path = tmp_path / "lu.csv"
+    data.to_csv(path)
+    back = read_csv(path)
+    np.testing.assert_allclose(back.raw_nT, data.raw_nT, atol=1e-4)
+    np.testing.assert_allclose(back.f_ref_nT, data.f_ref_nT, atol=1e-4)
+    np.testing.assert_allclose(back.heading_deg, data.heading_deg)
+    assert back.meta["scenario"] == "lu2014" and float(back.meta["field_nT"]) == pytest.approx(51978.74)
+    assert back.truth is None  # truth travels separately (magbench simulate --truth)
+
+
+def test_dataset_copies_and_freezes_input():
+    raw = np.ones((10, 3)) * 30000.0
+    data = Dataset(raw, f_ref_nT=52000.0)
+    raw[0, 0] = 0.0
+    assert data.raw_nT[0, 0] == 30000.0
+    with pytest.raises(ValueError):
+        data.raw_nT[0, 0] = 1.0
+    assert data.f_ref_nT.shape == (10,)
+
+
+def test_same_seed_same_data_other_seed_other_data():
+    a, b, c = simulate("sphere9", 1), simulate("sphere9", 1), simulate("sphere9", 2)
+    np.testing.assert_array_equal(a.raw_nT, b.raw_nT)
+    assert not np.array_equal(a.raw_nT, c.raw_nT)
+
+
+def test_lu2014_matches_the_paper_setup():
+    data = simulate("lu2014", 0)
+    assert len(data) == 36 and np.allclose(np.diff(data.heading_deg), 10.0)
+    np.testing.assert_allclose(data.f_ref_nT, 51978.74)
+    t = data.truth
+    assert (t.params.alpha_rad, t.params.beta_rad, t.params.gamma_rad) == (0.0163, -0.0139, 0.0131)
+    incl = np.degrees(np.arctan2(t.field_ned_nT[2], np.hypot(*t.field_ned_nT[:2])))
+    assert 52.0 < incl < 53.0  # Xi'an 2013 (IGRF)
+    rms = np.sqrt(np.mean((np.linalg.norm(data.raw_nT, axis=1) - data.f_ref_nT) ** 2))
+    assert 300 < rms < 500  # the paper's text reports 411.82 nT before calibration
+
+
+def test_wrong_shape_refused():
+    with pytest.raises(InputError):
+        Dataset(np.ones((5, 2)))
