@@ -14,6 +14,15 @@ from .ellipsoid import ellipsoid_params
 from .registry import register
 
 
+def levenberg_marquardt(problem: Problem, x_start: np.ndarray, tol: float = 1e-12, max_nfev: int = 200):
+    """LM on the problem's counted residuals and Jacobian from ``x_start`` (scipy's MINPACK wrapper)."""
+    obj = problem.objective
+    if obj.budget.max_evaluations is not None:
+        max_nfev = max(1, min(max_nfev, obj.budget.max_evaluations - obj.n_evaluations))
+    return least_squares(obj.residuals, x_start, jac=obj.jacobian, method="lm", x_scale="jac",
+                         ftol=tol, xtol=tol, gtol=tol, max_nfev=max_nfev)
+
+
 @register
 class LeastSquares(Calibrator):
     """Levenberg-Marquardt on the scalar residuals, analytic Jacobian.
@@ -49,13 +58,7 @@ class LeastSquares(Calibrator):
         return x_e if fe < f0 else problem.x0
 
     def _solve(self, problem: Problem) -> SolveOutput:
-        obj = problem.objective
-        x_start = self._start(problem)
-        max_nfev = self.max_nfev
-        if obj.budget.max_evaluations is not None:
-            max_nfev = min(max_nfev, obj.budget.max_evaluations)
-        sol = least_squares(obj.residuals, x_start, jac=obj.jacobian, method="lm", x_scale="jac",
-                            ftol=self.tol, xtol=self.tol, gtol=self.tol, max_nfev=max_nfev)
+        sol = levenberg_marquardt(problem, self._start(problem), self.tol, self.max_nfev)
         status = {0: "max_nfev", 1: "gtol", 2: "ftol", 3: "xtol", 4: "ftol_xtol"}.get(sol.status, str(sol.status))
         return SolveOutput(sol.x, status=status, message=sol.message, nit=int(sol.nfev),
                            success=bool(sol.status > 0))

@@ -50,6 +50,40 @@ def correction_matrices(x: np.ndarray, model: str) -> tuple[np.ndarray, np.ndarr
     return mat, o
 
 
+def quadric_coefficients(x: np.ndarray, model: str) -> np.ndarray:
+    """Coefficients q (m, 10) such that ``|M (raw - o)|² = q · design(raw)`` for each row of ``x``.
+
+    With W = M^T M: ``|M (r - o)|² = r^T W r - 2 (W o)^T r + o^T W o`` (the ellipsoid of the readings).
+    For the lower-triangular M the six entries of W are written out, so a population costs a handful
+    of vector operations and one matrix product with the (10, n) design.
+    """
+    x = np.atleast_2d(np.asarray(x, dtype=float))
+    cos, sin = np.cos(x[:, :3]), np.sin(x[:, :3])
+    # the columns of P are unit vectors, so diag(P^T P) = 1 and W = K^-1 P^T P K^-1 has
+    # W01 = (sin g cos b + sin a cos g sin b)/(kx ky), W02 = sin a cos g/(kx kz), W12 = sin b/(ky kz)
+    q = np.empty((x.shape[0], 10 if model == "nine" else 6))
+    w01 = sin[:, 2] * cos[:, 1] + sin[:, 0] * cos[:, 2] * sin[:, 1]
+    w02 = sin[:, 0] * cos[:, 2]
+    w12 = sin[:, 1]
+    if model != "nine":
+        q[:, :3] = 1.0
+        q[:, 3], q[:, 4], q[:, 5] = w01, w02, w12
+        return q
+    ik = 1.0 / x[:, 3:6]
+    w00, w11, w22 = ik[:, 0] * ik[:, 0], ik[:, 1] * ik[:, 1], ik[:, 2] * ik[:, 2]
+    w01 = w01 * ik[:, 0] * ik[:, 1]
+    w02 = w02 * ik[:, 0] * ik[:, 2]
+    w12 = w12 * ik[:, 1] * ik[:, 2]
+    q[:, 0], q[:, 1], q[:, 2], q[:, 3], q[:, 4], q[:, 5] = w00, w11, w22, w01, w02, w12
+    ox, oy, oz = x[:, 6], x[:, 7], x[:, 8]
+    wo0 = w00 * ox + w01 * oy + w02 * oz
+    wo1 = w01 * ox + w11 * oy + w12 * oz
+    wo2 = w02 * ox + w12 * oy + w22 * oz
+    q[:, 6], q[:, 7], q[:, 8] = -2 * wo0, -2 * wo1, -2 * wo2
+    q[:, 9] = ox * wo0 + oy * wo1 + oz * wo2
+    return q
+
+
 class ScalarObjective:
     """Scalar residuals ``r_i = |M (raw_i - o)| - F_i`` and their mean square (seed 000, eq. 3)."""
 
@@ -60,21 +94,31 @@ class ScalarObjective:
         self.f_ref = np.broadcast_to(np.asarray(f_ref_nT, dtype=float), (self.raw.shape[0],))
         self.model = model
         self.n_params = n_params(model)
+        x, y, z = self.raw.T
+        cols = [x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z]
+        if model == "nine":
+            cols += [x, y, z, np.ones_like(x)]
+        self._design = np.ascontiguousarray(np.array(cols))  # (6 or 10, n)
 
     def residuals_batch(self, x: np.ndarray) -> np.ndarray:
-        """Residuals for a population: (m, p) -> (m, n)."""
-        mat, o = correction_matrices(x, self.model)
-        d = self.raw[None, :, :] - o[:, None, :]  # (m, n, 3)
-        corrected = np.einsum("mij,mnj->mni", mat, d)
-        return np.sqrt(np.einsum("mni,mni->mn", corrected, corrected)) - self.f_ref[None, :]
+        """Residuals for a population: (m, p) -> (m, n), through the quadric form (one matrix product)."""
+        q = quadric_coefficients(x, self.model) @ self._design
+        np.maximum(q, 0.0, out=q)
+        np.sqrt(q, out=q)
+        q -= self.f_ref
+        return q
 
     def values(self, x: np.ndarray) -> np.ndarray:
         """F(X) of eq. 3 for each row of a population: (m, p) -> (m,)."""
         r = self.residuals_batch(x)
-        return np.mean(r * r, axis=1)
+        r *= r
+        return r.sum(axis=1) / r.shape[1]
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
-        return self.residuals_batch(np.asarray(x, dtype=float)[None, :])[0]
+        """Residuals at one point, computed directly as |M (raw - o)| - F (the reference form)."""
+        mat, o = correction_matrices(np.asarray(x, dtype=float)[None, :], self.model)
+        c = (self.raw - o[0]) @ mat[0].T
+        return np.linalg.norm(c, axis=1) - self.f_ref
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         """d r_i / d x (n, p), analytic: dr/dθ = u^T (dM/dθ) d, dr/do = -u^T M, u = c/|c|, d = raw - o."""
@@ -160,12 +204,14 @@ class CountedObjective:
 
     def _record(self, x: np.ndarray, f: np.ndarray) -> None:
         self.n_evaluations += len(f)
-        finite = np.where(np.isfinite(f), f, np.inf)
-        i = int(np.argmin(finite))
-        if finite[i] < self.best_f:
-            self.best_f = float(finite[i])
+        i = int(np.argmin(f))
+        if not np.isfinite(f[i]):  # argmin prefers NaN: look again among the finite values
+            finite = np.where(np.isfinite(f), f, np.inf)
+            i = int(np.argmin(finite))
+        if f[i] < self.best_f:
+            self.best_f = float(f[i])
             self.best_x = np.array(x[i], dtype=float)
-        self.trace.append((self.n_evaluations, self.best_f, float(np.mean(f))))
+        self.trace.append((self.n_evaluations, self.best_f, float(f.sum()) / len(f)))
 
     def values(self, x: np.ndarray) -> np.ndarray:
         """F for a population (m, p) -> (m,); counts m evaluations."""

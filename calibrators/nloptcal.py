@@ -1,0 +1,89 @@
+"""``nlopt``: the NLopt library's algorithms behind one calibrator.
+
+Local derivative-free (default ``LN_BOBYQA``; also LN_NELDERMEAD, LN_SBPLX, LN_COBYLA, ...), global
+(``GN_CRS2_LM``, ``GN_ISRES``, ``GN_ESCH``, ``GN_DIRECT_L``, ...) and gradient-based (``LD_LBFGS``,
+``LD_MMA``, ``LD_SLSQP``, ...; they get the analytic gradient of eq. 3).  The variables are normalized
+to [0, 1] over the search box so that one tolerance fits angles, scales and offsets.  Stochastic
+algorithms are seeded with ``nlopt.srand(seed)``.
+"""
+from __future__ import annotations
+
+import nlopt
+import numpy as np
+
+from simulate.dataset import InputError
+
+from .base import Calibrator, Problem, SolveOutput
+from .registry import register
+
+RESULT_NAMES = {1: "success", 2: "stopval_reached", 3: "ftol_reached", 4: "xtol_reached", 5: "maxeval_reached",
+                6: "maxtime_reached"}
+
+
+@register
+class NLoptCalibrator(Calibrator):
+    """Any NLopt algorithm on the shared objective (``algorithm`` is NLopt's name, e.g. LN_BOBYQA)."""
+
+    name = "nlopt"
+    summary = "NLopt algorithms (--algorithm; default LN_BOBYQA; GN_* global, LD_* analytic gradient)"
+    stochastic = True
+    check_tolerance = {"angle_rad": 5e-5, "scale": 5e-5, "offset_nT": 1.0}
+
+    def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, algorithm: str = "LN_BOBYQA",
+                 max_evaluations: int = 20000, ftol_rel: float = 1e-14, xtol_rel: float = 1e-10,
+                 angle_range_rad: float = 0.1, scale_range: float = 0.1, offset_range_nT: float | None = None,
+                 population: int = 0):
+        super().__init__(model=model, seed=seed, budget=budget)
+        self.algorithm = algorithm
+        self.max_evaluations = max_evaluations
+        self.ftol_rel = ftol_rel
+        self.xtol_rel = xtol_rel
+        self.angle_range_rad = angle_range_rad
+        self.scale_range = scale_range
+        self.offset_range_nT = offset_range_nT
+        self.population = population
+
+    def _solve(self, problem: Problem) -> SolveOutput:
+        from .genetic import _bounds
+
+        code = getattr(nlopt, str(self.algorithm), None)
+        if not isinstance(code, int) or not str(self.algorithm)[:3] in ("LN_", "LD_", "GN_", "GD_"):
+            raise InputError(f"nlopt: unknown algorithm {self.algorithm!r} (e.g. LN_BOBYQA, LD_LBFGS, GN_CRS2_LM, "
+                             "GN_ISRES, GN_ESCH)")
+        obj = problem.objective
+        f_ref = float(np.median(problem.f_ref_nT))
+        offset = self.offset_range_nT if self.offset_range_nT is not None else 0.1 * f_ref
+        lo, hi = _bounds(problem, self.angle_range_rad, self.scale_range, offset)
+        span = hi - lo
+        nlopt.srand(int(self.seed) if self.seed is not None else 0)
+        opt = nlopt.opt(code, len(lo))
+        uses_gradient = str(self.algorithm)[1] == "D"
+
+        def f(u, grad):
+            x = lo + u * span
+            if grad.size:
+                grad[:] = obj.gradient(x) * span
+            return obj.value(x)
+
+        opt.set_min_objective(f)
+        opt.set_lower_bounds(np.zeros(len(lo)))
+        opt.set_upper_bounds(np.ones(len(lo)))
+        opt.set_maxeval(int(self.max_evaluations))
+        if obj.budget.max_time_s is not None:
+            opt.set_maxtime(obj.budget.max_time_s)
+        opt.set_ftol_rel(self.ftol_rel)
+        opt.set_xtol_rel(self.xtol_rel)
+        if self.population:
+            opt.set_population(int(self.population))
+        if str(self.algorithm).startswith("LN_"):
+            opt.set_initial_step(np.full(len(lo), 0.05))
+        u0 = np.clip((problem.x0 - lo) / span, 0.0, 1.0)
+        try:
+            opt.optimize(u0)
+            result = opt.last_optimize_result()
+        except nlopt.RoundoffLimited:
+            result = -4
+        status = RESULT_NAMES.get(result, f"nlopt_{result}")
+        return SolveOutput(obj.best_x, status=status, message=f"NLopt {self.algorithm}: {status}",
+                           nit=obj.n_evaluations, success=result > 0 or result == -4,
+                           extra={"algorithm": self.algorithm, "uses_gradient": uses_gradient})
