@@ -19,6 +19,9 @@ def run_one(dataset: Dataset, method: str, model: str, seed: int = 0, scenario: 
     except InputError as exc:
         row["error"] = str(exc)
         return row
+    except Exception as exc:  # a failing run is a row, not the end of the campaign
+        row["error"] = f"{type(exc).__name__}: {exc}"
+        return row
     row.update(success=result.success, status=result.status, rms_before_nT=result.rms_before_nT,
                rms_after_nT=result.rms_after_nT, n_evaluations=result.n_evaluations,
                runtime_s=result.runtime_s, warnings="; ".join(result.warnings))

@@ -241,7 +241,7 @@ class Calibrator:
         runtime = time.perf_counter() - t0
 
         x = np.asarray(out.x, dtype=float)
-        f_start, f_x = objective.values(np.vstack([x0, x]))
+        f_start, f_x = objective.values(np.vstack([x0, x]), exact=True)
         success, status, message = out.success, out.status, out.message
         if not np.isfinite(f_x) or f_x > f_start:
             warnings.append(f"{self.name} ended worse than no calibration (F {f_x:.6g} > {f_start:.6g}); "

@@ -193,6 +193,9 @@ class AdaptiveGAPolished(AdaptiveGA):
         return {"max_generations": 300, "k_max": 300}
 
 
+_COPY_PARENTS = np.array([0.0, 1.0])[:, None, None]  # s for pairs that do not cross: child 1 = pa, 2 = pb
+
+
 @register
 class RealGA(Calibrator):
     """A plain real-coded GA with fixed crossover and mutation probabilities.
@@ -231,25 +234,32 @@ class RealGA(Calibrator):
 
     def _select(self, f: np.ndarray, n: int, rng) -> np.ndarray:
         """Tournament: the best of ``tournament`` random individuals, ``n`` times."""
-        cand = rng.integers(0, len(f), size=(n, self.tournament))
+        cand = (rng.random((n, self.tournament)) * len(f)).astype(np.intp)
+        if self.tournament == 2:
+            return np.where(f[cand[:, 0]] <= f[cand[:, 1]], cand[:, 0], cand[:, 1])
         return cand[np.arange(n), np.argmin(f[cand], axis=1)]
 
     def _mutate(self, u: np.ndarray, t: float, rng) -> np.ndarray:
-        """Non-uniform mutation in [0, 1]: move towards 0 or 1 by (distance)(1 - r^((1-t)^b))."""
-        mask = rng.random(u.shape) < self.pm
-        r = rng.random(u.shape)
-        delta = 1.0 - r ** ((1.0 - t) ** self.nonuniform_b)
-        up = rng.random(u.shape) < 0.5
-        moved = np.where(up, u + (1.0 - u) * delta, u - u * delta)
-        return np.where(mask, moved, u)
+        """Non-uniform mutation in [0, 1] (Michalewicz): with probability pm a gene moves towards 0 or 1
+        (even odds) by (distance) * (1 - r^((1-t)^b)), a step that shrinks as the run advances."""
+        w = rng.random((2,) + u.shape)
+        delta = w[1] ** ((1.0 - t) ** self.nonuniform_b)
+        np.subtract(1.0, delta, out=delta)
+        delta *= w[0] < self.pm  # genes not hit do not move
+        u += ((w[0] >= 0.5 * self.pm) - u) * delta  # w[0] < pm/2: towards 0, else towards 1
+        return u
 
-    def _crossover(self, pa: np.ndarray, pb: np.ndarray, rng) -> tuple[np.ndarray, np.ndarray]:
-        """BLX-alpha: children uniform in the parents' interval widened by alpha on each side."""
-        lo, hi = np.minimum(pa, pb), np.maximum(pa, pb)
-        span = hi - lo
-        c1 = rng.uniform(lo - self.blx_alpha * span, hi + self.blx_alpha * span)
-        c2 = rng.uniform(lo - self.blx_alpha * span, hi + self.blx_alpha * span)
-        return c1, c2
+    def _crossover(self, pa: np.ndarray, pb: np.ndarray, cross: np.ndarray, rng) -> np.ndarray:
+        """BLX-alpha on the pairs where ``cross``: each child uniform in the parents' interval widened by
+        alpha on each side, ``pa + (pb - pa) s`` with s uniform in [-alpha, 1 + alpha]; other pairs are
+        copied.  Returns the two children stacked, shape (2, pairs, genes)."""
+        s = rng.random((2,) + pa.shape)
+        s *= 1.0 + 2.0 * self.blx_alpha
+        s -= self.blx_alpha
+        s = np.where(cross[None, :, None], s, _COPY_PARENTS)
+        s *= pb - pa
+        s += pa
+        return s
 
     def _solve(self, problem: Problem) -> SolveOutput:
         if self.population < 4:
@@ -263,26 +273,26 @@ class RealGA(Calibrator):
         span = hi - lo
         m, p, half = self.population, len(lo), (self.population + 1) // 2
         u = rng.random((m, p))
-        f = obj.values(lo + u * span)
-        best_f, mean_f = [f.min()], [f.mean()]
+        x = lo + u * span
+        f = obj.values(x)
         for gen in range(1, self.generations):
             t = gen / self.generations
-            parents = self._select(f, 2 * half, rng)
-            pa, pb = u[parents[:half]], u[parents[half:]]
-            cross = (rng.random(half) < self.pc)[:, None]
-            c1, c2 = self._crossover(pa, pb, rng)
-            children = np.vstack([np.where(cross, c1, pa), np.where(cross, c2, pb)])[:m]
-            children = np.clip(self._mutate(children, t, rng), 0.0, 1.0)
-            if self.elitism:
-                elite = np.argpartition(f, self.elitism - 1)[:self.elitism]
-                children[-self.elitism:] = u[elite]
-            f_children = obj.values(lo + children * span)
-            u, f = children, f_children
-            best_f.append(f.min())
-            mean_f.append(f.mean())
+            pa, pb = u[self._select(f, 2 * half, rng)].reshape(2, half, p)
+            cross = rng.random(half) < self.pc
+            children = self._crossover(pa, pb, cross, rng).reshape(2 * half, p)[:m]
+            children = self._mutate(children, t, rng)
+            np.maximum(children, 0.0, out=children)
+            np.minimum(children, 1.0, out=children)
+            if self.elitism == 1:
+                children[-1] = u[np.argmin(f)]
+            elif self.elitism:
+                children[-self.elitism:] = u[np.argpartition(f, self.elitism - 1)[:self.elitism]]
+            np.multiply(children, span, out=x)
+            x += lo
+            f = obj.values(x)
+            u = children
         return SolveOutput(obj.best_x, status="max_generations", message=f"{self.generations} generations",
-                           nit=self.generations, extra={"generations": self.generations,
-                                                        "best_F": best_f, "mean_F": mean_f})
+                           nit=self.generations, extra={"generations": self.generations})
 
 
 @register
@@ -318,14 +328,14 @@ class ElitistRealGA(RealGA):
         pointers = (rng.random() + np.arange(n)) / n
         return rng.permutation(np.searchsorted(cum, pointers).clip(max=len(f) - 1))
 
-    def _crossover(self, pa, pb, rng):
-        """Scattered: each gene from either parent at random."""
-        pick = rng.random(pa.shape) < 0.5
-        return np.where(pick, pa, pb), np.where(pick, pb, pa)
+    def _crossover(self, pa, pb, cross, rng):
+        """Scattered on the pairs where ``cross``: each gene from either parent at random."""
+        pick = (rng.random(pa.shape) < 0.5) | ~cross[:, None]
+        return np.stack([np.where(pick, pa, pb), np.where(pick, pb, pa)])
 
     def _mutate(self, u, t, rng):
         """Gaussian, standard deviation ``mutation_scale`` (of the box) shrinking as (1 - t)^b, applied to
         a fraction ``pm`` of the children."""
         sigma = self.mutation_scale * (1.0 - t) ** self.nonuniform_b
-        mask = rng.random(u.shape[0]) < self.pm
-        return np.where(mask[:, None], u + rng.normal(0.0, sigma, u.shape), u)
+        mask = rng.random((u.shape[0], 1)) < self.pm
+        return np.where(mask, u + sigma * rng.standard_normal(u.shape), u)

@@ -14,6 +14,7 @@ import numpy as np
 from simulate.dataset import InputError
 
 from .base import Calibrator, Problem, SolveOutput
+from .objective import BudgetExhausted
 from .registry import register
 
 RESULT_NAMES = {1: "success", 2: "stopval_reached", 3: "ftol_reached", 4: "xtol_reached", 5: "maxeval_reached",
@@ -78,12 +79,19 @@ class NLoptCalibrator(Calibrator):
         if str(self.algorithm).startswith("LN_"):
             opt.set_initial_step(np.full(len(lo), 0.05))
         u0 = np.clip((problem.x0 - lo) / span, 0.0, 1.0)
+        message = ""
         try:
             opt.optimize(u0)
             result = opt.last_optimize_result()
         except nlopt.RoundoffLimited:
             result = -4
-        status = RESULT_NAMES.get(result, f"nlopt_{result}")
-        return SolveOutput(obj.best_x, status=status, message=f"NLopt {self.algorithm}: {status}",
+        except BudgetExhausted:
+            raise
+        except Exception as exc:  # NLopt's generic failures (nlopt.runtime_error, a broken line search, ...)
+            if obj.best_x is None:
+                raise
+            result, message = -1, f" ({type(exc).__name__}: {exc})"
+        status = RESULT_NAMES.get(result, {-1: "failure", -4: "roundoff_limited"}.get(result, f"nlopt_{result}"))
+        return SolveOutput(obj.best_x, status=status, message=f"NLopt {self.algorithm}: {status}{message}",
                            nit=obj.n_evaluations, success=result > 0 or result == -4,
                            extra={"algorithm": self.algorithm, "uses_gradient": uses_gradient})

@@ -1,0 +1,107 @@
+"""Quality targets of the calibrators issue; writes results/quality.md and results/quality.csv.
+
+    python -m benchmarks.quality [--seeds-lu 50] [--seeds-sphere 10]
+
+1. On ``lu2014`` the AGA recovers alpha, beta, gamma within its coding resolution (0.0002 rad) in at
+   least 95 % of 50 seeds; where the paper's AGA falls short, by how much, and ``aga-lm`` beside it.
+2. On ``sphere9`` ga, aco and nlopt reach the optimum that lsq reaches (residual RMS within 5 %).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.runner import run_one
+from simulate import simulate
+
+RESOLUTION_RAD = 0.2 / (2**10 - 1)  # seed 000, eq. 6
+SPHERE_METHODS = [("ga", {}), ("rga", {}), ("aco", {}), ("nlopt", {}), ("nlopt", {"algorithm": "LD_LBFGS"}),
+                  ("nlopt", {"algorithm": "GN_CRS2_LM", "max_evaluations": 80000}),
+                  ("nlopt", {"algorithm": "GN_ISRES", "max_evaluations": 80000}),
+                  ("nlopt", {"algorithm": "GN_ESCH", "max_evaluations": 80000}),
+                  ("aga", {}), ("aga-lm", {}), ("ellipsoid", {})]
+
+
+def lu2014_study(n_seeds: int) -> pd.DataFrame:
+    rows = []
+    for seed in range(n_seeds):
+        data = simulate("lu2014", seed)
+        for method in ("aga", "aga-lm", "lsq"):
+            rows.append(run_one(data, method, "angles", seed=seed, scenario="lu2014"))
+    return pd.DataFrame(rows)
+
+
+def sphere_study(n_seeds: int) -> pd.DataFrame:
+    rows = []
+    for seed in range(n_seeds):
+        data = simulate("sphere9", seed)
+        ref = run_one(data, "lsq", "nine", seed=seed, scenario="sphere9")
+        ref["configuration"] = "lsq"
+        ref["rms_ratio_to_lsq"] = 1.0
+        rows.append(ref)
+        for method, params in SPHERE_METHODS:
+            row = run_one(data, method, "nine", seed=seed, scenario="sphere9", **params)
+            row["configuration"] = method + "".join(f" {k}={v}" for k, v in params.items())
+            row["rms_ratio_to_lsq"] = row.get("rms_after_nT", np.nan) / ref["rms_after_nT"]
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def write(out_dir: Path, n_lu: int, n_sphere: int) -> str:
+    lu = lu2014_study(n_lu)
+    sp = sphere_study(n_sphere)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    pd.concat([lu.assign(study="lu2014_angles"), sp.assign(study="sphere9_optimum")]).to_csv(
+        out_dir / "quality.csv", index=False, float_format="%.9g")
+
+    lines = ["# Quality of the paper's calibrators and their peers", "",
+             f"Made by `python -m benchmarks.quality --seeds-lu {n_lu} --seeds-sphere {n_sphere}`; every run is a "
+             "row of results/quality.csv.", "",
+             f"## 1. lu2014 (seed 000's turntable, 36 points, 1 nT noise): angles within the 10-bit coding "
+             f"resolution ({RESOLUTION_RAD:.6f} rad), {n_lu} seeds", "",
+             "| method | all three within resolution | alpha | beta | gamma | median abs error (alpha, beta, gamma) rad "
+             "| worst abs error rad | median rms after nT |", "|---|---|---|---|---|---|---|---|"]
+    for method, part in lu.groupby("method", sort=False):
+        err = np.abs(part[["alpha_err_rad", "beta_err_rad", "gamma_err_rad"]].to_numpy())
+        within = err <= RESOLUTION_RAD
+        lines.append(f"| {method} | {100 * within.all(axis=1).mean():.0f} % | "
+                     + " | ".join(f"{100 * w:.0f} %" for w in within.mean(axis=0))
+                     + f" | {', '.join(f'{v:.2e}' for v in np.median(err, axis=0))} | {err.max():.2e} | "
+                     f"{part['rms_after_nT'].median():.3f} |")
+    aga = lu[lu.method == "aga"]
+    err = np.abs(aga[["alpha_err_rad", "beta_err_rad", "gamma_err_rad"]].to_numpy())
+    lines += ["", f"The paper's AGA as specified (section 2.2: roulette wheel, no elitism, Pm of eq. 5 acting on one "
+              f"bit) meets the target in {100 * (err <= RESOLUTION_RAD).all(axis=1).mean():.0f} % of seeds, "
+              f"against 95 % asked: it converges prematurely (the population collapses onto one chromosome "
+              f"within ~100 generations, after which single-bit flips cannot cross the Hamming cliffs of the "
+              f"binary code), leaving a median worst-angle error of "
+              f"{np.median(err.max(axis=1)) / RESOLUTION_RAD:.1f} grid steps. `aga-lm` (elitism + a "
+              "Levenberg-Marquardt polish of the best individual) meets it.", "",
+              f"## 2. sphere9 (300 points, 2 nT noise, nine): residual RMS against lsq's optimum, {n_sphere} seeds", "",
+              "| configuration | median RMS / lsq | worst RMS / lsq | within 5 % | median evaluations | median runtime s |",
+              "|---|---|---|---|---|---|"]
+    for conf, part in sp.groupby("configuration", sort=False):
+        ratio = part["rms_ratio_to_lsq"]
+        lines.append(f"| {conf} | {ratio.median():.5f} | {ratio.max():.5f} | {100 * (ratio <= 1.05).mean():.0f} % | "
+                     f"{part['n_evaluations'].median():.0f} | {part['runtime_s'].median():.3f} |")
+    text = "\n".join(lines) + "\n"
+    (out_dir / "quality.md").write_text(text)
+    return text
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.quality")
+    p.add_argument("--seeds-lu", type=int, default=50)
+    p.add_argument("--seeds-sphere", type=int, default=10)
+    p.add_argument("--out", default=str(Path(__file__).resolve().parent.parent / "results"))
+    a = p.parse_args(argv)
+    print(write(Path(a.out), a.seeds_lu, a.seeds_sphere))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
