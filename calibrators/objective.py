@@ -113,16 +113,17 @@ class ScalarObjective:
         q -= self.f_ref
         return q
 
-    def values(self, x: np.ndarray, exact: bool = False) -> np.ndarray:
+    def values(self, x: np.ndarray, exact: bool | None = None) -> np.ndarray:
         """F(X) of eq. 3 for each row of a population: (m, p) -> (m,).
 
         Expanded as ``mean(|c|²) - 2 mean(F |c|) + mean(F²)``: ``mean(|c|²)`` is the quadric applied to the
         mean design row, so a population costs one matrix product, one square root and one
         matrix-vector product.  The expansion loses about ``F² · 1e-16`` (~1e-6 nT²) to rounding, far
         below any noise floor but enough to confuse a local method's line search, so a single point
-        (m = 1, what local methods ask for) and ``exact=True`` use the direct form.
+        (m = 1, what local methods ask for) and ``exact=True`` use the direct form (``exact=False``
+        forces the expansion).
         """
-        if exact or np.shape(x)[0] == 1:
+        if exact or (exact is None and np.shape(x)[0] == 1):
             rows = np.atleast_2d(np.asarray(x, dtype=float))
             return np.array([np.mean(self.residuals(row) ** 2) for row in rows])
         q = quadric_coefficients(x, self.model)
