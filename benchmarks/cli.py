@@ -223,6 +223,59 @@ def cmd_demo(args) -> int:
     return EXIT_OK
 
 
+def cmd_compare(args) -> int:
+    from benchmarks.campaign import Campaign, MethodSpec, run_campaign
+    from calibrators import available
+    from simulate.scenarios import get_scenario
+
+    scenarios = tuple(s for item in args.scenarios for s in item.split(",") if s)
+    for s in scenarios:
+        get_scenario(s)
+    methods = [m for item in args.methods for m in (item.split(",") if ":" not in item else [item]) if m]
+    if methods == ["all"]:
+        methods = sorted(available())
+    if args.trials < 1 or args.jobs < 1:
+        raise InputError("--trials and --jobs must be at least 1")
+    out = Path(args.out)
+    if out.exists() and any(out.iterdir()) and not args.force:
+        raise InputError(f"{out} exists and is not empty; refusing to overwrite it (use --force)")
+    campaign = Campaign(scenarios, tuple(MethodSpec.parse(m) for m in methods), trials=args.trials, seed=args.seed)
+    command = "magbench " + " ".join(args._argv)
+    runs = run_campaign(campaign, out, jobs=args.jobs, dask_address=args.dask, command=command,
+                        progress=not args.json and not args.quiet)
+    if not args.no_figures:
+        from benchmarks.figures import make_figures
+        from benchmarks.report import write_report
+
+        make_figures(out)
+        write_report(out)
+    failed = int((runs["error"] != "").sum())
+    obj = {"out": str(out), "n_runs": len(runs), "n_failed": failed,
+           "summary": str(out / "summary.md"), "report": None if args.no_figures else str(out / "report.html")}
+    _emit(args, obj, (out / "summary.md").read_text() + f"\n{len(runs)} runs ({failed} failed) in {out}")
+    return EXIT_OK
+
+
+def cmd_report(args) -> int:
+    from benchmarks.report import write_report
+
+    d = Path(args.dir)
+    if not (d / "runs.csv").is_file():
+        raise InputError(f"{d} is not a campaign directory (no runs.csv): run 'magbench compare' first")
+    path = write_report(d)
+    _emit(args, {"report": str(path)}, f"wrote {path}")
+    return EXIT_OK
+
+
+def cmd_reproduce(args) -> int:
+    from benchmarks.reproduce import reproduce
+
+    written = reproduce(Path(args.out), quick=args.quick, jobs=args.jobs, progress=not args.json)
+    _emit(args, {"out": args.out, "written": [str(p) for p in written]},
+          "\n".join(f"wrote {p}" for p in written))
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="magbench", description="Simulate tri-axial fluxgate magnetometers and benchmark "
                      "their calibration algorithms.")
@@ -252,6 +305,33 @@ def build_parser() -> argparse.ArgumentParser:
     _add_reference_options(p)
     p.set_defaults(func=cmd_calibrate)
 
+    p = sub.add_parser("compare", help="a campaign: scenarios x calibrators x trials -> tables, figures, report")
+    p.add_argument("--scenarios", nargs="+", required=True, metavar="NAME")
+    p.add_argument("--methods", nargs="+", default=["all"], metavar="NAME[:KEY=VALUE...]",
+                   help="calibrators, optionally with hyper-parameters (nlopt:algorithm=GN_ISRES); 'all' = every one")
+    p.add_argument("--trials", type=int, default=10)
+    p.add_argument("--seed", type=int, default=0, help="root seed; every run's seed is spawned from it")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--jobs", type=int, default=1, help="local worker processes")
+    p.add_argument("--dask", metavar="ADDRESS", help="run on an existing Dask cluster (tcp://host:port)")
+    p.add_argument("--no-figures", action="store_true", help="tables only")
+    p.add_argument("--force", action="store_true", help="write into a non-empty directory")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_compare)
+
+    p = sub.add_parser("report", help="one self-contained HTML page of a campaign directory")
+    p.add_argument("dir", metavar="DIR")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_report)
+
+    p = sub.add_parser("reproduce", help="regenerate everything committed in results/")
+    p.add_argument("--out", default="results", metavar="DIR")
+    p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--quick", action="store_true", help="few trials (a smoke test, not the committed results)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_reproduce)
+
     p = sub.add_parser("demo", help="simulate seed 000's experiment and a sphere, compare every calibrator")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true")
@@ -263,6 +343,7 @@ def main(argv=None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
+        args._argv = list(argv) if argv is not None else sys.argv[1:]
         if not getattr(args, "command", None):
             parser.print_help(sys.stderr)
             return EXIT_USAGE

@@ -183,7 +183,7 @@ class AdaptiveGAPolished(AdaptiveGA):
     def __init__(self, model: str = "angles", seed: int | None = 0, budget=None, population: int = 80,
                  bits: int = 10, angle_range_rad: float = 0.1, scale_range: float = 0.1,
                  offset_range_nT: float | None = None, pc1: float = 0.9, pc2: float = 0.6, pm1: float = 0.1,
-                 pm2: float = 0.001, k_max: int = 1000, delta_g: float = 5e-5, max_generations: int = 16000,
+                 pm2: float = 0.001, k_max: int = 1000, delta_g: float = 5e-5, max_generations: int = 2000,
                  mutation: str = "single_bit", elitism: int = 1, polish: bool = True):
         super().__init__(model, seed, budget, population, bits, angle_range_rad, scale_range, offset_range_nT,
                          pc1, pc2, pm1, pm2, k_max, delta_g, max_generations, mutation, elitism, polish)

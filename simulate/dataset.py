@@ -44,6 +44,10 @@ class Truth:
     scenario: str = ""
     seed: int | None = None
     effects: tuple = ()
+    attitude_quat: np.ndarray | None = None  # body -> NED rotation of each sample (scalar-last quaternions)
+
+    def __post_init__(self):
+        object.__setattr__(self, "attitude_quat", _frozen(self.attitude_quat, ndim=2, name="attitude_quat"))
 
     def as_dict(self) -> dict:
         s = self.sensor

@@ -71,7 +71,8 @@ class Scenario:
         else:
             f_ref = np.full(len(attitudes), base.total_nT)
         truth = Truth(params=self.sensor.true_correction(), sensor=self.sensor,
-                      field_ned_nT=tuple(base.vector_nT), scenario=self.name, seed=seed)
+                      field_ned_nT=tuple(base.vector_nT), scenario=self.name, seed=seed,
+                      attitude_quat=attitudes.rotation.as_quat())
         meta = {"scenario": self.name, "seed": seed, "field_nT": f"{base.total_nT:.2f}",
                 "model": self.model, "generator": "magbench simulate"}
         return Dataset(raw, f_ref_nT=f_ref, t_s=attitudes.t_s, heading_deg=attitudes.heading_deg,

@@ -1,0 +1,135 @@
+"""``magbench reproduce``: regenerate everything committed in results/ (same seeds, same numbers).
+
+- results/campaign/: every calibrator x 4 scenarios x 50 trials (--jobs 2): tables, figures, report.html,
+  manifest.json;
+- results/lsq_sphere9_1000/: 1000 lsq trials of sphere9 (efficiency against the bound, wall time);
+- results/lu2014_tables.md: seed 000's Tables 1 and 2 beside our reproduction on lu2014;
+- results/quality.md, results/speed.md: the calibrators' quality and speed targets;
+- results/benchmarks/: the pytest-benchmark suite over every calibrator, saved for later comparison.
+"""
+from __future__ import annotations
+
+import subprocess
+import sys
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+SCENARIOS = ("lu2014", "sphere9", "cap9", "vehicle9")
+ROOT_SEED = 2014
+PAPER_ANGLES = {"alpha": 0.0163, "beta": -0.0139, "gamma": 0.0131}  # seed 000, Table 1
+PAPER_TEXT_RMS = (411.82, 49.38)  # seed 000, section 3 text
+
+
+def paper_table2() -> pd.DataFrame:
+    """Seed 000's Table 2 as shipped in simulate/data (provenance beside it)."""
+    with resources.files("simulate").joinpath("data/lu2014_table2.csv").open("r", encoding="utf-8") as fh:
+        return pd.read_csv(fh, comment="#")
+
+
+def _rms(v) -> float:
+    return float(np.sqrt(np.mean(np.square(v))))
+
+
+def lu2014_tables(campaign_dir: Path, out: Path) -> Path:
+    """Seed 000's Table 1 (angles) and Table 2 (total field before/after) beside our reproduction."""
+    from calibrators import make
+    from simulate.scenarios import get_scenario
+
+    runs = pd.read_csv(campaign_dir / "runs.csv", keep_default_na=False, na_values=[""])
+    lu = runs[(runs["scenario"] == "lu2014") & runs["error"].isna()]
+    lines = ["# Seed 000 (Lu et al. 2014) Tables 1 and 2, reproduced on the `lu2014` scenario", "",
+             "Made by `magbench reproduce`. `lu2014` simulates the paper's experiment: a level turntable, 36 steps "
+             "of 10°, Xi'an 2013 (IGRF-14 inclination), reference 51978.74 nT, the Table 1 angles as the truth, "
+             "1 nT noise and 0.1 nT resolution.", "",
+             "## Table 1: non-orthogonality angles (rad)", "",
+             "| | α | β | γ |", "|---|---|---|---|",
+             f"| paper (FGM-2000, real data) | {PAPER_ANGLES['alpha']:.4f} | {PAPER_ANGLES['beta']:.4f} | "
+             f"{PAPER_ANGLES['gamma']:.4f} |"]
+    for conf in ("aga", "aga-lm", "lsq"):
+        part = lu[lu["configuration"] == conf]
+        if not len(part):
+            continue
+        cells = [f"{part[f'{a}_rad'].mean():.4f} ± {part[f'{a}_rad'].std():.4f}" for a in PAPER_ANGLES]
+        lines.append(f"| {conf} on lu2014 (mean ± sd, {len(part)} trials) | " + " | ".join(cells) + " |")
+
+    t2 = paper_table2()
+    data = get_scenario("lu2014").build(ROOT_SEED)
+    fits = {m: make(m, model="angles", seed=ROOT_SEED).fit(data) for m in ("aga", "lsq")}
+    f_before = np.linalg.norm(data.raw_nT, axis=1)
+    f_after = {m: np.linalg.norm(r.correct(data.raw_nT), axis=1) for m, r in fits.items()}
+    ref = data.f_ref_nT
+    lines += ["", f"## Table 2: total field before and after calibration (nT); our columns: lu2014 seed {ROOT_SEED}", "",
+              "| point | heading ° | paper before | paper after | ours before | ours after (aga) | ours after (lsq) |",
+              "|---|---|---|---|---|---|---|"]
+    for i, row in t2.iterrows():
+        lines.append(f"| {int(row['point'])} | {row['heading_deg']:.0f} | {row['f_meas_before']:.2f} | "
+                     f"{row['f_meas_after']:.2f} | {f_before[i]:.2f} | {f_after['aga'][i]:.2f} | {f_after['lsq'][i]:.2f} |")
+    rows_before, rows_after = _rms(t2["err_before"]), _rms(t2["err_after"])
+    ours_before = _rms(f_before - ref)
+    lines += ["", "## RMS of the total-field error", "",
+              "| source | before nT | after nT | reduction |", "|---|---|---|---|",
+              f"| paper, text of section 3 | {PAPER_TEXT_RMS[0]:.2f} | {PAPER_TEXT_RMS[1]:.2f} | "
+              f"{100 * (1 - PAPER_TEXT_RMS[1] / PAPER_TEXT_RMS[0]):.1f} % |",
+              f"| paper, computed from the 35 rows of its Table 2 | {rows_before:.2f} | {rows_after:.2f} | "
+              f"{100 * (1 - rows_after / rows_before):.1f} % |"]
+    for m, r in fits.items():
+        lines.append(f"| ours, {m} on simulated lu2014 (36 points) | {ours_before:.2f} | {_rms(f_after[m] - ref):.2f} | "
+                     f"{100 * (1 - _rms(f_after[m] - ref) / ours_before):.1f} % |")
+    lines += ["", "The paper's text (411.82 -> 49.38 nT, 88.1 %) does not follow from its own Table 2, whose rows give "
+              f"{rows_before:.2f} -> {rows_after:.2f} nT ({100 * (1 - rows_after / rows_before):.1f} %). The simulated "
+              "sensor has only the three angles, so a calibration that recovers them leaves the noise (~1 nT); the "
+              "~58 nT the paper's calibration leaves on real data is structure its 3-angle model does not contain "
+              "(the sim-to-real diagnosis, `magbench diagnose`, examines it)."]
+    out.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return out
+
+
+def _benchmark_suite(out: Path) -> Path:
+    root = Path(__file__).resolve().parent.parent
+    raw = out / "benchmarks" / "calibrators.json"
+    raw.parent.mkdir(parents=True, exist_ok=True)
+    subprocess.run([sys.executable, "-m", "pytest", str(root / "benchmarks" / "test_bench_calibrators.py"), "-q",
+                    "-p", "no:cacheprovider", f"--benchmark-json={raw}"], check=True, cwd=root)
+    return raw
+
+
+def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = True) -> list[Path]:
+    from benchmarks.campaign import Campaign, MethodSpec, run_campaign
+    from benchmarks.figures import make_figures
+    from benchmarks.report import write_report
+    from calibrators import available
+
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    trials = 3 if quick else 50
+    methods = tuple(MethodSpec(m) for m in sorted(available()))
+    camp_dir = out / "campaign"
+    run_campaign(Campaign(SCENARIOS, methods, trials=trials, seed=ROOT_SEED), camp_dir, jobs=jobs,
+                 command=f"magbench reproduce{' --quick' if quick else ''}", progress=progress)
+    make_figures(camp_dir)
+    written += [camp_dir / "runs.csv", camp_dir / "summary.md", write_report(camp_dir)]
+
+    lsq_dir = out / "lsq_sphere9_1000"
+    run_campaign(Campaign(("sphere9",), (MethodSpec("lsq"),), trials=30 if quick else 1000, seed=ROOT_SEED, traces=False),
+                 lsq_dir, jobs=jobs, command="magbench compare --scenarios sphere9 --methods lsq --trials 1000 "
+                 f"--seed {ROOT_SEED} --jobs {jobs}", progress=progress)
+    written.append(lsq_dir / "summary.md")
+    written.append(lu2014_tables(camp_dir, out / "lu2014_tables.md"))
+    if not quick:
+        from benchmarks import quality, speed
+
+        quality.write(out, 50, 10)
+        written.append(out / "quality.md")
+        try:
+            import mealpy  # noqa: F401
+            import pygad  # noqa: F401
+        except ImportError:
+            print("speed.md kept: the peers (pygad, mealpy) are not installed", file=sys.stderr)
+        else:
+            speed.report(speed.run(out), out / "speed.md")
+            written.append(out / "speed.md")
+        written.append(_benchmark_suite(out))
+    return written

@@ -1,0 +1,82 @@
+"""The harness: determinism, local processes and Dask give the same table, failures are rows."""
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from benchmarks.campaign import Campaign, MethodSpec, run_campaign
+from benchmarks.tables import summarize
+
+RUNTIME = ["runtime_s", "median_runtime_s"]
+
+
+def small_campaign(**kw):
+    methods = ("lsq", "ellipsoid", "nlopt", "aga-lm:max_generations=60:k_max=60", "nlopt:algorithm=NOPE")
+    return Campaign(("lu2014", "sphere9"), tuple(MethodSpec.parse(m) for m in methods), trials=3, seed=11, **kw)
+
+
+def _table(path):
+    frame = pd.read_csv(path, keep_default_na=False)
+    return frame.drop(columns=[c for c in RUNTIME if c in frame])
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory):
+    out = tmp_path_factory.mktemp("serial")
+    run_campaign(small_campaign(), out, jobs=1, progress=False)
+    return out
+
+
+def test_same_command_and_seed_give_identical_tables(serial, tmp_path):
+    run_campaign(small_campaign(), tmp_path, jobs=1, progress=False)
+    for name in ("runs.csv", "summary.csv", "traces.csv", "fields.csv"):
+        pd.testing.assert_frame_equal(_table(serial / name), _table(tmp_path / name))
+    a, b = (json.loads((d / "manifest.json").read_text()) for d in (serial, tmp_path))
+    assert a["root_seed"] == b["root_seed"] == 11 and a["configurations"] == b["configurations"]
+
+
+def test_other_seed_other_numbers(serial, tmp_path):
+    c = small_campaign()
+    run_campaign(Campaign(c.scenarios, c.methods, trials=3, seed=12), tmp_path, progress=False)
+    assert not _table(serial / "runs.csv")["alpha_rad"].equals(_table(tmp_path / "runs.csv")["alpha_rad"])
+
+
+def test_two_local_processes_give_the_same_table(serial, tmp_path):
+    run_campaign(small_campaign(), tmp_path, jobs=2, progress=False)
+    pd.testing.assert_frame_equal(_table(serial / "runs.csv"), _table(tmp_path / "runs.csv"))
+
+
+def test_dask_local_cluster_gives_the_same_table(serial, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+        run_campaign(small_campaign(), tmp_path, dask_address=cluster.scheduler_address, progress=False)
+    pd.testing.assert_frame_equal(_table(serial / "runs.csv"), _table(tmp_path / "runs.csv"))
+
+
+def test_failed_run_is_a_row_not_a_crash(serial):
+    runs = pd.read_csv(serial / "runs.csv", keep_default_na=False)
+    bad = runs[runs["configuration"] == "nlopt algorithm=NOPE"]
+    assert len(bad) == 6 and (bad["error"].str.contains("unknown algorithm")).all()
+    good = runs[runs["configuration"] == "lsq"]
+    assert (good["error"] == "").all()
+    manifest = json.loads((serial / "manifest.json").read_text())
+    assert {"scenario": "lu2014", "configuration": "ellipsoid",
+            "reason": "ellipsoid does not estimate the angles model"} in manifest["skipped"]
+
+
+def test_each_run_has_its_own_seed_and_methods_share_the_data(serial):
+    runs = pd.read_csv(serial / "runs.csv", keep_default_na=False)
+    assert runs["seed"].is_unique
+    per_trial = runs.groupby(["scenario", "trial"])["data_seed"].nunique()
+    assert (per_trial == 1).all()
+
+
+def test_lsq_efficiency_against_the_bound(tmp_path):
+    runs = run_campaign(Campaign(("sphere9",), (MethodSpec("lsq"),), trials=200, seed=5, traces=False), tmp_path,
+                        jobs=2, progress=False)
+    s = summarize(runs).iloc[0]
+    assert s["efficiency_min_angle"] > 0.8, s[["efficiency_alpha", "efficiency_beta", "efficiency_gamma"]]
+    assert np.isclose(s["success_rate"], 1.0)
