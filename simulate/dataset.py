@@ -45,9 +45,12 @@ class Truth:
     seed: int | None = None
     effects: tuple = ()
     attitude_quat: np.ndarray | None = None  # body -> NED rotation of each sample (scalar-last quaternions)
+    raw_without_effects_nT: np.ndarray | None = None  # the same readings (same noise) with no effect on
 
     def __post_init__(self):
         object.__setattr__(self, "attitude_quat", _frozen(self.attitude_quat, ndim=2, name="attitude_quat"))
+        object.__setattr__(self, "raw_without_effects_nT",
+                           _frozen(self.raw_without_effects_nT, ndim=2, name="raw_without_effects_nT"))
 
     def as_dict(self) -> dict:
         s = self.sensor

@@ -48,6 +48,14 @@ class Scenario:
     schedule_kw: dict = field(default_factory=dict)
     drift_nT: float = 0.0  # peak ambient-field variation (unseen by the reference unless reference_tracks)
     reference_tracks_drift: bool = True
+    effects: tuple = ()  # simulate.effects.Effect instances switched on
+
+    def with_effects(self, *effects, name: str | None = None) -> "Scenario":
+        """The same scenario with effects switched on (``simulate.effects``)."""
+        from dataclasses import replace
+
+        label = name or "+".join([self.name] + [e.name for e in effects])
+        return replace(self, name=label, effects=tuple(self.effects) + tuple(effects))
 
     def attitudes(self, rng: np.random.Generator) -> att.Attitudes:
         kw = dict(self.schedule_kw)
@@ -60,22 +68,43 @@ class Scenario:
         rng = np.random.default_rng(seed)
         base = self.field_fn()
         attitudes = self.attitudes(rng)
+        t = attitudes.t_s
         if self.drift_nT > 0:
-            field_ned = VaryingField(base, amplitude_nT=self.drift_nT).at(attitudes.t_s, rng)
+            field_ned = VaryingField(base, amplitude_nT=self.drift_nT).at(t, rng)
         else:
-            field_ned = base.at(attitudes.t_s)
-        b_body = attitudes.rotation.apply(field_ned, inverse=True)
-        raw = self.sensor.measure(b_body, rng)
-        if self.reference_tracks_drift:
+            field_ned = base.at(t)
+        clean_field = field_ned
+        for e in self.effects:
+            field_ned = e.field(field_ned, t, rng)
+        temp = None
+        for e in self.effects:
+            profile = e.temperature(t, rng)
+            temp = profile if profile is not None else temp
+        lin = self.sensor.linear(attitudes.rotation.apply(field_ned, inverse=True))
+        clean = self.sensor.linear(attitudes.rotation.apply(clean_field, inverse=True))
+        ctx = {"t_s": t, "temp_C": temp, "offset_nT": self.sensor.errors.offset_nT, "f_nT": base.total_nT}
+        for e in self.effects:
+            lin = e.readings(lin, ctx, rng)
+        noise_state = rng.bit_generator.state
+        raw = self.sensor.add_noise(lin, rng)
+        rng_clean = np.random.default_rng()
+        rng_clean.bit_generator.state = noise_state  # the very same noise on the effect-free readings
+        clean = self.sensor.add_noise(clean, rng_clean)
+        for e in self.effects:
+            raw = e.spikes(raw, rng)
+        drift_unseen = any(e.name == "field_drift" for e in self.effects)
+        if self.reference_tracks_drift and not drift_unseen:
             f_ref = np.linalg.norm(field_ned, axis=1)
         else:
             f_ref = np.full(len(attitudes), base.total_nT)
         truth = Truth(params=self.sensor.true_correction(), sensor=self.sensor,
                       field_ned_nT=tuple(base.vector_nT), scenario=self.name, seed=seed,
-                      attitude_quat=attitudes.rotation.as_quat())
+                      effects=tuple(e.as_dict() for e in self.effects),
+                      attitude_quat=attitudes.rotation.as_quat(),
+                      raw_without_effects_nT=clean if self.effects else None)
         meta = {"scenario": self.name, "seed": seed, "field_nT": f"{base.total_nT:.2f}",
                 "model": self.model, "generator": "magbench simulate"}
-        return Dataset(raw, f_ref_nT=f_ref, t_s=attitudes.t_s, heading_deg=attitudes.heading_deg,
+        return Dataset(raw, f_ref_nT=f_ref, t_s=t, temp_C=temp, heading_deg=attitudes.heading_deg,
                        truth=truth, meta=meta)
 
 

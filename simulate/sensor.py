@@ -166,9 +166,16 @@ class SensorModel:
             return self.errors
         return ErrorParams.from_correction(np.linalg.inv(self.forward_matrix()), self.errors.offset_nT)
 
+    def linear(self, b_body_nT: np.ndarray) -> np.ndarray:
+        """Noise-free readings K P^-1 B + o (or K P^T B + o)."""
+        return np.asarray(b_body_nT, dtype=float) @ self.forward_matrix().T + np.asarray(self.errors.offset_nT)
+
     def measure(self, b_body_nT: np.ndarray, rng: np.random.Generator | None = None) -> np.ndarray:
-        b = np.asarray(b_body_nT, dtype=float)
-        raw = b @ self.forward_matrix().T + np.asarray(self.errors.offset_nT)
+        return self.add_noise(self.linear(b_body_nT), rng)
+
+    def add_noise(self, raw: np.ndarray, rng: np.random.Generator | None = None) -> np.ndarray:
+        """White noise of ``noise_nT`` per axis, then quantization to ``quantization_nT``."""
+        raw = np.asarray(raw, dtype=float)
         if self.noise_nT > 0:
             if rng is None:
                 raise ValueError("a noisy sensor needs an rng (np.random.default_rng(seed))")

@@ -80,3 +80,25 @@ def test_lsq_efficiency_against_the_bound(tmp_path):
     s = summarize(runs).iloc[0]
     assert s["efficiency_min_angle"] > 0.8, s[["efficiency_alpha", "efficiency_beta", "efficiency_gamma"]]
     assert np.isclose(s["success_rate"], 1.0)
+
+
+def test_compare_command_writes_tables_figures_and_report(tmp_path):
+    from benchmarks.cli import main
+
+    out = tmp_path / "camp"
+    assert main(["compare", "--scenarios", "lu2014", "--methods", "lsq", "nlopt", "--trials", "2", "--seed", "1",
+                 "--out", str(out), "--quiet"]) == 0
+    for name in ("runs.csv", "summary.csv", "summary.md", "summary.tex", "manifest.json", "report.html",
+                 "figures/errors_lu2014.png", "figures/errors_lu2014.svg", "figures/field_heading_lu2014.png",
+                 "figures/convergence_lu2014.svg"):
+        assert (out / name).is_file(), name
+    html = (out / "report.html").read_text()
+    assert "data:image/png;base64," in html and "http://" not in html and "https://" not in html
+    png = (out / "figures" / "errors_lu2014.png").read_bytes()
+    from benchmarks.figures import make_figures
+
+    make_figures(out)
+    assert (out / "figures" / "errors_lu2014.png").read_bytes() == png
+    # a second campaign into the same directory is refused, the first one kept
+    assert main(["compare", "--scenarios", "lu2014", "--methods", "lsq", "--out", str(out), "--quiet"]) == 2
+    assert (out / "report.html").read_text() == html
