@@ -256,6 +256,22 @@ def cmd_compare(args) -> int:
     return EXIT_OK
 
 
+def cmd_diagnose(args) -> int:
+    from benchmarks.diagnose import diagnose, diagnosis_figure, diagnosis_text
+
+    data = load_dataset(args, require_vector=False)
+    result = diagnose(data, base=args.model, folds=args.folds, seed=args.seed)
+    figure = None
+    if not args.no_figure:
+        figure = Path(args.figure or f"diagnosis_{Path(args.file).stem}.png")
+        if figure.exists() and not args.force:
+            raise InputError(f"{figure} exists; refusing to overwrite it (use --figure PATH or --force)")
+        diagnosis_figure(data, result, figure)
+    result["figure"] = str(figure) if figure else None
+    _emit(args, result, diagnosis_text(result, args.file))
+    return EXIT_OK
+
+
 def cmd_report(args) -> int:
     from benchmarks.report import write_report
 
@@ -304,6 +320,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     _add_reference_options(p)
     p.set_defaults(func=cmd_calibrate)
+
+    p = sub.add_parser("diagnose", help="where the calibration residual lies and which unmodelled effect causes it")
+    p.add_argument("file", metavar="FILE.csv")
+    p.add_argument("--model", default="nine", choices=["angles", "nine"], help="the base calibration model")
+    p.add_argument("--folds", type=int, default=5, help="cross-validation folds")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--figure", metavar="PATH.png", help="figure of the residual before/after the winning effect")
+    p.add_argument("--no-figure", action="store_true")
+    p.add_argument("--force", action="store_true", help="overwrite the figure")
+    p.add_argument("--json", action="store_true")
+    _add_reference_options(p)
+    p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("compare", help="a campaign: scenarios x calibrators x trials -> tables, figures, report")
     p.add_argument("--scenarios", nargs="+", required=True, metavar="NAME")

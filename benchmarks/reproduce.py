@@ -87,6 +87,93 @@ def lu2014_tables(campaign_dir: Path, out: Path) -> Path:
     return out
 
 
+REAL_DATA = [("lu2014_table2", "nT", "nine"), ("ck_acc_mag", "G", "nine")] + \
+    [(f"sap6_{d}", "uT", "nine") for d in ("BB", "CF", "FG", "HC", "HC_improved", "IB", "JG")]
+
+
+def diagnosis_reports(out: Path, blind_n: int = 70) -> Path:
+    """``magbench diagnose`` on the real recordings shipped in simulate/data, and the blind check."""
+    import json
+
+    from benchmarks.cli import main as cli
+
+    folder = out / "diagnosis"
+    folder.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for name, units, model in REAL_DATA:
+        path = resources.files("simulate").joinpath(f"data/{name}.csv")
+        args = ["diagnose", str(path), "--units", units, "--model", model, "--json", "--force",
+                "--figure", str(folder / f"{name}.png")]
+        import contextlib
+        import io
+
+        buf, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(err):
+            code = cli(args)
+        if code == 0:
+            result = json.loads(buf.getvalue())
+            result["figure"] = f"{name}.png"
+            from benchmarks.diagnose import diagnosis_text
+
+            (folder / f"{name}.json").write_text(json.dumps(result, indent=2) + "\n")
+            (folder / f"{name}.txt").write_text(diagnosis_text(result, f"simulate/data/{name}.csv") + "\n")
+            best = next((e for e in result["effects"] if e["significant"]), None)
+            best_text = f"{best['name']} ({best['shrink_pct']:.0f} %)" if best else "-"
+            rows.append(f"| {name} | {result['n_points']} | {result['base_model']} | {result['rms_base_nT']:.2f} | "
+                        f"{result['noise_floor_nT']:.2f} | {result['verdict']} | {best_text} |")
+        else:
+            msg = err.getvalue().strip()
+            (folder / f"{name}.txt").write_text(f"magbench diagnose refused: {msg}\n")
+            rows.append(f"| {name} | - | {model} | - | - | refused: {msg.removeprefix('magbench: ')} | - |")
+    t2 = json.loads((folder / "lu2014_table2.json").read_text())
+    h = t2["localization"]["heading_harmonics"]
+    eff = {e["name"]: e for e in t2["effects"]}
+    finding = (f"Seed 000's Table 2 (the paper's own calibration of real FGM-2000 data) leaves "
+               f"{t2['rms_fit_nT']:.1f} nT RMS: {h['2_per_rev_nT']:.1f} nT at two cycles per revolution, "
+               f"{h['1_per_rev_nT']:.1f} nT at one, {h['3_per_rev_nT']:.1f} nT at three and {h['4_per_rev_nT']:.1f} nT at "
+               f"four; {h['rms_beyond_nT']:.1f} nT lies beyond four harmonics (the noise floor from second differences "
+               f"is {t2['noise_floor_nT']:.1f} nT). Two cycles per revolution on a level turntable is the signature of "
+               f"unequal x/y scale factors (which the 3-angle model has no parameter for): the `scale` effect removes "
+               f"{eff['scale']['shrink_pct']:.0f} % of the gap on held-out headings (held-out RMS "
+               f"{t2['rms_base_nT']:.1f} -> {eff['scale']['rms_heldout_nT']:.1f} nT), offset and scale together "
+               f"{t2['offset_and_scale_together']['shrink_pct']:.0f} % "
+               f"({t2['offset_and_scale_together']['rms_heldout_nT']:.1f} nT). The small-N SAP6 files (24 shots, "
+               "9 parameters) leave too few held-out points for any effect to reach significance; the hand-rotated "
+               "ck_acc_mag log keeps a residual well above its local noise floor that is correlated in time but "
+               "not with attitude, which no library effect explains (verdict `unexplained`).")
+    blind = blind_check(blind_n)
+    text = ["# Sim-to-real diagnosis: real recordings and the blind check", "",
+            "Made by `magbench reproduce` (`magbench diagnose FILE --json` on each file of simulate/data; "
+            "per-file reports: NAME.json, NAME.txt, NAME.png).", "",
+            "| data | points | base model | held-out RMS nT | noise floor nT | verdict | best significant effect (shrink) |",
+            "|---|---|---|---|---|---|---|", *rows, "", finding, "", blind]
+    (folder / "README.md").write_text("\n".join(text) + "\n")
+    return folder / "README.md"
+
+
+def blind_check(n: int) -> str:
+    """The blind check of the test suite at a larger size: verdict accuracy and the confusion table."""
+    from collections import Counter
+
+    from benchmarks.diagnose import BLIND_KINDS, blind_dataset, diagnose
+
+    pairs = []
+    for i in range(n):
+        kind, base, data = blind_dataset(i)
+        pairs.append((kind, diagnose(data, base=base)["verdict"]))
+    correct = sum(k == v for k, v in pairs)
+    counts = Counter(pairs)
+    verdicts = sorted({v for _, v in pairs} | set(BLIND_KINDS),
+                      key=lambda v: (BLIND_KINDS.index(v) if v in BLIND_KINDS else len(BLIND_KINDS), v))
+    lines = [f"## Blind check: {n} simulated datasets, effect hidden from the diagnosis", "",
+             f"Correct verdicts: {correct} of {n} ({100 * correct / n:.0f} %). Rows: the true effect; columns: "
+             "the verdict.", "", "| true \\ verdict | " + " | ".join(verdicts) + " |",
+             "|---|" + "---|" * len(verdicts)]
+    for k in BLIND_KINDS:
+        lines.append(f"| {k} | " + " | ".join(str(counts.get((k, v), 0)) for v in verdicts) + " |")
+    return "\n".join(lines)
+
+
 def _benchmark_suite(out: Path) -> Path:
     root = Path(__file__).resolve().parent.parent
     raw = out / "benchmarks" / "calibrators.json"
@@ -118,6 +205,7 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
                  f"--seed {ROOT_SEED} --jobs {jobs}", progress=progress)
     written.append(lsq_dir / "summary.md")
     written.append(lu2014_tables(camp_dir, out / "lu2014_tables.md"))
+    written.append(diagnosis_reports(out, blind_n=14 if quick else 70))
     if not quick:
         from benchmarks import quality, speed
 

@@ -166,6 +166,17 @@ register_scenario(Scenario(
     model="nine", schedule="tumble", n_points=600,
     sensor=SensorModel(SPHERE9_ERRORS, noise_nT=2.0), drift_nT=200.0, schedule_kw=dict(duration_s=600.0)))
 register_scenario(Scenario(
+    "tumble9q",
+    "smooth 10-minute tumble in a quiet field (no ambient variation), 9-parameter sensor, 600 points, 2 nT noise",
+    model="nine", schedule="tumble", n_points=600,
+    sensor=SensorModel(SPHERE9_ERRORS, noise_nT=2.0), schedule_kw=dict(duration_s=600.0)))
+register_scenario(Scenario(
+    "tumble3",
+    "smooth 10-minute tumble in a quiet field, sensor with the three angles only (seed 000's model), "
+    "600 points, 2 nT noise",
+    model="angles", schedule="tumble", n_points=600,
+    sensor=SensorModel(LU2014_ANGLES, noise_nT=2.0), schedule_kw=dict(duration_s=600.0)))
+register_scenario(Scenario(
     "sphere9_axes",
     "as sphere9 but simulated with the axis-projection model (raw = K A B + o, A = P^T)",
     model="nine", schedule="sphere", n_points=300,
