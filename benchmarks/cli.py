@@ -127,11 +127,10 @@ def cmd_list(args) -> int:
 
 def list_effects() -> list[dict]:
     """Effects the simulator can switch on (CONTRACT section 3 names)."""
-    return [
-        {"name": "scale", "description": "per-axis scale factors (the nine model)"},
-        {"name": "offset", "description": "per-axis offsets in nT (the nine model)"},
-        {"name": "field_drift", "description": "ambient field varying in time (VaryingField; tumble9 scenario)"},
-    ]
+    from simulate.effects import EFFECTS
+
+    return [{"name": name, "in_library": cls.in_library, "needs": list(cls.needs),
+             "description": " ".join((cls.__doc__ or "").split())} for name, cls in EFFECTS.items()]
 
 
 def cmd_simulate(args) -> int:

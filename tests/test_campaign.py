@@ -48,7 +48,7 @@ def test_two_local_processes_give_the_same_table(serial, tmp_path):
 
 
 def test_dask_local_cluster_gives_the_same_table(serial, tmp_path):
-    distributed = pytest.importorskip("distributed")
+    import distributed  # a test dependency: the Dask path must be exercised, never skipped
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
                                   dashboard_address=None) as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
