@@ -206,7 +206,7 @@ def cmd_demo(args) -> int:
             "d_gamma\"": part.get("gamma_err_rad", np.nan) * ARCSEC_PER_RAD,
             "rms_before_nT": part.get("rms_before_nT", np.nan),
             "rms_after_nT": part.get("rms_after_nT", np.nan),
-            "evals": part.get("n_evaluations", np.nan),
+            "evals": pd.array(part.get("n_evaluations", pd.Series(np.nan, index=part.index)), dtype="Int64"),
             "ms": part.get("runtime_s", np.nan) * 1e3,
         })
         if "scale_err_max" in part and part["scale_err_max"].notna().any():
