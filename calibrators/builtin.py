@@ -1,2 +1,2 @@
 """Importing this module registers the built-in calibrators."""
-from . import aco, ellipsoid, genetic, lsq, nloptcal  # noqa: F401
+from . import aco, ellipsoid, genetic, lsq, nloptcal, ransac, tls  # noqa: F401

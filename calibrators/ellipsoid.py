@@ -28,11 +28,8 @@ def fit_ellipsoid(raw_nT: np.ndarray, k: float = 4.0) -> tuple[np.ndarray, np.nd
     raw = np.asarray(raw_nT, dtype=float)
     if raw.shape[0] < 9:
         raise InputError(f"an ellipsoid fit needs at least 9 points, got {raw.shape[0]}")
-    mu = raw.mean(axis=0)
-    s = np.mean(np.linalg.norm(raw - mu, axis=1))
-    if not s > 0:
-        raise InputError("all readings are identical: no ellipsoid can be fitted")
-    x, y, z = ((raw - mu) / s).T  # normalized for numerical conditioning
+    norm, mu, s = normalize(raw)
+    x, y, z = norm.T  # normalized for numerical conditioning
     d = np.array([x * x, y * y, z * z, 2 * y * z, 2 * x * z, 2 * x * y, 2 * x, 2 * y, 2 * z, np.ones_like(x)])
     s_mat = d @ d.T
     s11, s12, s22 = s_mat[:6, :6], s_mat[:6, 6:], s_mat[6:, 6:]
@@ -53,29 +50,46 @@ def fit_ellipsoid(raw_nT: np.ndarray, k: float = 4.0) -> tuple[np.ndarray, np.nd
     v1 = eigvec[:, positive[np.argmax(eigval[positive])]]
     v2 = -s22_inv_s21 @ v1
     a, b, c, f, g, h = v1
-    quad = np.array([[a, h, g], [h, b, f], [g, f, c]])
-    lin = v2[:3]
-    const = v2[3]
+    shape, center_n = quadric_to_ellipsoid(np.array([[a, h, g], [h, b, f], [g, f, c]]), v2[:3], v2[3])
+    return shape / (s * s), mu + s * center_n
+
+
+def normalize(raw_nT: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Readings centred on their mean and divided by their mean distance from it (for conditioning)."""
+    raw = np.asarray(raw_nT, dtype=float)
+    mu = raw.mean(axis=0)
+    s = float(np.mean(np.linalg.norm(raw - mu, axis=1)))
+    if not s > 0:
+        raise InputError("all readings are identical: no ellipsoid can be fitted")
+    return (raw - mu) / s, mu, s
+
+
+def quadric_to_ellipsoid(quad: np.ndarray, lin: np.ndarray, const: float) -> tuple[np.ndarray, np.ndarray]:
+    """``x^T Q x + 2 l^T x + d = 0`` -> (A, c) with ``(x - c)^T A (x - c) = 1``; refuses a non-ellipsoid."""
     if np.trace(quad) < 0:
         quad, lin, const = -quad, -lin, -const
     if np.any(np.linalg.eigvalsh(quad) <= 0):
         raise InputError("the fitted quadric is not an ellipsoid (the readings do not cover enough "
                          "directions)")
-    center_n = -np.linalg.solve(quad, lin)
-    rhs = center_n @ quad @ center_n - const
+    center = -np.linalg.solve(quad, lin)
+    rhs = center @ quad @ center - const
     if not rhs > 0:
         raise InputError("the fitted quadric is not an ellipsoid (imaginary or degenerate)")
-    shape = quad / rhs / (s * s)
-    return shape, mu + s * center_n
+    return quad / rhs, center
 
 
-def ellipsoid_params(raw_nT: np.ndarray, f_ref_nT) -> ErrorParams:
-    """Canonical 9 parameters from the ellipsoid fit, scaled to the median reference magnitude."""
-    shape, center = fit_ellipsoid(raw_nT)
+def shape_to_params(shape: np.ndarray, center: np.ndarray, f_ref_nT) -> ErrorParams:
+    """Canonical 9 parameters of the ellipsoid ``(x - c)^T A (x - c) = 1`` scaled to the reference:
+    W = F² A = M^T M (CONTRACT section 1)."""
     f = float(np.median(f_ref_nT))
     w = f * f * shape
     m = np.linalg.cholesky(w).T  # any C with C^T C = W; the canonical form fixes the rotation
     return ErrorParams.from_correction(m, center)
+
+
+def ellipsoid_params(raw_nT: np.ndarray, f_ref_nT) -> ErrorParams:
+    """Canonical 9 parameters from the ellipsoid fit, scaled to the median reference magnitude."""
+    return shape_to_params(*fit_ellipsoid(raw_nT), f_ref_nT)
 
 
 @register

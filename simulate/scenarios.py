@@ -166,6 +166,12 @@ register_scenario(Scenario(
     model="nine", schedule="tumble", n_points=600,
     sensor=SensorModel(SPHERE9_ERRORS, noise_nT=2.0), drift_nT=200.0, schedule_kw=dict(duration_s=600.0)))
 register_scenario(Scenario(
+    "vehicle9n",
+    "seed 004's regime with vehicle-level noise: one turn of yaw, pitch and roll within 3 deg, 9-parameter "
+    "sensor, 200 points, 20 nT noise",
+    model="nine", schedule="vehicle", n_points=200,
+    sensor=SensorModel(SPHERE9_ERRORS, noise_nT=20.0), schedule_kw=dict(pitch_roll_deg=3.0)))
+register_scenario(Scenario(
     "tumble9q",
     "smooth 10-minute tumble in a quiet field (no ambient variation), 9-parameter sensor, 600 points, 2 nT noise",
     model="nine", schedule="tumble", n_points=600,
