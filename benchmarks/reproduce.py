@@ -5,6 +5,8 @@
 - results/lsq_sphere9_1000/: 1000 lsq trials of sphere9 (efficiency against the bound, wall time);
 - results/lu2014_tables.md: seed 000's Tables 1 and 2 beside our reproduction on lu2014;
 - results/quality.md, results/speed.md: the calibrators' quality and speed targets;
+- results/diagnosis/: the sim-to-real diagnosis of the real recordings and a blind check;
+- results/claims.md: one row per headline claim of every seed paper, with our reproduction;
 - results/benchmarks/: the pytest-benchmark suite over every calibrator, saved for later comparison.
 """
 from __future__ import annotations
@@ -208,9 +210,11 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
     written.append(diagnosis_reports(out, blind_n=14 if quick else 70))
     if not quick:
         from benchmarks import quality, speed
+        from benchmarks.claims import write_claims
 
         quality.write(out, 50, 10)
         written.append(out / "quality.md")
+        written.append(write_claims(out))
         try:
             import mealpy  # noqa: F401
             import pygad  # noqa: F401

@@ -248,6 +248,9 @@ class Calibrator:
                             "the identity is returned")
             x, f_x, success, status = x0.copy(), f_start, False, "worse_than_start"
         warnings += self._solution_warnings(objective, x)
+        if out.extra.get("at_bounds"):
+            warnings.append(f"{', '.join(out.extra['at_bounds'])} ended on the physical bound: the data do not "
+                            "determine them (attitude coverage)")
         return CalibrationResult(
             method=self.name, model=model, params=ErrorParams.from_vector(x, model), x=x,
             success=bool(success), status=status, message=message, fun=float(f_x),

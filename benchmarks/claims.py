@@ -1,0 +1,215 @@
+"""``results/claims.md``: one row per headline claim of every seed paper, with our reproduction and a
+verdict (reproduced / partly / not), each number computed here or read from the other results files
+that ``magbench reproduce`` writes (campaign, quality, diagnosis).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.metrics import heading_error_deg
+from calibrators import make
+from simulate.dataset import InputError
+from simulate.scenarios import get_scenario
+
+RESOLUTION_RAD = 0.2 / 1023
+
+
+def ellipse2d_heading_error_deg(data) -> float:
+    """Seed 004's comparison method: a 2-D ellipse fit of the horizontal readings (x, y) as if the vehicle
+    were level; heading from the whitened (x, y) without tilt compensation, against the true heading."""
+    from scipy.spatial.transform import Rotation
+
+    raw = np.asarray(data.raw_nT)
+    x, y = raw[:, 0], raw[:, 1]
+    design = np.column_stack([x * x, x * y, y * y, x, y, np.ones_like(x)])
+    scale = np.abs(design).max(axis=0)
+    coef = np.linalg.svd(design / scale)[2][-1] / scale  # algebraic conic fit, |theta| = 1
+    a, b, c, d, e, f = coef
+    q = np.array([[a, b / 2], [b / 2, c]])
+    if np.trace(q) < 0:
+        q, d, e, f = -q, -d, -e, -f
+    centre = -np.linalg.solve(q, np.array([d, e]) / 2)
+    w, v = np.linalg.eigh(q)
+    whiten = v @ np.diag(np.sqrt(np.maximum(w, 1e-300))) @ v.T  # symmetric: no rotation added
+    h = (raw[:, :2] - centre) @ whiten.T
+    est = np.arctan2(h[:, 1], h[:, 0])
+    truth = data.truth
+    b_body_true = Rotation.from_quat(truth.attitude_quat).apply(np.tile(truth.field_ned_nT, (len(raw), 1)),
+                                                               inverse=True)
+    ref = np.arctan2(b_body_true[:, 1], b_body_true[:, 0])
+    err = np.angle(np.exp(1j * (est - ref)))
+    err -= np.angle(np.mean(np.exp(1j * err)))  # a constant heading offset is a mounting alignment
+    return float(np.degrees(np.sqrt(np.mean(err**2))))
+
+
+def ransac_experiment(n_seeds: int = 30) -> dict:
+    """Seed 003's simulation: 200 points, 50,000 nT, 10 % of the points with 500 nT noise (the rest
+    1 nT: the paper does not say), full-sphere attitudes; parameter errors of the plain ellipsoid fit
+    against RANSAC."""
+    from dataclasses import replace
+
+    from simulate.effects import OutlierEffect
+
+    base = get_scenario("sphere9")
+    scenario = replace(base, n_points=200, sensor=replace(base.sensor, noise_nT=1.0)).with_effects(
+        OutlierEffect(fraction=0.10, amplitude_nT=500.0), name="seed003")
+    errs = {"ellipsoid": [], "ransac": []}
+    for seed in range(n_seeds):
+        data = scenario.build(seed)
+        t = data.truth.params
+        for m in errs:
+            p = make(m, seed=seed).fit(data).params
+            errs[m].append([np.max(np.abs(np.subtract(p.offset_nT, t.offset_nT))),
+                            np.max(np.abs(np.subtract(p.scale, t.scale))),
+                            np.max(np.abs(np.subtract([p.alpha_rad, p.beta_rad, p.gamma_rad],
+                                                      [t.alpha_rad, t.beta_rad, t.gamma_rad])))])
+    med = {m: np.median(np.array(v), axis=0) for m, v in errs.items()}
+    ratio = med["ellipsoid"] / med["ransac"]
+    return {"n_seeds": n_seeds, "median_offset_err_nT": {m: float(v[0]) for m, v in med.items()},
+            "median_scale_err": {m: float(v[1]) for m, v in med.items()},
+            "median_angle_err_rad": {m: float(v[2]) for m, v in med.items()},
+            "improvement_offset": float(ratio[0]), "improvement_scale": float(ratio[1]),
+            "improvement_angles": float(ratio[2])}
+
+
+def vehicle_experiment(n_seeds: int = 30) -> dict:
+    """Seed 004's regime (scenario vehicle9n): TLS and TTLS on the paper's formulation, heading errors
+    against a 2-D ellipse fit, the 3-D ellipsoid fit and lsq."""
+    out = {m: [] for m in ("tls", "ttls", "ellipsoid", "lsq")}
+    out["ellipse2d"] = []
+    conds, ks, fails = [], [], {m: 0 for m in ("tls", "ttls", "ellipsoid", "lsq")}
+    for seed in range(n_seeds):
+        data = get_scenario("vehicle9n").build(seed)
+        for m in ("tls", "ttls", "ellipsoid", "lsq"):
+            try:
+                res = make(m, seed=seed).fit(data)
+            except InputError:
+                fails[m] += 1
+                continue
+            out[m].append(heading_error_deg(res.params, data))
+            if m == "ttls":
+                conds.append(res.extra["condition_number_A"])
+                ks.append(res.extra["truncation"])
+        out["ellipse2d"].append(ellipse2d_heading_error_deg(data))
+    return {"n_seeds": n_seeds, "median_heading_err_deg": {m: (float(np.median(v)) if v else None) for m, v in out.items()},
+            "failures": fails, "median_condition_number_A": float(np.median(conds)) if conds else None,
+            "truncation_levels": {int(k): ks.count(k) for k in sorted(set(ks))}}
+
+
+def _row(paper, claim, ours, verdict, why):
+    return f"| {paper} | {claim} | {ours} | **{verdict}** | {why} |"
+
+
+def write_claims(out: Path) -> Path:
+    rows = []
+    t2 = json.loads((out / "diagnosis" / "lu2014_table2.json").read_text())
+    q = pd.read_csv(out / "quality.csv", keep_default_na=False, na_values=[""])
+    lu = q[q["study"] == "lu2014_angles"]
+    aga = lu[lu["method"] == "aga"]
+    aga_err = np.abs(aga[["alpha_err_rad", "beta_err_rad", "gamma_err_rad"]].to_numpy())
+    aga_lm = lu[lu["method"] == "aga-lm"]
+    lm_err = np.abs(aga_lm[["alpha_err_rad", "beta_err_rad", "gamma_err_rad"]].to_numpy())
+    sp = q[q["study"] == "sphere9_optimum"]
+    rga = sp[sp["configuration"] == "rga"]["rms_ratio_to_lsq"]
+    camp = pd.read_csv(out / "campaign" / "summary.csv")
+    rga_val = camp[(camp["configuration"] == "rga") & (camp["scenario"] == "sphere9")]
+
+    # seed 000 -----------------------------------------------------------------------------------
+    rows.append(_row("000 Lu et al. 2014", "Calibration reduces the FGM-2000 error by 88.1 % (411.82 -> 49.38 nT, "
+                     "section 3 text)", "the paper's own Table 2 gives 294.87 -> 57.81 nT (80.4 %); on simulated lu2014 "
+                     "the angles alone, once recovered, leave only the noise (results/lu2014_tables.md)", "partly",
+                     "a large reduction is real, but the text's numbers do not follow from its table"))
+    rows.append(_row("000", "The AGA identifies the three non-orthogonality angles (Table 1), precision 0.0002 rad "
+                     "(eq. 6)", f"the AGA as specified is within 0.0002 rad on all three angles in "
+                     f"{100 * (aga_err <= RESOLUTION_RAD).all(axis=1).mean():.0f} % of 50 seeds (median worst error "
+                     f"{np.median(aga_err.max(axis=1)):.2e} rad); aga-lm in "
+                     f"{100 * (lm_err <= RESOLUTION_RAD).all(axis=1).mean():.0f} %", "not",
+                     "roulette selection without elitism collapses the population; single-bit mutation cannot "
+                     "cross Hamming cliffs (results/quality.md)"))
+    rows.append(_row("000", "Adaptive Pc and Pm keep diversity and avoid premature convergence (section 2.1)",
+                     "the mean fitness equals the best fitness within about 100 generations in our runs (convergence "
+                     "figure, results/campaign/figures/convergence_lu2014.png)", "not",
+                     "eq. 4-5 give the best individuals the smallest Pm, so a converged population stops exploring"))
+    h = t2["localization"]["heading_harmonics"]
+    scale = next(e for e in t2["effects"] if e["name"] == "scale")
+    rows.append(_row("000", "The ~50 nT left after calibration comes from effects the 3-angle model omits: scale "
+                     "mismatch, zero drift, field variation, temperature (section 3)",
+                     f"magbench diagnose on Table 2: {h['2_per_rev_nT']:.0f} nT at 2 cycles/rev, "
+                     f"{h['1_per_rev_nT']:.0f} nT at 1; the scale effect removes {scale['shrink_pct']:.0f} % of the gap "
+                     "on held-out headings (results/diagnosis)", "reproduced",
+                     "2 cycles per revolution on a level turntable is the signature of unequal x/y scale factors"))
+    # seed 001 -----------------------------------------------------------------------------------
+    try:
+        from calibrators.gradiometer import run_gradiometer
+
+        g = run_gradiometer(seed=0)
+        (out / "gradiometer.json").write_text(json.dumps(g, indent=2, default=float) + "\n")
+        rows.append(_row("001 Jin et al. 2024", "Gradient calibration by three 6-gene GAs leaves about 1.85 nT per axis "
+                         "under a fluctuating field, where single-sensor ellipsoid fits fail",
+                         _gradiometer_text(g), _gradiometer_verdict(g),
+                         "simulated two-sensor gradiometer, 200 nT ambient fluctuation (results/gradiometer.json)"))
+    except ImportError:
+        rows.append(_row("001 Jin et al. 2024", "Gradient calibration leaves about 1.85 nT per axis", "not run",
+                         "not", "the gradiometer module is missing"))
+    # seed 002 -----------------------------------------------------------------------------------
+    val = (f"; held-out RMS {rga_val['median_val_rms_after_nT'].iloc[0]:.2f} nT on a second data set"
+           if len(rga_val) and "median_val_rms_after_nT" in rga_val else "")
+    rows.append(_row("002", "A real-coded elitist GA finds the 9 parameters and improves the correction, checked on "
+                     "a second set of 100 readings", f"rga reaches lsq's optimum on sphere9 (RMS ratio median "
+                     f"{rga.median():.5f}, worst {rga.max():.5f}, 10 seeds){val}", "reproduced",
+                     "in simulation; the paper's own parameter values are not legible in our copy"))
+    # seed 003 -----------------------------------------------------------------------------------
+    r = ransac_experiment()
+    (out / "ransac_seed003.json").write_text(json.dumps(r, indent=2) + "\n")
+    verdict = "reproduced" if r["improvement_offset"] >= 10 and r["improvement_angles"] >= 3 else "partly"
+    rows.append(_row("003", "RANSAC improves offset and scale accuracy by about two orders of magnitude and "
+                     "non-orthogonality by one over the plain ellipsoid fit (200 points, 10 % with 500 nT noise)",
+                     f"median errors plain -> RANSAC ({r['n_seeds']} seeds): offsets "
+                     f"{r['median_offset_err_nT']['ellipsoid']:.1f} -> {r['median_offset_err_nT']['ransac']:.2f} nT "
+                     f"(x{r['improvement_offset']:.0f}), scale {r['median_scale_err']['ellipsoid']:.1e} -> "
+                     f"{r['median_scale_err']['ransac']:.1e} (x{r['improvement_scale']:.0f}), angles "
+                     f"{r['median_angle_err_rad']['ellipsoid']:.1e} -> {r['median_angle_err_rad']['ransac']:.1e} rad "
+                     f"(x{r['improvement_angles']:.0f})", verdict,
+                     "noise on the other 90 % and the threshold multiplier are not legible; ours: 1 nT and 1 sigma"))
+    # seed 004 -----------------------------------------------------------------------------------
+    v = vehicle_experiment()
+    (out / "vehicle_seed004.json").write_text(json.dumps(v, indent=2) + "\n")
+    hd = v["median_heading_err_deg"]
+    ok = v["failures"]["tls"] > v["n_seeds"] / 2 and v["failures"]["ttls"] < v["n_seeds"] / 5
+    rows.append(_row("004", "On vehicle data (cond(A) = 1.36e10) TLS diverges and TTLS with the L-curve does not",
+                     f"vehicle9n, {v['n_seeds']} seeds: cond(A) median {v['median_condition_number_A']:.2g}; no "
+                     f"ellipsoid from TLS in {v['failures']['tls']}, from TTLS in {v['failures']['ttls']} "
+                     f"(L-curve levels {v['truncation_levels']})", "reproduced" if ok else "partly",
+                     "A and b are the Foster-Elkaim linearization the paper cites; its own are not legible"))
+    fmt = lambda x: "-" if x is None else f"{x:.2f}°"  # noqa: E731
+    rows.append(_row("004", "Heading error about 1.5° after TTLS against 4.5° for an ellipse fit",
+                     f"median RMS heading error: TTLS {fmt(hd['ttls'])}, 2-D ellipse fit {fmt(hd['ellipse2d'])}, "
+                     f"3-D ellipsoid fit {fmt(hd['ellipsoid'])}, lsq {fmt(hd['lsq'])}",
+                     "reproduced" if hd["ttls"] is not None and hd["ttls"] < hd["ellipse2d"] else "partly",
+                     "simulated van (pitch and roll within 3°, 20 nT noise); the paper reads its values off Fig. 3"))
+    text = ["# Headline claims of the seed papers and our reproduction", "",
+            "Made by `magbench reproduce`. Verdicts: **reproduced** (the claim holds in our reproduction), **partly** "
+            "(holds with a qualification), **not** (our reproduction contradicts it).", "",
+            "| paper | claim | our reproduction | verdict | why |", "|---|---|---|---|---|", *rows]
+    path = out / "claims.md"
+    path.write_text("\n".join(text) + "\n", encoding="utf-8")
+    return path
+
+
+def _gradiometer_text(g: dict) -> str:
+    keys = {k: v for k, v in g.items() if "residual" in k}
+    return "; ".join(f"{k} {np.round(v, 2).tolist() if isinstance(v, list) else round(float(v), 2)}"
+                     for k, v in keys.items())
+
+
+def _gradiometer_verdict(g: dict) -> str:
+    ga = g.get("gradient_residual_ga_nT")
+    ell = g.get("gradient_residual_ellipsoid_nT")
+    if ga is None or ell is None:
+        return "partly"
+    ga, ell = np.mean(ga), np.mean(ell)
+    return "reproduced" if ga < ell and ga < 2 * 1.85 else "partly"
