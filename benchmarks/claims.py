@@ -151,7 +151,9 @@ def write_claims(out: Path) -> Path:
         rows.append(_row("001 Jin et al. 2024", "Gradient calibration by three 6-gene GAs leaves about 1.85 nT per axis "
                          "under a fluctuating field, where single-sensor ellipsoid fits fail",
                          _gradiometer_text(g), _gradiometer_verdict(g),
-                         "simulated two-sensor gradiometer, 200 nT ambient fluctuation (results/gradiometer.json)"))
+                         "the 1.85 nT is mostly the noise floor; the ellipsoid fits fail on the gradient through the "
+                         "sensors' relative misalignment, which a single sensor cannot see, more than through the "
+                         "200 nT fluctuation, which cancels in the difference (results/gradiometer.json)"))
     except ImportError:
         rows.append(_row("001 Jin et al. 2024", "Gradient calibration leaves about 1.85 nT per axis", "not run",
                          "not", "the gradiometer module is missing"))
@@ -201,15 +203,14 @@ def write_claims(out: Path) -> Path:
 
 
 def _gradiometer_text(g: dict) -> str:
-    keys = {k: v for k, v in g.items() if "residual" in k}
-    return "; ".join(f"{k} {np.round(v, 2).tolist() if isinstance(v, list) else round(float(v), 2)}"
-                     for k, v in keys.items())
+    r = g["gradient_rms_nT"]
+    fmt = lambda v: "/".join(f"{x:.2f}" for x in v)  # noqa: E731
+    return (f"gradient residual per axis (x/y/z, nT): raw {fmt(r['raw'])}, single-sensor ellipsoid fits "
+            f"{fmt(r['ellipsoid'])}, the paper's three 6-gene GAs {fmt(r['ga'])}, noise floor with the true "
+            f"parameters {fmt(r['truth'])} ({g['noise_nT']} nT per axis, chosen by us: the paper gives none)")
 
 
 def _gradiometer_verdict(g: dict) -> str:
-    ga = g.get("gradient_residual_ga_nT")
-    ell = g.get("gradient_residual_ellipsoid_nT")
-    if ga is None or ell is None:
-        return "partly"
-    ga, ell = np.mean(ga), np.mean(ell)
-    return "reproduced" if ga < ell and ga < 2 * 1.85 else "partly"
+    r = g["gradient_rms_nT"]
+    return "reproduced" if np.mean(r["ga"]) < 2 * 1.85 and np.mean(r["ga"]) < 0.1 * np.mean(r["ellipsoid"]) \
+        else "partly"

@@ -347,6 +347,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_compare)
 
+    from calibrators.gradiometer import add_gradiometer_command
+
+    add_gradiometer_command(sub)
+
     p = sub.add_parser("report", help="one self-contained HTML page of a campaign directory")
     p.add_argument("dir", metavar="DIR")
     p.add_argument("--json", action="store_true")
