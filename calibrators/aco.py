@@ -45,15 +45,13 @@ class AntColony(Calibrator):
         return {"iterations": 1500}
 
     def _solve(self, problem: Problem) -> SolveOutput:
-        from .genetic import _bounds
+        from .genetic import search_box
 
         k, m = self.archive_size, self.ants
         if k < 2 or m < 1 or self.q <= 0 or self.xi <= 0:
             raise InputError("aco: archive_size >= 2, ants >= 1, q > 0 and xi > 0 are required")
         rng, obj = problem.rng, problem.objective
-        f_ref = float(np.median(problem.f_ref_nT))
-        offset = self.offset_range_nT if self.offset_range_nT is not None else 0.1 * f_ref
-        lo, hi = _bounds(problem, self.angle_range_rad, self.scale_range, offset)
+        lo, hi = search_box(problem, self)
         span, p = hi - lo, len(lo)
         rank = np.arange(k)
         w = np.exp(-rank**2 / (2.0 * (self.q * k) ** 2)) / (self.q * k * np.sqrt(2 * np.pi))  # eq. 7

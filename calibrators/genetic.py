@@ -14,15 +14,18 @@ from .base import Calibrator, Problem, SolveOutput
 from .registry import register
 
 
-def _bounds(problem: Problem, angle_range_rad: float, scale_range: float, offset_range_nT: float | None):
-    """Search box: angles +-angle_range (seed 000: 0.1 rad); scale 1 +- scale_range; offsets +-offset_range
-    (default: problem bounds)."""
+def search_box(problem: Problem, cal) -> tuple[np.ndarray, np.ndarray]:
+    """Search box of the population methods from the calibrator's hyper-parameters: angles
+    +-``angle_range_rad`` (seed 000: 0.1 rad); scale 1 +- ``scale_range``; offsets +-``offset_range_nT``
+    (default 10 % of the reference magnitude)."""
     lo, hi = problem.lower.copy(), problem.upper.copy()
-    lo[:3], hi[:3] = -angle_range_rad, angle_range_rad
+    lo[:3], hi[:3] = -cal.angle_range_rad, cal.angle_range_rad
     if problem.model == "nine":
-        lo[3:6], hi[3:6] = 1.0 - scale_range, 1.0 + scale_range
-        if offset_range_nT is not None:
-            lo[6:9], hi[6:9] = -offset_range_nT, offset_range_nT
+        offset = cal.offset_range_nT
+        if offset is None:
+            offset = 0.1 * float(np.median(problem.f_ref_nT))
+        lo[3:6], hi[3:6] = 1.0 - cal.scale_range, 1.0 + cal.scale_range
+        lo[6:9], hi[6:9] = -offset, offset
     return lo, hi
 
 
@@ -95,9 +98,7 @@ class AdaptiveGA(Calibrator):
         if self.mutation not in ("single_bit", "per_bit"):
             raise InputError("aga: mutation must be 'single_bit' or 'per_bit'")
         rng, obj = problem.rng, problem.objective
-        f_ref = float(np.median(problem.f_ref_nT))
-        offset = self.offset_range_nT if self.offset_range_nT is not None else 0.1 * f_ref
-        lo, hi = _bounds(problem, self.angle_range_rad, self.scale_range, offset)
+        lo, hi = search_box(problem, self)
         p, nb, m = len(lo), self.bits, self.population
         length = p * nb
         step = (hi - lo) / (2**nb - 1)  # eq. 6
@@ -267,9 +268,7 @@ class RealGA(Calibrator):
         if not 0 <= self.elitism < self.population:
             raise InputError(f"{self.name}: elitism must be between 0 and population - 1")
         rng, obj = problem.rng, problem.objective
-        f_ref = float(np.median(problem.f_ref_nT))
-        offset = self.offset_range_nT if self.offset_range_nT is not None else 0.1 * f_ref
-        lo, hi = _bounds(problem, self.angle_range_rad, self.scale_range, offset)
+        lo, hi = search_box(problem, self)
         span = hi - lo
         m, p, half = self.population, len(lo), (self.population + 1) // 2
         u = rng.random((m, p))

@@ -45,16 +45,14 @@ class NLoptCalibrator(Calibrator):
         self.population = population
 
     def _solve(self, problem: Problem) -> SolveOutput:
-        from .genetic import _bounds
+        from .genetic import search_box
 
         code = getattr(nlopt, str(self.algorithm), None)
         if not isinstance(code, int) or not str(self.algorithm)[:3] in ("LN_", "LD_", "GN_", "GD_"):
             raise InputError(f"nlopt: unknown algorithm {self.algorithm!r} (e.g. LN_BOBYQA, LD_LBFGS, GN_CRS2_LM, "
                              "GN_ISRES, GN_ESCH)")
         obj = problem.objective
-        f_ref = float(np.median(problem.f_ref_nT))
-        offset = self.offset_range_nT if self.offset_range_nT is not None else 0.1 * f_ref
-        lo, hi = _bounds(problem, self.angle_range_rad, self.scale_range, offset)
+        lo, hi = search_box(problem, self)
         span = hi - lo
         nlopt.srand(int(self.seed) if self.seed is not None else 0)
         opt = nlopt.opt(code, len(lo))
