@@ -100,6 +100,22 @@ def vehicle_experiment(n_seeds: int = 30) -> dict:
             "truncation_levels": {int(k): ks.count(k) for k in sorted(set(ks))}}
 
 
+def premature_convergence(n_seeds: int = 20) -> dict:
+    """When the paper's AGA population collapses: the first generation whose mean fitness is 99 % of the
+    best, and the last generation that improved the best of all generations (lu2014, seeds 0..n-1)."""
+    from simulate import simulate
+
+    gens, last = [], []
+    for seed in range(n_seeds):
+        res = make("aga", model="angles", seed=seed).fit(simulate("lu2014", seed))
+        best, mean = np.array(res.extra["best_fitness"]), np.array(res.extra["mean_fitness"])
+        gens.append(int(np.argmax(mean >= 0.99 * best)) + 1)
+        running = np.maximum.accumulate(best)
+        last.append(int(np.flatnonzero(np.diff(running) > 0)[-1]) + 2 if np.any(np.diff(running) > 0) else 1)
+    return {"n_seeds": n_seeds, "median_generation": float(np.median(gens)),
+            "median_last_improvement": float(np.median(last))}
+
+
 def _row(paper, claim, ours, verdict, why):
     return f"| {paper} | {claim} | {ours} | **{verdict}** | {why} |"
 
@@ -130,9 +146,12 @@ def write_claims(out: Path) -> Path:
                      f"{100 * (lm_err <= RESOLUTION_RAD).all(axis=1).mean():.0f} %", "not",
                      "roulette selection without elitism collapses the population; single-bit mutation cannot "
                      "cross Hamming cliffs (results/quality.md)"))
+    collapse = premature_convergence()
     rows.append(_row("000", "Adaptive Pc and Pm keep diversity and avoid premature convergence (section 2.1)",
-                     "the mean fitness equals the best fitness within about 100 generations in our runs (convergence "
-                     "figure, results/campaign/figures/convergence_lu2014.png)", "not",
+                     f"on lu2014 the population's mean fitness reaches 99 % of its best by generation "
+                     f"{collapse['median_generation']:.0f} (median of {collapse['n_seeds']} seeds) and the best "
+                     f"individual stops improving by generation {collapse['median_last_improvement']:.0f}, far from the "
+                     "optimum (results/quality.md)", "not",
                      "eq. 4-5 give the best individuals the smallest Pm, so a converged population stops exploring"))
     h = t2["localization"]["heading_harmonics"]
     scale = next(e for e in t2["effects"] if e["name"] == "scale")
@@ -176,7 +195,8 @@ def write_claims(out: Path) -> Path:
                      f"{r['median_scale_err']['ransac']:.1e} (x{r['improvement_scale']:.0f}), angles "
                      f"{r['median_angle_err_rad']['ellipsoid']:.1e} -> {r['median_angle_err_rad']['ransac']:.1e} rad "
                      f"(x{r['improvement_angles']:.0f})", verdict,
-                     "noise on the other 90 % and the threshold multiplier are not legible; ours: 1 nT and 1 sigma"))
+                     "noise on the other 90 % and the threshold multiplier are not legible; ours: 1 nT and 0.25 sigma "
+                     "(with 1 sigma the gain is about 8x: a quarter of the outliers pass as inliers)"))
     # seed 004 -----------------------------------------------------------------------------------
     v = vehicle_experiment()
     (out / "vehicle_seed004.json").write_text(json.dumps(v, indent=2) + "\n")
@@ -191,8 +211,11 @@ def write_claims(out: Path) -> Path:
     rows.append(_row("004", "Heading error about 1.5° after TTLS against 4.5° for an ellipse fit",
                      f"median RMS heading error: TTLS {fmt(hd['ttls'])}, 2-D ellipse fit {fmt(hd['ellipse2d'])}, "
                      f"3-D ellipsoid fit {fmt(hd['ellipsoid'])}, lsq {fmt(hd['lsq'])}",
-                     "reproduced" if hd["ttls"] is not None and hd["ttls"] < hd["ellipse2d"] else "partly",
-                     "simulated van (pitch and roll within 3°, 20 nT noise); the paper reads its values off Fig. 3"))
+                     "reproduced" if hd["ttls"] is not None and hd["ttls"] < 2.25 and hd["ellipse2d"] > 2 * hd["ttls"]
+                     else "partly",
+                     "TTLS lands at the paper's 1.5°, but in our simulated van (pitch and roll within 3°, 20 nT noise) "
+                     "the 2-D ellipse fit is not three times worse; the paper's van met steeper slopes (it reads its "
+                     "values off Fig. 3)"))
     text = ["# Headline claims of the seed papers and our reproduction", "",
             "Made by `magbench reproduce`. Verdicts: **reproduced** (the claim holds in our reproduction), **partly** "
             "(holds with a qualification), **not** (our reproduction contradicts it).", "",
