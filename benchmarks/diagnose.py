@@ -164,7 +164,7 @@ class Diagnosis:
         effects.sort(key=lambda e: e["rms_heldout_nT"])
         verdict = _verdict(effects, base_cv.rms, floor, n)
         self._winner = next((e for e in effects if e["name"] == verdict), None)
-        self._r_all, self._unit, self._base_x = r_all, unit, base_x
+        self._unit = unit  # the observed attitudes, for the re-simulation
         out = {"kind": "vector", "base_model": self.base, "n_points": n, "rms_fit_nT": float(np.sqrt(np.mean(r_all**2))),
                "rms_base_nT": base_cv.rms, "noise_floor_nT": floor, "verdict": verdict, "effects": effects,
                "folds": self.k, "seed": self.seed, "localization": self.localize(r_all, unit),
@@ -175,7 +175,6 @@ class Diagnosis:
             if verdict == "outliers":
                 x = trimmed_fit(model, self.d, x)[0]
             out["winner_params"] = dict(zip(model.names, map(float, x)))
-            self._winner_resid = model.residuals(x, self.d)
             out["resimulation"] = self.resimulate(verdict, model, x, floor, r_all)
         return out
 

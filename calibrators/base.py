@@ -128,15 +128,17 @@ class SolveOutput:
     extra: dict = field(default_factory=dict)
 
 
-def default_bounds(model: str, f_ref_nT: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Search box for population methods: angles +-0.1 rad (seed 000, step 1); for ``nine`` also scale
-    0.8..1.2 and offsets within +-25 % of the reference magnitude."""
-    lo = [-0.1] * 3
-    hi = [0.1] * 3
+def default_bounds(model: str, f_ref_nT: np.ndarray, angle_range_rad: float = 0.1, scale_range: float = 0.1,
+                   offset_range_nT: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Search box for population methods: angles +-``angle_range_rad`` (seed 000, step 1: 0.1 rad); for
+    ``nine`` also scale 1 +- ``scale_range`` and offsets +-``offset_range_nT`` (default 10 % of the
+    reference magnitude)."""
+    lo = [-angle_range_rad] * 3
+    hi = [angle_range_rad] * 3
     if model == "nine":
-        f = float(np.median(f_ref_nT))
-        lo += [0.8] * 3 + [-0.25 * f] * 3
-        hi += [1.2] * 3 + [0.25 * f] * 3
+        offset = 0.1 * float(np.median(f_ref_nT)) if offset_range_nT is None else offset_range_nT
+        lo += [1.0 - scale_range] * 3 + [-offset] * 3
+        hi += [1.0 + scale_range] * 3 + [offset] * 3
     return np.array(lo), np.array(hi)
 
 
@@ -166,12 +168,17 @@ class Calibrator:
     def get_params(self) -> dict:
         return {k: getattr(self, k) for k in self._param_names()}
 
+    @classmethod
+    def check_param_names(cls, params: dict) -> None:
+        """Refuse hyper-parameters the constructor does not have (``InputError`` naming them)."""
+        unknown = set(params) - set(cls._param_names())
+        if unknown:
+            raise InputError(f"{cls.name} has no hyper-parameter {', '.join(sorted(unknown))}; "
+                             f"it has {', '.join(cls._param_names())}")
+
     def set_params(self, **params) -> "Calibrator":
         """A new calibrator with some hyper-parameters changed (the original is untouched)."""
-        unknown = set(params) - set(self._param_names())
-        if unknown:
-            raise InputError(f"{self.name} has no hyper-parameter {', '.join(sorted(unknown))}; "
-                             f"it has {', '.join(self._param_names())}")
+        self.check_param_names(params)
         return type(self)(**{**self.get_params(), **params})
 
     @classmethod

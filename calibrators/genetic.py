@@ -10,7 +10,7 @@ import numpy as np
 
 from simulate.dataset import InputError
 
-from .base import Calibrator, Problem, SolveOutput
+from .base import Calibrator, Problem, SolveOutput, default_bounds
 from .registry import register
 
 
@@ -18,15 +18,8 @@ def search_box(problem: Problem, cal) -> tuple[np.ndarray, np.ndarray]:
     """Search box of the population methods from the calibrator's hyper-parameters: angles
     +-``angle_range_rad`` (seed 000: 0.1 rad); scale 1 +- ``scale_range``; offsets +-``offset_range_nT``
     (default 10 % of the reference magnitude)."""
-    lo, hi = problem.lower.copy(), problem.upper.copy()
-    lo[:3], hi[:3] = -cal.angle_range_rad, cal.angle_range_rad
-    if problem.model == "nine":
-        offset = cal.offset_range_nT
-        if offset is None:
-            offset = 0.1 * float(np.median(problem.f_ref_nT))
-        lo[3:6], hi[3:6] = 1.0 - cal.scale_range, 1.0 + cal.scale_range
-        lo[6:9], hi[6:9] = -offset, offset
-    return lo, hi
+    return default_bounds(problem.model, problem.f_ref_nT, cal.angle_range_rad, cal.scale_range,
+                          cal.offset_range_nT)
 
 
 def adaptive_probability(f: np.ndarray, f_max: float, f_avg: float, p1: float, p2: float) -> np.ndarray:

@@ -106,13 +106,6 @@ class ScalarObjective:
         self._f_scaled = 2.0 * self.f_ref / self.raw.shape[0]
         self._f2_mean = float(np.mean(self.f_ref**2))
 
-    def residuals_batch(self, x: np.ndarray) -> np.ndarray:
-        """Residuals for a population: (m, p) -> (m, n), through the quadric form (one matrix product)."""
-        q = quadric_coefficients(x, self.model) @ self._design
-        np.sqrt(q, out=q)  # |c|² >= 0 for any finite parameters; a NaN marks a broken candidate
-        q -= self.f_ref
-        return q
-
     def values(self, x: np.ndarray, exact: bool | None = None) -> np.ndarray:
         """F(X) of eq. 3 for each row of a population: (m, p) -> (m,).
 

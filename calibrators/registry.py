@@ -68,9 +68,5 @@ def get(name: str) -> type:
 def make(name: str, **params):
     """Instantiate a registered calibrator with hyper-parameters."""
     cls = get(name)
-    known = cls._param_names()
-    unknown = set(params) - set(known)
-    if unknown:
-        raise InputError(f"{name} has no hyper-parameter {', '.join(sorted(unknown))}; "
-                         f"it has {', '.join(known)}")
+    cls.check_param_names(params)
     return cls(**params)
