@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from simulate.dataset import InputError
+from magbench.errors import InputError
 
 RUNTIME_COLUMNS = ("runtime_s", "median_runtime_s")
 TRACE_POINTS = 200  # convergence traces are thinned to at most this many points per run
@@ -65,8 +65,8 @@ class Campaign:
 
     def tasks(self) -> tuple[list[dict], list[dict]]:
         """All runs as picklable dicts, and the (scenario, method) pairs skipped as not applicable."""
-        from calibrators import available
-        from simulate.scenarios import get_scenario
+        from magbench.calibrators import available
+        from magbench.simulate.scenarios import get_scenario
 
         cals = available()
         tasks, skipped = [], []
@@ -94,9 +94,9 @@ class Campaign:
 
 def run_task(task: dict) -> dict:
     """One run: simulate the trial's data and validation data, fit, measure.  Never raises."""
-    from benchmarks.metrics import crb_row, run_metrics
-    from calibrators import make
-    from simulate.scenarios import get_scenario
+    from magbench.benchmarks.metrics import crb_row, run_metrics
+    from magbench.calibrators import make
+    from magbench.simulate.scenarios import get_scenario
 
     row = {k: task[k] for k in ("scenario", "method", "configuration", "model", "trial", "seed", "data_seed")}
     row["error"] = ""
@@ -179,7 +179,7 @@ def _git_commit() -> str:
 
 
 def manifest(campaign: Campaign, skipped: list[dict], command: str) -> dict:
-    from calibrators import make
+    from magbench.calibrators import make
 
     versions = {}
     for pkg in ("magbench", "numpy", "scipy", "nlopt", "pandas", "matplotlib", "ppigrf", "dask", "distributed"):
@@ -203,7 +203,7 @@ def manifest(campaign: Campaign, skipped: list[dict], command: str) -> dict:
 def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str | None = None,
                  command: str = "", progress: bool = True) -> pd.DataFrame:
     """Run a campaign and write runs.csv, summary.{csv,md,tex}, traces.csv, fields.csv, manifest.json."""
-    from benchmarks.tables import write_tables
+    from magbench.benchmarks.tables import write_tables
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.metrics import heading_error_deg
-from calibrators import make
-from simulate.dataset import InputError
-from simulate.scenarios import get_scenario
+from magbench.benchmarks.metrics import heading_error_deg
+from magbench.calibrators import make
+from magbench.errors import InputError
+from magbench.simulate.scenarios import get_scenario
 
-RESOLUTION_RAD = 0.2 / 1023
+from magbench.paper import RESOLUTION_RAD  # noqa: E402
 
 
 def ellipse2d_heading_error_deg(data) -> float:
@@ -52,7 +52,7 @@ def ransac_experiment(n_seeds: int = 30) -> dict:
     against RANSAC."""
     from dataclasses import replace
 
-    from simulate.effects import OutlierEffect
+    from magbench.simulate.effects import OutlierEffect
 
     base = get_scenario("sphere9")
     scenario = replace(base, n_points=200, sensor=replace(base.sensor, noise_nT=1.0)).with_effects(
@@ -103,7 +103,7 @@ def vehicle_experiment(n_seeds: int = 30) -> dict:
 def premature_convergence(n_seeds: int = 20) -> dict:
     """When the paper's AGA population collapses: the first generation whose mean fitness is 99 % of the
     best, and the last generation that improved the best of all generations (lu2014, seeds 0..n-1)."""
-    from simulate import simulate
+    from magbench.simulate import simulate
 
     gens, last = [], []
     for seed in range(n_seeds):
@@ -163,7 +163,7 @@ def write_claims(out: Path) -> Path:
                      "2 cycles per revolution on a level turntable is the signature of unequal x/y scale factors"))
     # seed 001 -----------------------------------------------------------------------------------
     try:
-        from calibrators.gradiometer import run_gradiometer
+        from magbench.calibrators.gradiometer import run_gradiometer
 
         g = run_gradiometer(seed=0)
         (out / "gradiometer.json").write_text(json.dumps(g, indent=2, default=float) + "\n")

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simulate.dataset import InputError
+from magbench.errors import InputError
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
 
@@ -51,7 +51,7 @@ def _reference_from_args(args) -> float | None:
             raise InputError(f"--igrf wants LAT,LON,ALT_KM,YYYY-MM-DD, got {args.igrf!r}")
         try:
             lat, lon, alt = (float(v) for v in parts[:3])
-            from simulate.field import igrf_field
+            from magbench.simulate.field import igrf_field
 
             return igrf_field(lat, lon, alt, parts[3].strip()).total_nT
         except ValueError as exc:
@@ -61,7 +61,7 @@ def _reference_from_args(args) -> float | None:
 
 def load_dataset(args, require_vector: bool = True):
     """Read FILE with the reference options; f_ref column > --field > --igrf > '# field_nT:'."""
-    from simulate.dataset import read_csv
+    from magbench.simulate.dataset import read_csv
 
     cli_ref = _reference_from_args(args)
     data = read_csv(args.file, units=args.units, require_vector=require_vector, expected_field_nT=cli_ref)
@@ -106,9 +106,9 @@ def _json_default(o):
 
 # ---------------------------------------------------------------------------------------- commands
 def cmd_list(args) -> int:
-    from calibrators import available
-    from simulate.scenarios import get_scenario, scenario_names
-    from simulate.sensor import MODELS, PARAM_NAMES
+    from magbench.calibrators import available
+    from magbench.simulate.scenarios import get_scenario, scenario_names
+    from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
     cals = [{"name": n, "models": list(c.supported_models), "stochastic": c.stochastic, "summary": c.summary,
              "hyperparameters": c._param_names()} for n, c in sorted(available().items())]
@@ -127,15 +127,15 @@ def cmd_list(args) -> int:
 
 def list_effects() -> list[dict]:
     """Effects the simulator can switch on (CONTRACT section 3 names)."""
-    from simulate.effects import EFFECTS
+    from magbench.simulate.effects import EFFECTS
 
     return [{"name": name, "in_library": cls.in_library, "needs": list(cls.needs),
              "description": " ".join((cls.__doc__ or "").split())} for name, cls in EFFECTS.items()]
 
 
 def cmd_simulate(args) -> int:
-    from simulate.dataset import write_truth
-    from simulate.scenarios import get_scenario
+    from magbench.simulate.dataset import write_truth
+    from magbench.simulate.scenarios import get_scenario
 
     scenario = get_scenario(args.scenario)
     out = Path(args.out)
@@ -156,7 +156,7 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_calibrate(args) -> int:
-    from calibrators import make
+    from magbench.calibrators import make
 
     data = load_dataset(args)
     params = _parse_params(args.param)
@@ -181,9 +181,9 @@ def cmd_calibrate(args) -> int:
 def cmd_demo(args) -> int:
     import pandas as pd
 
-    from benchmarks.runner import ARCSEC_PER_RAD, run_one
-    from calibrators import available
-    from simulate.scenarios import get_scenario
+    from magbench.benchmarks.runner import ARCSEC_PER_RAD, run_one
+    from magbench.calibrators import available
+    from magbench.simulate.scenarios import get_scenario
 
     rows = []
     for name in ("lu2014", "sphere9"):
@@ -223,9 +223,9 @@ def cmd_demo(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from benchmarks.campaign import Campaign, MethodSpec, run_campaign
-    from calibrators import available
-    from simulate.scenarios import get_scenario
+    from magbench.benchmarks.campaign import Campaign, MethodSpec, run_campaign
+    from magbench.calibrators import available
+    from magbench.simulate.scenarios import get_scenario
 
     scenarios = tuple(s for item in args.scenarios for s in item.split(",") if s)
     for s in scenarios:
@@ -243,8 +243,8 @@ def cmd_compare(args) -> int:
     runs = run_campaign(campaign, out, jobs=args.jobs, dask_address=args.dask, command=command,
                         progress=not args.json and not args.quiet)
     if not args.no_figures:
-        from benchmarks.figures import make_figures
-        from benchmarks.report import write_report
+        from magbench.benchmarks.figures import make_figures
+        from magbench.benchmarks.report import write_report
 
         make_figures(out)
         write_report(out)
@@ -256,7 +256,7 @@ def cmd_compare(args) -> int:
 
 
 def cmd_diagnose(args) -> int:
-    from benchmarks.diagnose import diagnose, diagnosis_figure, diagnosis_text
+    from magbench.benchmarks.diagnose import diagnose, diagnosis_figure, diagnosis_text
 
     data = load_dataset(args, require_vector=False)
     result = diagnose(data, base=args.model, folds=args.folds, seed=args.seed)
@@ -272,7 +272,7 @@ def cmd_diagnose(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from benchmarks.report import write_report
+    from magbench.benchmarks.report import write_report
 
     d = Path(args.dir)
     if not (d / "runs.csv").is_file():
@@ -283,7 +283,7 @@ def cmd_report(args) -> int:
 
 
 def cmd_reproduce(args) -> int:
-    from benchmarks.reproduce import reproduce
+    from magbench.benchmarks.reproduce import reproduce
 
     written = reproduce(Path(args.out), quick=args.quick, jobs=args.jobs, progress=not args.json)
     _emit(args, {"out": args.out, "written": [str(p) for p in written]},
@@ -294,6 +294,9 @@ def cmd_reproduce(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="magbench", description="Simulate tri-axial fluxgate magnetometers and benchmark "
                      "their calibration algorithms.")
+    from magbench import __version__
+
+    parser.add_argument("--version", action="version", version=f"magbench {__version__}")
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
 
     p = sub.add_parser("list", help="calibrators, models, scenarios, effects")
@@ -347,7 +350,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_compare)
 
-    from calibrators.gradiometer import add_gradiometer_command
+    from magbench.calibrators.gradiometer import add_gradiometer_command
 
     add_gradiometer_command(sub)
 

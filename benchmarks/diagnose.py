@@ -24,9 +24,10 @@ import numpy as np
 from numpy.polynomial import legendre
 from scipy.spatial import cKDTree
 
-from calibrators import make
-from calibrators.extended import EFFECT_PARAMS, Data, ExtendedModel, applicable_effects
-from simulate.dataset import Dataset, InputError, ScalarSeries
+from magbench.calibrators import make
+from magbench.calibrators.extended import EFFECT_PARAMS, Data, ExtendedModel, applicable_effects
+from magbench.errors import InputError
+from magbench.simulate.dataset import Dataset, ScalarSeries
 
 Z_SIGNIFICANT = 3.0
 MIN_SHRINK_PCT = 50.0
@@ -203,13 +204,13 @@ class Diagnosis:
         """Simulate the sensor at the observed attitudes (the corrected field directions, scaled to the
         reference) with the fitted base errors, white noise at the floor, and the fitted effect or none;
         calibrate with the base model and compare residual statistics with the observation."""
-        from simulate import effects as fx
+        from magbench.simulate import effects as fx
 
         rng = np.random.default_rng(self.seed + 7)
         base_x = x[:model.nb]
         e = x[model.nb:]
         b_true = self._unit * self.d.f_ref[:, None]
-        from calibrators.objective import correction_matrices
+        from magbench.calibrators.objective import correction_matrices
 
         mat, o = correction_matrices(base_x[None, :], self.base)
         lin = b_true @ np.linalg.inv(mat[0]).T + o[0]
@@ -458,8 +459,8 @@ def blind_dataset(i: int):
     """Dataset i of the blind check: (true effect, base model, data).  The effect cycles through
     ``none`` and the library; its parameters and the data seed are drawn from seed 1000 + i; scale and
     offset (and every other ``none``) use the angles-only tumble, the rest the 9-parameter one."""
-    from simulate.effects import random_effect
-    from simulate.scenarios import get_scenario
+    from magbench.simulate.effects import random_effect
+    from magbench.simulate.scenarios import get_scenario
 
     rng = np.random.default_rng(1000 + i)
     kind = BLIND_KINDS[i % len(BLIND_KINDS)]

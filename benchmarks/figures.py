@@ -1,7 +1,7 @@
 """Figures of a campaign directory: angle errors, accuracy against runtime, convergence, total field
 against heading and efficiency against the Cramér-Rao bound, each as PNG (dpi 120) and SVG.
 
-    from benchmarks.figures import make_figures
+    from magbench.benchmarks.figures import make_figures
     make_figures("results/campaign")          # -> results/campaign/figures/<kind>_<scenario>.png/.svg
 
 Only the Agg canvas is used (``matplotlib.figure.Figure``, never pyplot), so importing this module does
@@ -23,7 +23,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-ARCSEC_PER_RAD = 206264.806
+from magbench.paper import ARCSEC_PER_RAD  # noqa: E402
 ANGLES = ("alpha", "beta", "gamma")
 GREEK = {"alpha": "α", "beta": "β", "gamma": "γ"}
 KINDS = ("errors", "accuracy_runtime", "convergence", "field_heading", "efficiency")

@@ -10,13 +10,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from calibrators.base import CalibrationResult
-from calibrators.fisher import crb_std
-from calibrators.objective import ScalarObjective
-from simulate.dataset import Dataset
-from simulate.sensor import PARAM_NAMES, ErrorParams
+from magbench.calibrators.base import CalibrationResult
+from magbench.calibrators.fisher import crb_std
+from magbench.calibrators.objective import ScalarObjective
+from magbench.simulate.dataset import Dataset
+from magbench.simulate.sensor import PARAM_NAMES, ErrorParams
 
-ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
+from magbench.paper import ARCSEC_PER_RAD  # noqa: E402
 
 
 def total_field_rms(params: ErrorParams, data: Dataset) -> float:

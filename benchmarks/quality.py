@@ -1,6 +1,6 @@
 """Quality targets of the calibrators issue; writes results/quality.md and results/quality.csv.
 
-    python -m benchmarks.quality [--seeds-lu 50] [--seeds-sphere 10]
+    python -m magbench.benchmarks.quality [--seeds-lu 50] [--seeds-sphere 10]
 
 1. On ``lu2014`` the AGA recovers alpha, beta, gamma within its coding resolution (0.0002 rad) in at
    least 95 % of 50 seeds; where the paper's AGA falls short, by how much, and ``aga-lm`` beside it.
@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.runner import run_one
-from simulate import simulate
+from magbench.benchmarks.runner import run_one
+from magbench.simulate import simulate
 
-RESOLUTION_RAD = 0.2 / (2**10 - 1)  # seed 000, eq. 6
+from magbench.paper import RESOLUTION_RAD  # noqa: E402  (seed 000, eq. 6)
 SPHERE_METHODS = [("ga", {}), ("rga", {}), ("aco", {}), ("nlopt", {}), ("nlopt", {"algorithm": "LD_LBFGS"}),
                   ("nlopt", {"algorithm": "GN_CRS2_LM", "max_evaluations": 80000}),
                   ("nlopt", {"algorithm": "GN_ISRES", "max_evaluations": 80000}),
@@ -59,7 +59,7 @@ def write(out_dir: Path, n_lu: int, n_sphere: int) -> str:
         out_dir / "quality.csv", index=False, float_format="%.9g")
 
     lines = ["# Quality of the paper's calibrators and their peers", "",
-             f"Made by `python -m benchmarks.quality --seeds-lu {n_lu} --seeds-sphere {n_sphere}`; every run is a "
+             f"Made by `python -m magbench.benchmarks.quality --seeds-lu {n_lu} --seeds-sphere {n_sphere}`; every run is a "
              "row of results/quality.csv.", "",
              f"## 1. lu2014 (seed 000's turntable, 36 points, 1 nT noise): angles within the 10-bit coding "
              f"resolution ({RESOLUTION_RAD:.6f} rad), {n_lu} seeds", "",
@@ -94,10 +94,10 @@ def write(out_dir: Path, n_lu: int, n_sphere: int) -> str:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m benchmarks.quality")
+    p = argparse.ArgumentParser(prog="python -m magbench.benchmarks.quality")
     p.add_argument("--seeds-lu", type=int, default=50)
     p.add_argument("--seeds-sphere", type=int, default=10)
-    p.add_argument("--out", default=str(Path(__file__).resolve().parent.parent / "results"))
+    p.add_argument("--out", default="results", help="output directory (default: results)")
     a = p.parse_args(argv)
     print(write(Path(a.out), a.seeds_lu, a.seeds_sphere))
     return 0

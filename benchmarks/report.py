@@ -1,7 +1,7 @@
 """One self-contained HTML page for a campaign directory: manifest, summary table, every figure (PNG
 embedded as base64), failed runs and the command that made the campaign.
 
-    from benchmarks.report import write_report
+    from magbench.benchmarks.report import write_report
     write_report("results/campaign")          # -> results/campaign/report.html
 
 No external resources, no timestamps of its own: the same directory gives the same bytes.
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.figures import KINDS, failed_mask, make_figures
+from magbench.benchmarks.figures import KINDS, failed_mask, make_figures
 
 CAPTIONS = {
     "errors": "Angle recovery errors (estimate − truth, arcsec) per configuration; boxes span the inter-quartile "

@@ -19,9 +19,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from magbench import paper
+
 SCENARIOS = ("lu2014", "sphere9", "cap9", "vehicle9")
 ROOT_SEED = 2014
-PAPER_ANGLES = {"alpha": 0.0163, "beta": -0.0139, "gamma": 0.0131}  # seed 000, Table 1
+PAPER_ANGLES = {k.removesuffix("_rad"): v for k, v in paper.TABLE1_ANGLES_RAD.items()}  # seed 000, Table 1
 PAPER_TEXT_RMS = (411.82, 49.38)  # seed 000, section 3 text
 
 
@@ -37,8 +39,8 @@ def _rms(v) -> float:
 
 def lu2014_tables(campaign_dir: Path, out: Path) -> Path:
     """Seed 000's Table 1 (angles) and Table 2 (total field before/after) beside our reproduction."""
-    from calibrators import make
-    from simulate.scenarios import get_scenario
+    from magbench.calibrators import make
+    from magbench.simulate.scenarios import get_scenario
 
     runs = pd.read_csv(campaign_dir / "runs.csv", keep_default_na=False, na_values=[""])
     lu = runs[(runs["scenario"] == "lu2014") & runs["error"].isna()]
@@ -97,7 +99,7 @@ def diagnosis_reports(out: Path, blind_n: int = 70) -> Path:
     """``magbench diagnose`` on the real recordings shipped in simulate/data, and the blind check."""
     import json
 
-    from benchmarks.cli import main as cli
+    from magbench.benchmarks.cli import main as cli
 
     folder = out / "diagnosis"
     folder.mkdir(parents=True, exist_ok=True)
@@ -115,7 +117,7 @@ def diagnosis_reports(out: Path, blind_n: int = 70) -> Path:
         if code == 0:
             result = json.loads(buf.getvalue())
             result["figure"] = f"{name}.png"
-            from benchmarks.diagnose import diagnosis_text
+            from magbench.benchmarks.diagnose import diagnosis_text
 
             (folder / f"{name}.json").write_text(json.dumps(result, indent=2) + "\n")
             (folder / f"{name}.txt").write_text(diagnosis_text(result, f"simulate/data/{name}.csv") + "\n")
@@ -157,7 +159,7 @@ def blind_check(n: int) -> str:
     """The blind check of the test suite at a larger size: verdict accuracy and the confusion table."""
     from collections import Counter
 
-    from benchmarks.diagnose import BLIND_KINDS, blind_dataset, diagnose
+    from magbench.benchmarks.diagnose import BLIND_KINDS, blind_dataset, diagnose
 
     pairs = []
     for i in range(n):
@@ -177,19 +179,21 @@ def blind_check(n: int) -> str:
 
 
 def _benchmark_suite(out: Path) -> Path:
-    root = Path(__file__).resolve().parent.parent
-    raw = out / "benchmarks" / "calibrators.json"
+    from magbench.benchmarks.speed import suite_file
+
+    suite = suite_file("test_bench_calibrators.py")
+    raw = (out / "benchmarks" / "calibrators.json").resolve()
     raw.parent.mkdir(parents=True, exist_ok=True)
-    subprocess.run([sys.executable, "-m", "pytest", str(root / "benchmarks" / "test_bench_calibrators.py"), "-q",
-                    "-p", "no:cacheprovider", f"--benchmark-json={raw}"], check=True, cwd=root)
+    subprocess.run([sys.executable, "-m", "pytest", str(suite), "-q", "-p", "no:cacheprovider",
+                    f"--benchmark-json={raw}"], check=True, cwd=suite.parent)
     return raw
 
 
 def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = True) -> list[Path]:
-    from benchmarks.campaign import Campaign, MethodSpec, run_campaign
-    from benchmarks.figures import make_figures
-    from benchmarks.report import write_report
-    from calibrators import available
+    from magbench.benchmarks.campaign import Campaign, MethodSpec, run_campaign
+    from magbench.benchmarks.figures import make_figures
+    from magbench.benchmarks.report import write_report
+    from magbench.calibrators import available
 
     out.mkdir(parents=True, exist_ok=True)
     written = []
@@ -209,8 +213,8 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
     written.append(lu2014_tables(camp_dir, out / "lu2014_tables.md"))
     written.append(diagnosis_reports(out, blind_n=14 if quick else 70))
     if not quick:
-        from benchmarks import quality, speed
-        from benchmarks.claims import write_claims
+        from magbench.benchmarks import quality, speed
+        from magbench.benchmarks.claims import write_claims
 
         quality.write(out, 50, 10)
         written.append(out / "quality.md")

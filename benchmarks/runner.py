@@ -2,8 +2,9 @@
 runtime, seed, and an ``error`` column instead of an exception, so a sweep never dies of one run."""
 from __future__ import annotations
 
-from calibrators import make
-from simulate.dataset import Dataset, InputError
+from magbench.calibrators import make
+from magbench.errors import InputError
+from magbench.simulate.dataset import Dataset
 
 from .metrics import ARCSEC_PER_RAD, run_metrics  # noqa: F401  (ARCSEC_PER_RAD re-exported for the CLI)
 

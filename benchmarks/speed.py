@@ -1,6 +1,6 @@
 """Run the speed benchmarks side by side and write results/speed.md (+ the raw pytest-benchmark JSON).
 
-    python -m benchmarks.speed            # needs the peers: pip install pygad && pip install --no-deps mealpy opfunu
+    python -m magbench.benchmarks.speed            # needs the peers: pip install pygad && pip install --no-deps mealpy opfunu
 """
 from __future__ import annotations
 
@@ -10,17 +10,28 @@ import subprocess
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-COMMAND = "python -m benchmarks.speed"
+
+
+def suite_file(name: str) -> Path:
+    """A file of the pytest-benchmark suite, which lives in a source checkout (``benchmarks/suite``) and
+    is not installed with the wheel: looked up beside this module (editable install), then under the
+    working directory."""
+    for base in (Path(__file__).resolve().parent / "suite", Path.cwd() / "benchmarks" / "suite"):
+        if (base / name).is_file():
+            return base / name
+    from magbench.errors import InputError
+
+    raise InputError(f"the benchmark suite (benchmarks/suite/{name}) is not here: run from a source checkout")
+COMMAND = "python -m magbench.benchmarks.speed"
 
 
 def run(out_dir: Path) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
-    raw = out_dir / "benchmarks" / "speed.json"
+    raw = (out_dir / "benchmarks" / "speed.json").resolve()
     raw.parent.mkdir(parents=True, exist_ok=True)
-    cmd = [sys.executable, "-m", "pytest", str(ROOT / "benchmarks" / "test_bench_speed.py"), "-q",
-           "-p", "no:cacheprovider", f"--benchmark-json={raw}"]
-    subprocess.run(cmd, check=True, cwd=ROOT)
+    suite = suite_file("test_bench_speed.py")
+    cmd = [sys.executable, "-m", "pytest", str(suite), "-q", "-p", "no:cacheprovider", f"--benchmark-json={raw}"]
+    subprocess.run(cmd, check=True, cwd=suite.parent)
     return raw
 
 
@@ -72,7 +83,11 @@ def _fmt(r):
 
 
 def main(argv=None) -> int:
-    out_dir = ROOT / "results"
+    import argparse
+
+    p = argparse.ArgumentParser(prog="python -m magbench.benchmarks.speed")
+    p.add_argument("--out", default="results", help="output directory (default: results)")
+    out_dir = Path(p.parse_args(argv).out)
     raw = run(out_dir)
     print(report(raw, out_dir / "speed.md"))
     return 0

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.metrics import ARCSEC_PER_RAD
+from magbench.benchmarks.metrics import ARCSEC_PER_RAD
 
 ANGLES = ("alpha", "beta", "gamma")
 FLOAT_FORMAT = "%.10g"

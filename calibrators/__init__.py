@@ -1,9 +1,9 @@
 """magbench's calibrators: one interface, one shared objective and counter, a registry.
 
->>> from calibrators import make
+>>> from magbench.calibrators import make
 >>> result = make("lsq", model="nine").fit(dataset)          # doctest: +SKIP
 """
-from simulate.sensor import ErrorParams
+from magbench.simulate.sensor import ErrorParams
 
 from .base import CalibrationResult, Calibrator, Problem, SolveOutput, default_bounds
 from .objective import Budget, BudgetExhausted, CountedObjective, ScalarObjective

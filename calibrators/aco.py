@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simulate.dataset import InputError
+from magbench.errors import InputError
 
 from .base import Calibrator, Problem, SolveOutput
 from .registry import register

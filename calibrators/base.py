@@ -14,8 +14,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from simulate.dataset import Dataset, InputError
-from simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
+from magbench.errors import InputError
+from magbench.simulate.dataset import Dataset
+from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
 
 from .fisher import coverage
 from .objective import Budget, BudgetExhausted, CountedObjective, ScalarObjective, identity_vector

@@ -12,16 +12,18 @@ from functools import lru_cache
 
 import numpy as np
 
-from simulate import attitude
-from simulate.dataset import Dataset, InputError
-from simulate.field import ConstantField
-from simulate.sensor import PARAM_NAMES, ErrorParams, SensorModel
+from magbench import paper
+from magbench.simulate import attitude
+from magbench.errors import InputError
+from magbench.simulate.dataset import Dataset
+from magbench.simulate.field import ConstantField
+from magbench.simulate.sensor import PARAM_NAMES, ErrorParams, SensorModel
 
 from .base import CalibrationResult, Calibrator
 from .objective import Budget
 
 CHECK_ERRORS = {
-    "angles": ErrorParams(0.0163, -0.0139, 0.0131),
+    "angles": ErrorParams(**paper.TABLE1_ANGLES_RAD),
     "nine": ErrorParams(0.012, -0.008, 0.015, (1.021, 0.984, 1.008), (152.0, -218.0, 85.0)),
 }
 
@@ -34,7 +36,7 @@ def check_dataset(model: str, noise_nT: float = 0.05, n: int = 240, seed: int = 
     att = attitude.full_sphere(n, rng)
     sensor = SensorModel(CHECK_ERRORS[model], noise_nT=noise_nT)
     raw = sensor.measure(att.body_field(np.asarray(field.vector_nT)), rng)
-    from simulate.dataset import Truth
+    from magbench.simulate.dataset import Truth
 
     truth = Truth(sensor.true_correction(), sensor, field.vector_nT, scenario=f"check_{model}", seed=seed)
     return Dataset(raw, f_ref_nT=field.total_nT, t_s=att.t_s, truth=truth)

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from simulate.dataset import InputError
-from simulate.sensor import ErrorParams
+from magbench.errors import InputError
+from magbench.simulate.sensor import ErrorParams
 
 from .base import Calibrator, Problem, SolveOutput
 from .registry import register

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.polynomial import legendre
 from scipy.optimize import least_squares
 
-from simulate.sensor import PARAM_NAMES
+from magbench.simulate.sensor import PARAM_NAMES
 
 from .objective import correction_matrices
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simulate.sensor import PARAM_NAMES
+from magbench.simulate.sensor import PARAM_NAMES
 
 from .objective import ScalarObjective, correction_matrices
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simulate.dataset import InputError
+from magbench.errors import InputError
 
 from .base import Calibrator, Problem, SolveOutput, default_bounds
 from .registry import register

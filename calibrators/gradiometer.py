@@ -70,10 +70,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from simulate.attitude import full_sphere, tumble
-from simulate.dataset import InputError
-from simulate.field import ConstantField, VaryingField
-from simulate.sensor import ul_factor
+from magbench.simulate.attitude import full_sphere, tumble
+from magbench.errors import InputError
+from magbench.simulate.field import ConstantField, VaryingField
+from magbench.simulate.sensor import ul_factor
 
 from .ellipsoid import fit_ellipsoid
 

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
-from simulate.dataset import InputError
-from simulate.sensor import PARAM_NAMES
+from magbench.errors import InputError
+from magbench.simulate.sensor import PARAM_NAMES
 
 from .base import Calibrator, Problem, SolveOutput
 from .ellipsoid import ellipsoid_params

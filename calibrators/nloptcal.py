@@ -11,7 +11,7 @@ from __future__ import annotations
 import nlopt
 import numpy as np
 
-from simulate.dataset import InputError
+from magbench.errors import InputError
 
 from .base import Calibrator, Problem, SolveOutput
 from .objective import BudgetExhausted

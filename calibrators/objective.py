@@ -12,9 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simulate.sensor import PARAM_NAMES, ErrorParams
+from magbench.simulate.sensor import PARAM_NAMES, ErrorParams
 
-ANGLE_BOUND_RAD = 0.1  # seed 000, section 2.2 step 1: search range -0.1 .. 0.1 rad
 
 
 def n_params(model: str) -> int:

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from simulate.dataset import InputError
+from magbench.errors import InputError
 
 from .base import Calibrator, Problem, SolveOutput
 from .ellipsoid import ellipsoid_params

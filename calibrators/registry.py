@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from importlib import metadata
 
-from simulate.dataset import InputError
+from magbench.errors import InputError
 
 ENTRY_POINT_GROUP = "magbench.calibrators"
 

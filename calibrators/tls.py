@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simulate.dataset import InputError
+from magbench.errors import InputError
 
 from .base import Calibrator, Problem, SolveOutput
 from .ellipsoid import normalize, quadric_to_ellipsoid, shape_to_params

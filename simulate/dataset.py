@@ -20,8 +20,7 @@ UNIT_FACTORS_NT = {"nT": 1.0, "uT": 1e3, "µT": 1e3, "mG": 100.0, "G": 1e5}
 FIELD_COLUMNS = ("bx", "by", "bz", "f_ref", "f_meas", "f_meas_before", "f_meas_after")
 
 
-class InputError(ValueError):
-    """Bad input: the command line reports it in one line and exits with status 2."""
+from magbench.errors import InputError  # noqa: E402  (re-exported: magbench.simulate.InputError)
 
 
 def _frozen(a, dtype=float, ndim=None, name="array"):

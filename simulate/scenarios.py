@@ -12,6 +12,8 @@ from typing import Callable
 
 import numpy as np
 
+from magbench import paper
+
 from . import attitude as att
 from .dataset import Dataset, Truth
 from .field import ConstantField, VaryingField, igrf_field
@@ -19,8 +21,8 @@ from .sensor import ErrorParams, SensorModel
 
 # Seed 000: Xi'an (34.26 N, 108.94 E, about 0.4 km), 2013; reference magnitude 51978.74 nT (Table 2).
 XIAN = dict(lat_deg=34.26, lon_deg=108.94, alt_km=0.4, date="2013-06-27")
-LU2014_F_NT = 51978.74
-LU2014_ANGLES = ErrorParams(alpha_rad=0.0163, beta_rad=-0.0139, gamma_rad=0.0131)  # seed 000, Table 1
+LU2014_F_NT = paper.F_XIAN_NT
+LU2014_ANGLES = ErrorParams(**paper.TABLE1_ANGLES_RAD)  # seed 000, Table 1
 
 # A typical small fluxgate with 9-parameter errors (seeds 002, 003 use errors of this order).
 SPHERE9_ERRORS = ErrorParams(alpha_rad=0.012, beta_rad=-0.008, gamma_rad=0.015,

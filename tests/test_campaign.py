@@ -5,8 +5,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from benchmarks.campaign import Campaign, MethodSpec, run_campaign
-from benchmarks.tables import summarize
+from magbench.benchmarks.campaign import Campaign, MethodSpec, run_campaign
+from magbench.benchmarks.tables import summarize
 
 RUNTIME = ["runtime_s", "median_runtime_s"]
 
@@ -83,7 +83,7 @@ def test_lsq_efficiency_against_the_bound(tmp_path):
 
 
 def test_compare_command_writes_tables_figures_and_report(tmp_path):
-    from benchmarks.cli import main
+    from magbench.benchmarks.cli import main
 
     out = tmp_path / "camp"
     assert main(["compare", "--scenarios", "lu2014", "--methods", "lsq", "nlopt", "--trials", "2", "--seed", "1",
@@ -95,7 +95,7 @@ def test_compare_command_writes_tables_figures_and_report(tmp_path):
     html = (out / "report.html").read_text()
     assert "data:image/png;base64," in html and "http://" not in html and "https://" not in html
     png = (out / "figures" / "errors_lu2014.png").read_bytes()
-    from benchmarks.figures import make_figures
+    from magbench.benchmarks.figures import make_figures
 
     make_figures(out)
     assert (out / "figures" / "errors_lu2014.png").read_bytes() == png

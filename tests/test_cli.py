@@ -6,12 +6,12 @@ import sys
 import numpy as np
 import pytest
 
-from benchmarks.cli import main
+from magbench.benchmarks.cli import main
 
 
 def run(*args):
     """The installed console entry point, as a user runs it."""
-    p = subprocess.run([sys.executable, "-m", "benchmarks.cli", *args], capture_output=True, text=True)
+    p = subprocess.run([sys.executable, "-m", "magbench.benchmarks.cli", *args], capture_output=True, text=True)
     return p.returncode, p.stdout, p.stderr
 
 
@@ -158,7 +158,7 @@ def test_demo_runs_every_calibrator():
     code, out, err = run("demo", "--json")
     assert code == 0, err
     rows = json.loads(out)["rows"]
-    from calibrators import available
+    from magbench.calibrators import available
 
     assert {r["method"] for r in rows} == set(available())
     lsq = [r for r in rows if r["method"] == "lsq" and r["scenario"] == "sphere9"][0]

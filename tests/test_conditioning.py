@@ -1,9 +1,9 @@
 """Every calibrator warns when the attitude coverage leaves the problem ill-conditioned."""
 import pytest
 
-from calibrators import available
-from simulate import simulate
-from simulate.dataset import InputError
+from magbench.calibrators import available
+from magbench.simulate import simulate
+from magbench.errors import InputError
 
 NINE = sorted(n for n, c in available().items() if "nine" in c.supported_models)
 

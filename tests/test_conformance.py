@@ -1,8 +1,8 @@
 """The conformance battery over every registered calibrator (calibrators.checks)."""
 import pytest
 
-from calibrators import available
-from calibrators.checks import iter_checks
+from magbench.calibrators import available
+from magbench.calibrators.checks import iter_checks
 
 CASES = [(name, check, model) for name, cls in sorted(available().items())
          for _, check, model in iter_checks(cls)]
@@ -23,7 +23,7 @@ def test_battery_catches_a_broken_calibrator():
     """A calibrator that returns a wrong answer must fail the recovery check (the battery can fail)."""
     import numpy as np
 
-    from calibrators import Calibrator, SolveOutput, check_calibrator
+    from magbench.calibrators import Calibrator, SolveOutput, check_calibrator
 
     class Broken(Calibrator):
         name = "broken-test"
@@ -37,8 +37,8 @@ def test_battery_catches_a_broken_calibrator():
 
 
 def test_battery_catches_a_constructor_that_works():
-    from calibrators import Calibrator, check_calibrator
-    from calibrators.lsq import LeastSquares
+    from magbench.calibrators import Calibrator, check_calibrator
+    from magbench.calibrators.lsq import LeastSquares
 
     class Busy(LeastSquares):
         name = "busy-test"

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from simulate import Dataset, InputError, read_csv, simulate
+from magbench.simulate import Dataset, InputError, read_csv, simulate
 
 
 def test_csv_round_trip(tmp_path):

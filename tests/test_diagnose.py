@@ -6,9 +6,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from benchmarks.diagnose import Diagnosis, blind_dataset, diagnose
-from simulate.effects import EFFECT_NAMES, random_effect
-from simulate.scenarios import get_scenario
+from magbench.benchmarks.diagnose import Diagnosis, blind_dataset, diagnose
+from magbench.simulate.effects import EFFECT_NAMES, random_effect
+from magbench.simulate.scenarios import get_scenario
 
 def blind_case(i: int):
     return blind_dataset(i)
@@ -20,7 +20,7 @@ def ground_truth_shrink(data, base: str, result: dict) -> float:
     clean = replace(data, raw_nT=data.truth.raw_without_effects_nT, f_ref_nT=np.linalg.norm(
         data.truth.field_ned_nT) * np.ones(len(data)))
     d = Diagnosis(clean, base)
-    from calibrators import make
+    from magbench.calibrators import make
 
     rms_clean = d._cv("none", make("lsq", model=base).fit(clean).x).rms
     return 100.0 * (result["rms_base_nT"] - rms_clean) / (result["rms_base_nT"] - data.truth.sensor.noise_nT)
@@ -85,9 +85,9 @@ def test_diagnose_command_on_the_paper_table2_scalar_series(tmp_path):
     import sys
     from importlib import resources
 
-    path = resources.files("simulate").joinpath("data/lu2014_table2.csv")
+    path = resources.files("magbench.simulate").joinpath("data/lu2014_table2.csv")
     fig = tmp_path / "t2.png"
-    p = subprocess.run([sys.executable, "-m", "benchmarks.cli", "diagnose", str(path), "--json", "--figure", str(fig)],
+    p = subprocess.run([sys.executable, "-m", "magbench.benchmarks.cli", "diagnose", str(path), "--json", "--figure", str(fig)],
                        capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
     out = json.loads(p.stdout)
@@ -104,6 +104,6 @@ def test_diagnose_refuses_bad_input_in_one_line(tmp_path):
     csv = tmp_path / "noref.csv"
     data = get_scenario("tumble9q").build(1)
     replace(data, f_ref_nT=None, meta={}).to_csv(csv)
-    p = subprocess.run([sys.executable, "-m", "benchmarks.cli", "diagnose", str(csv), "--no-figure"],
+    p = subprocess.run([sys.executable, "-m", "magbench.benchmarks.cli", "diagnose", str(csv), "--no-figure"],
                        capture_output=True, text=True)
     assert p.returncode == 2 and "reference" in p.stderr and len(p.stderr.strip().splitlines()) == 1

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from simulate.field import ConstantField, VaryingField, igrf_field
+from magbench.simulate.field import ConstantField, VaryingField, igrf_field
 
 
 def test_igrf_against_published_test_value():

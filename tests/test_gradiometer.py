@@ -5,10 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from calibrators.gradiometer import (GradiometerParams, add_gradiometer_command, ellipsoid_calibration,
+from magbench.calibrators.gradiometer import (GradiometerParams, add_gradiometer_command, ellipsoid_calibration,
                                      ga_gradient_calibration, gradient_rms, run_gradiometer,
                                      simulate_gradiometer)
-from simulate.dataset import InputError
+from magbench.errors import InputError
 
 
 def _strip_runtime(r: dict) -> dict:

@@ -4,11 +4,11 @@ import json
 import numpy as np
 import pytest
 
-from benchmarks.cli import main
-from calibrators import make
-from calibrators.fisher import crb_std
-from calibrators.objective import ScalarObjective
-from simulate import simulate
+from magbench.benchmarks.cli import main
+from magbench.calibrators import make
+from magbench.calibrators.fisher import crb_std
+from magbench.calibrators.objective import ScalarObjective
+from magbench.simulate import simulate
 
 
 def _normalized_angle_errors(seed):

@@ -4,8 +4,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from calibrators.objective import ScalarObjective, correction_matrices
-from simulate.sensor import ErrorParams, SensorModel
+from magbench.calibrators.objective import ScalarObjective, correction_matrices
+from magbench.simulate.sensor import ErrorParams, SensorModel
 
 angle = st.floats(-0.1, 0.1)
 scale = st.floats(0.8, 1.2)

@@ -3,8 +3,8 @@ import textwrap
 
 import pytest
 
-from calibrators import available, register, registry
-from calibrators.lsq import LeastSquares
+from magbench.calibrators import available, register, registry
+from magbench.calibrators.lsq import LeastSquares
 
 
 def test_duplicate_name_refused():
@@ -19,7 +19,7 @@ def test_duplicate_name_refused():
 def test_entry_point_plugin_is_discovered(tmp_path, monkeypatch):
     """An installed package adds a calibrator through the 'magbench.calibrators' entry-point group."""
     (tmp_path / "magbench_demo_plugin.py").write_text(textwrap.dedent("""
-        from calibrators.lsq import LeastSquares
+        from magbench.calibrators.lsq import LeastSquares
 
         class Plugin(LeastSquares):
             name = "plugin-lsq"
@@ -35,7 +35,7 @@ def test_entry_point_plugin_is_discovered(tmp_path, monkeypatch):
     try:
         cals = available()
         assert "plugin-lsq" in cals
-        from calibrators import check_calibrator
+        from magbench.calibrators import check_calibrator
 
         assert check_calibrator(cals["plugin-lsq"], models=["angles"])
     finally:

@@ -1,15 +1,15 @@
 """Speed targets of the calibrators issue, measured side by side with pytest-benchmark.
 
-Run with ``python -m benchmarks.speed`` (writes results/speed.md and results/benchmarks/speed.json).
+Run with ``python -m magbench.benchmarks.speed`` (writes results/speed.md and results/benchmarks/speed.json).
 Peers (PyGAD, mealpy) are development-only: ``pip install pygad && pip install --no-deps mealpy opfunu``
 (mealpy's metadata pins numpy<=1.26, which NLopt 2.11 cannot use; it runs on numpy 2).
 """
 import numpy as np
 import pytest
 
-from calibrators import make
-from calibrators.base import default_bounds
-from calibrators.objective import ScalarObjective
+from magbench.calibrators import make
+from magbench.calibrators.base import default_bounds
+from magbench.calibrators.objective import ScalarObjective
 
 GENERATIONS = 1000
 POPULATION = 80

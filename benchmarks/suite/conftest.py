@@ -1,6 +1,6 @@
 import pytest
 
-from simulate import simulate
+from magbench.simulate import simulate
 
 
 @pytest.fixture(scope="session")

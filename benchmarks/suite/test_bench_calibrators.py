@@ -1,12 +1,12 @@
 """Every registered calibrator on fixed scenarios (lu2014 with the angles model, sphere9 with nine),
 saved by pytest-benchmark so that a later run can be compared against it:
 
-    python -m pytest benchmarks/test_bench_calibrators.py --benchmark-autosave
-    python -m pytest benchmarks/test_bench_calibrators.py --benchmark-compare
+    python -m pytest benchmarks/suite/test_bench_calibrators.py --benchmark-autosave
+    python -m pytest benchmarks/suite/test_bench_calibrators.py --benchmark-compare
 """
 import pytest
 
-from calibrators import available, make
+from magbench.calibrators import available, make
 
 CASES = [(name, scenario, model) for name, cls in sorted(available().items())
          for scenario, model in (("lu2014", "angles"), ("sphere9", "nine")) if model in cls.supported_models]
