@@ -5,13 +5,13 @@
 """
 from magbench.simulate.sensor import ErrorParams
 
-from .base import CalibrationResult, Calibrator, Problem, SolveOutput, default_bounds
-from .objective import Budget, BudgetExhausted, CountedObjective, ScalarObjective
+from .base import CalibrationResult, Calibrator, Problem, ReadingsProblem, SolveOutput, search_bounds
+from .objective import Budget, BudgetExhausted, Evaluator, ScalarObjective, audit_evaluations
 from .registry import ENTRY_POINT_GROUP, available, get, make, register
 
 __all__ = [
-    "ErrorParams", "CalibrationResult", "Calibrator", "Problem",
-    "SolveOutput", "default_bounds", "Budget", "BudgetExhausted", "CountedObjective",
+    "ErrorParams", "CalibrationResult", "Calibrator", "Problem", "ReadingsProblem",
+    "SolveOutput", "search_bounds", "Budget", "BudgetExhausted", "Evaluator", "audit_evaluations",
     "ScalarObjective", "ENTRY_POINT_GROUP", "available", "get", "make", "register",
     "check_calibrator",
 ]

@@ -14,7 +14,7 @@ import numpy as np
 
 from magbench.errors import InputError
 
-from .base import Calibrator, Problem, SolveOutput
+from .base import Calibrator, Problem, SolveOutput, population_box
 from .registry import register
 
 
@@ -44,14 +44,15 @@ class AntColony(Calibrator):
     def checking_params(cls) -> dict:
         return {"iterations": 1500}
 
-    def _solve(self, problem: Problem) -> SolveOutput:
-        from .genetic import search_box
+    def search_box(self) -> dict:
+        return population_box(self)
 
+    def _solve(self, problem: Problem) -> SolveOutput:
         k, m = self.archive_size, self.ants
         if k < 2 or m < 1 or self.q <= 0 or self.xi <= 0:
             raise InputError("aco: archive_size >= 2, ants >= 1, q > 0 and xi > 0 are required")
-        rng, obj = problem.rng, problem.objective
-        lo, hi = search_box(problem, self)
+        rng, obj = problem.rng, problem
+        lo, hi = problem.lower, problem.upper
         span, p = hi - lo, len(lo)
         rank = np.arange(k)
         w = np.exp(-rank**2 / (2.0 * (self.q * k) ** 2)) / (self.q * k * np.sqrt(2 * np.pi))  # eq. 7
@@ -73,5 +74,5 @@ class AntColony(Calibrator):
             keep = np.argsort(f_pool, kind="stable")[:k]
             archive, f = pool[keep], f_pool[keep]
             best.append(f[0])
-        return SolveOutput(obj.best_x, status="max_iterations", message=f"{self.iterations} iterations",
+        return SolveOutput(problem.best_x, status="max_iterations", message=f"{self.iterations} iterations",
                            nit=self.iterations, extra={"best_F": best})

@@ -10,6 +10,7 @@ from __future__ import annotations
 import inspect
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from typing import ClassVar
 
 import numpy as np
@@ -19,7 +20,7 @@ from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
 
 from .fisher import coverage
-from .objective import Budget, BudgetExhausted, CountedObjective, ScalarObjective, identity_vector
+from .objective import Budget, BudgetExhausted, Evaluator, ScalarObjective, identity_vector
 
 
 
@@ -51,11 +52,19 @@ class CalibrationResult:
     hyperparameters: dict = field(default_factory=dict)
     trace: tuple[tuple[int, float, float], ...] = ()
     extra: dict = field(default_factory=dict)
+    evaluation_mode: str = "counted"  # "counted", or "closed-form" (reads the readings; count not comparable)
+    solver_x: np.ndarray | None = None  # what _solve returned, before fit's safety clamp
+    solver_rms_nT: float = float("nan")  # the residual RMS at solver_x
+    n_overrun_calls: int = 0  # calls the solver made after the counter said the budget was spent
 
     def __post_init__(self):
-        x = np.array(self.x, dtype=float)
-        x.setflags(write=False)
-        object.__setattr__(self, "x", x)
+        for name in ("x", "solver_x"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            arr = np.array(value, dtype=float)
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
 
     @property
     def matrix(self) -> np.ndarray:
@@ -81,6 +90,7 @@ class CalibrationResult:
             "rms_after_nT": self.rms_after_nT,
             "runtime_s": self.runtime_s,
             "n_evaluations": self.n_evaluations,
+            "evaluation_mode": self.evaluation_mode,
             "n_jacobians": self.n_jacobians,
             "nit": self.nit,
             "seed": self.seed,
@@ -104,19 +114,98 @@ def _jsonable(v):
     return v
 
 
-@dataclass
 class Problem:
-    """What an algorithm sees: the counted objective, the start point, bounds, the data and an rng."""
+    """What an iterative calibrator's ``_solve`` sees (pymoo's algorithm sees only its evaluator): the
+    counted objective (``values``, ``value``, ``residuals``, ``jacobian``, ``gradient``), the start point
+    ``x0``, the search box ``lower``/``upper`` (from ``search_bounds``, the one bounds function), the rng
+    and the seed.  It holds no readings: everything a solver learns about the data is counted.
 
-    objective: CountedObjective
-    model: str
-    x0: np.ndarray
-    lower: np.ndarray
-    upper: np.ndarray
-    raw_nT: np.ndarray
-    f_ref_nT: np.ndarray
-    rng: np.random.Generator
-    seed: int | None
+    ``algebraic_start()`` is the one service that reads the data for the solver: the closed-form
+    ellipsoid fit (the usual start of a local method), computed by the framework and counted as one
+    evaluation when the solver asks for it.
+    """
+
+    __slots__ = ("model", "x0", "lower", "upper", "rng", "seed", "_evaluator", "_start")
+
+    def __init__(self, evaluator: Evaluator, model: str, x0: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                 rng: np.random.Generator, seed: int | None, start=None):
+        self._evaluator = evaluator
+        self.model = model
+        self.x0 = _readonly(x0)
+        self.lower = _readonly(lower)
+        self.upper = _readonly(upper)
+        self.rng = rng
+        self.seed = seed
+        self._start = start
+
+    # the counted objective
+    def values(self, x: np.ndarray) -> np.ndarray:
+        """F of eq. 3 (seed 000) for a population (m, p): m counted evaluations."""
+        return self._evaluator.values(x)
+
+    def value(self, x: np.ndarray) -> float:
+        return self._evaluator.value(x)
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """The per-point residuals |M (raw - o)| - F at one point: one counted evaluation."""
+        return self._evaluator.residuals(x)
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        return self._evaluator.jacobian(x)
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        return self._evaluator.gradient(x)
+
+    # what the counter knows
+    @property
+    def n_params(self) -> int:
+        return len(self.x0)
+
+    @property
+    def n_evaluations(self) -> int:
+        return self._evaluator.n_evaluations
+
+    @property
+    def evaluations_left(self) -> int | None:
+        """Evaluations the budget still allows (None: no evaluation budget)."""
+        return self._evaluator.evaluations_left
+
+    @property
+    def max_time_s(self) -> float | None:
+        return self._evaluator.budget.max_time_s
+
+    @property
+    def best_x(self) -> np.ndarray | None:
+        """The best point evaluated so far (None before the first evaluation)."""
+        return self._evaluator.best_x
+
+    def algebraic_start(self) -> tuple[np.ndarray, float] | None:
+        """The closed-form ellipsoid fit as a start point (``nine`` model) and its F, or None where the
+        readings do not fit an ellipsoid; counted as one evaluation (its objective value is computed)."""
+        x = self._start() if self._start is not None else None
+        if x is None:
+            return None
+        return x, float(self._evaluator.values(x[None, :])[0])
+
+
+class ReadingsProblem(Problem):
+    """What a closed-form calibrator's ``_solve`` sees (one that declares ``closed_form = True``): the
+    ``Problem`` plus read-only copies of the readings ``raw_nT`` (n, 3) and reference ``f_ref_nT`` (n,).
+    Its rows report the evaluation mode ``closed-form``: a count of objective evaluations does not
+    describe its cost."""
+
+    __slots__ = ("raw_nT", "f_ref_nT")
+
+    def __init__(self, evaluator, model, x0, lower, upper, rng, seed, raw_nT, f_ref_nT, start=None):
+        super().__init__(evaluator, model, x0, lower, upper, rng, seed, start)
+        self.raw_nT = _readonly(raw_nT)
+        self.f_ref_nT = _readonly(f_ref_nT)
+
+
+def _readonly(a) -> np.ndarray:
+    arr = np.array(a, dtype=float, copy=True)
+    arr.setflags(write=False)
+    return arr
 
 
 @dataclass(frozen=True)
@@ -129,18 +218,37 @@ class SolveOutput:
     extra: dict = field(default_factory=dict)
 
 
-def default_bounds(model: str, f_ref_nT: np.ndarray, angle_range_rad: float = 0.1, scale_range: float = 0.1,
-                   offset_range_nT: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Search box for population methods: angles +-``angle_range_rad`` (seed 000, step 1: 0.1 rad); for
-    ``nine`` also scale 1 +- ``scale_range`` and offsets +-``offset_range_nT`` (default 10 % of the
-    reference magnitude)."""
+PHYSICAL_BOX = {"angle_range_rad": 0.5, "scale_min": 0.5, "scale_max": 2.0, "offset_fraction": 2.0}
+"""Where a sensor can physically be: angles within 0.5 rad, scales 0.5..2, offsets within twice the field.
+Scalar data admit degenerate 'far-centre' solutions (huge scale and offset that shrink the residual
+below the noise) when the attitudes cover few directions; this box excludes them."""
+
+POPULATION_OFFSET_FRACTION = 0.1
+"""Offsets the population methods search: +-10 % of the reference magnitude unless given in nT."""
+
+
+def search_bounds(model: str, f_ref_nT, angle_range_rad: float, scale_min: float = 1.0, scale_max: float = 1.0,
+                  offset_range_nT: float | None = None, offset_fraction: float = POPULATION_OFFSET_FRACTION
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The one bounds function: the search box ``(lower, upper)`` every ``_solve`` is handed.
+
+    Angles +-``angle_range_rad`` (seed 000, section 2.2 step 1: 0.1 rad); for ``nine`` also scales in
+    [``scale_min``, ``scale_max``] and offsets +-``offset_range_nT`` (default ``offset_fraction`` times
+    the median reference magnitude).  Each calibrator names its box in ``search_box()``."""
     lo = [-angle_range_rad] * 3
     hi = [angle_range_rad] * 3
-    if model == "nine":
-        offset = 0.1 * float(np.median(f_ref_nT)) if offset_range_nT is None else offset_range_nT
-        lo += [1.0 - scale_range] * 3 + [-offset] * 3
-        hi += [1.0 + scale_range] * 3 + [offset] * 3
-    return np.array(lo), np.array(hi)
+    if model in ("nine",):
+        offset = offset_fraction * float(np.median(f_ref_nT)) if offset_range_nT is None else offset_range_nT
+        lo += [scale_min] * 3 + [-offset] * 3
+        hi += [scale_max] * 3 + [offset] * 3
+    return np.array(lo, dtype=float), np.array(hi, dtype=float)
+
+
+def population_box(cal) -> dict:
+    """``search_box()`` of the population methods, from their hyper-parameters ``angle_range_rad``,
+    ``scale_range`` (scale 1 +- it) and ``offset_range_nT``."""
+    return {"angle_range_rad": cal.angle_range_rad, "scale_min": 1.0 - cal.scale_range,
+            "scale_max": 1.0 + cal.scale_range, "offset_range_nT": cal.offset_range_nT}
 
 
 class Calibrator:
@@ -151,6 +259,10 @@ class Calibrator:
     summary: ClassVar[str] = ""
     supported_models: ClassVar[tuple[str, ...]] = MODELS
     stochastic: ClassVar[bool] = False
+    # A closed-form calibrator reads the readings in _solve (an algebraic fit) and says so: its _solve
+    # gets a ReadingsProblem and its rows report the evaluation mode "closed-form".  Every other
+    # calibrator sees the data only through the counted objective.
+    closed_form: ClassVar[bool] = False
     # Tolerances the conformance battery allows this method on low-noise data (angle rad, scale, nT).
     check_tolerance: ClassVar[dict] = {"angle_rad": 2e-5, "scale": 2e-5, "offset_nT": 0.5}
 
@@ -159,12 +271,31 @@ class Calibrator:
         self.seed = seed
         self.budget = budget
 
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if "fit" in cls.__dict__:
+            raise TypeError(f"{cls.__name__} overrides fit(): Calibrator.fit is the one entry point (it validates "
+                            "the data, counts every evaluation and checks the answer); implement _solve instead")
+
     # -- configuration ------------------------------------------------------------------------
     @classmethod
     def _param_names(cls) -> list[str]:
+        """The constructor's keyword arguments (scikit-learn's ``_get_param_names``: no ``*args``)."""
         sig = inspect.signature(cls.__init__)
+        if any(p.kind == p.VAR_POSITIONAL for p in sig.parameters.values()):
+            raise TypeError(f"{cls.__name__}.__init__ takes *args: calibrators list every hyper-parameter "
+                            "as a keyword argument")
         return [p.name for p in sig.parameters.values()
-                if p.name != "self" and p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)]
+                if p.name != "self" and p.kind != p.VAR_KEYWORD]
+
+    def search_box(self) -> dict:
+        """Keyword arguments of ``search_bounds`` for this calibrator: the physical box by default;
+        population methods narrow it from their hyper-parameters (``population_box``)."""
+        return dict(PHYSICAL_BOX)
+
+    def is_stochastic(self) -> bool:
+        """Whether the answer depends on the seed (the battery then checks that it does)."""
+        return self.stochastic
 
     def get_params(self) -> dict:
         return {k: getattr(self, k) for k in self._param_names()}
@@ -230,42 +361,50 @@ class Calibrator:
         return warnings
 
     def fit(self, dataset: Dataset) -> CalibrationResult:
-        """Calibrate on ``dataset``; the data are read, never changed."""
+        """Calibrate on ``dataset``; the data are read, never changed.  The one entry point: subclasses
+        implement ``_solve`` and cannot override ``fit``."""
         warnings = self.validate(dataset)
         model = self.model
         objective = ScalarObjective(dataset.raw_nT, dataset.f_ref_nT, model)
-        counted = CountedObjective(objective, self.budget)
-        lower, upper = default_bounds(model, dataset.f_ref_nT)
+        evaluator = Evaluator(objective, self.budget)
+        lower, upper = search_bounds(model, dataset.f_ref_nT, **self.search_box())
         x0 = identity_vector(model)
-        problem = Problem(counted, model, x0, lower, upper, dataset.raw_nT, dataset.f_ref_nT,
-                          np.random.default_rng(self.seed), self.seed)
+        rng = np.random.default_rng(self.seed)
+        start = partial(_ellipsoid_start, dataset.raw_nT, dataset.f_ref_nT) if model == "nine" else None
+        if self.closed_form:
+            problem = ReadingsProblem(evaluator, model, x0, lower, upper, rng, self.seed, dataset.raw_nT,
+                                      dataset.f_ref_nT, start)
+        else:
+            problem = Problem(evaluator, model, x0, lower, upper, rng, self.seed, start)
         t0 = time.perf_counter()
         try:
             out = self._solve(problem)
         except BudgetExhausted as exc:
-            if counted.best_x is None:
+            if evaluator.best_x is None:
                 raise
-            out = SolveOutput(counted.best_x, status="budget", message=f"stopped: {exc}", success=True)
+            out = SolveOutput(evaluator.best_x, status="budget", message=f"stopped: {exc}", success=True)
         runtime = time.perf_counter() - t0
 
-        x = np.asarray(out.x, dtype=float)
-        f_start, f_x = objective.values(np.vstack([x0, x]), exact=True)
-        success, status, message = out.success, out.status, out.message
-        if not np.isfinite(f_x) or f_x > f_start:
-            warnings.append(f"{self.name} ended worse than no calibration (F {f_x:.6g} > {f_start:.6g}); "
-                            "the identity is returned")
+        solver_x, bad_shape = _solver_point(out.x, len(x0))
+        f_start, f_solver = objective.values(np.vstack([x0, solver_x]), exact=True)
+        x, f_x, success, status = solver_x, f_solver, out.success, out.status
+        if bad_shape or not np.isfinite(f_x) or f_x > f_start:
+            what = bad_shape or f"ended worse than no calibration (F {f_x:.6g} > {f_start:.6g})"
+            warnings.append(f"{self.name} {what}; the identity is returned")
             x, f_x, success, status = x0.copy(), f_start, False, "worse_than_start"
         warnings += self._solution_warnings(objective, x)
-        if out.extra.get("at_bounds"):
-            warnings.append(f"{', '.join(out.extra['at_bounds'])} ended on the physical bound: the data do not "
-                            "determine them (attitude coverage)")
+        if not self.closed_form:
+            warnings += _at_bounds_warning(x, lower, upper, model)
         return CalibrationResult(
             method=self.name, model=model, params=ErrorParams.from_vector(x, model), x=x,
-            success=bool(success), status=status, message=message, fun=float(f_x),
-            n_evaluations=counted.n_evaluations, n_jacobians=counted.n_jacobians, nit=int(out.nit),
+            success=bool(success), status=status, message=out.message, fun=float(f_x),
+            n_evaluations=evaluator.n_evaluations, n_jacobians=evaluator.n_jacobians, nit=int(out.nit),
             runtime_s=runtime, seed=self.seed, rms_before_nT=float(np.sqrt(f_start)),
             rms_after_nT=float(np.sqrt(f_x)), warnings=tuple(warnings),
-            hyperparameters=self.get_params(), trace=tuple(counted.trace), extra=dict(out.extra))
+            hyperparameters=self.get_params(), trace=tuple(evaluator.trace), extra=dict(out.extra),
+            evaluation_mode="closed-form" if self.closed_form else "counted",
+            solver_x=solver_x, solver_rms_nT=float(np.sqrt(f_solver)) if np.isfinite(f_solver) else float("nan"),
+            n_overrun_calls=evaluator.n_overrun_calls)
 
     def _solution_warnings(self, objective: ScalarObjective, x: np.ndarray) -> list[str]:
         if self.model == "nine":
@@ -276,3 +415,37 @@ class Calibrator:
 
     def _solve(self, problem: Problem) -> SolveOutput:  # pragma: no cover - abstract
         raise NotImplementedError
+
+
+AT_BOUND_REL = 1e-6
+"""A parameter within this fraction of its box's width from a bound is reported as on the bound."""
+
+
+def _at_bounds_warning(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, model: str) -> list[str]:
+    tol = AT_BOUND_REL * (upper - lower)
+    at = [PARAM_NAMES[model][i] for i in np.flatnonzero((x <= lower + tol) | (x >= upper - tol))]
+    if not at:
+        return []
+    return [f"{', '.join(at)} ended on the search bound: the data do not determine them (attitude coverage) "
+            "or the box is too small"]
+
+
+def _solver_point(x, p: int) -> tuple[np.ndarray, str]:
+    """The solver's answer as a float vector of length p, and what is wrong with it ('' if nothing)."""
+    try:
+        arr = np.array(x, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        return np.full(p, np.nan), f"returned {type(x).__name__}, not a parameter vector"
+    if arr.shape != (p,):
+        return np.full(p, np.nan), f"returned a vector of shape {arr.shape}, not ({p},)"
+    return arr, ""
+
+
+def _ellipsoid_start(raw_nT: np.ndarray, f_ref_nT: np.ndarray) -> np.ndarray | None:
+    """The closed-form ellipsoid fit as a ``nine`` vector, or None where the readings fit no ellipsoid."""
+    from .ellipsoid import ellipsoid_params
+
+    try:
+        return ellipsoid_params(raw_nT, f_ref_nT).to_vector("nine")
+    except (InputError, np.linalg.LinAlgError):
+        return None

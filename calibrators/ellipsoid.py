@@ -15,7 +15,7 @@ import numpy as np
 from magbench.errors import InputError
 from magbench.simulate.sensor import ErrorParams
 
-from .base import Calibrator, Problem, SolveOutput
+from .base import Calibrator, ReadingsProblem, SolveOutput
 from .registry import register
 
 
@@ -100,6 +100,7 @@ class EllipsoidFit(Calibrator):
     summary = "linear ellipsoid-specific fit (Li & Griffiths 2004), canonical decomposition"
     supported_models = ("nine",)
     check_tolerance = {"angle_rad": 1e-4, "scale": 1e-4, "offset_nT": 2.0}
+    closed_form = True
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None):
         super().__init__(model=model, seed=seed, budget=budget)
@@ -107,6 +108,6 @@ class EllipsoidFit(Calibrator):
     def min_points(self, model: str) -> int:
         return 10
 
-    def _solve(self, problem: Problem) -> SolveOutput:
+    def _solve(self, problem: ReadingsProblem) -> SolveOutput:
         params = ellipsoid_params(problem.raw_nT, problem.f_ref_nT)
         return SolveOutput(params.to_vector("nine"), status="closed_form", message="algebraic fit")

@@ -10,16 +10,8 @@ import numpy as np
 
 from magbench.errors import InputError
 
-from .base import Calibrator, Problem, SolveOutput, default_bounds
+from .base import Calibrator, Problem, SolveOutput, population_box
 from .registry import register
-
-
-def search_box(problem: Problem, cal) -> tuple[np.ndarray, np.ndarray]:
-    """Search box of the population methods from the calibrator's hyper-parameters: angles
-    +-``angle_range_rad`` (seed 000: 0.1 rad); scale 1 +- ``scale_range``; offsets +-``offset_range_nT``
-    (default 10 % of the reference magnitude)."""
-    return default_bounds(problem.model, problem.f_ref_nT, cal.angle_range_rad, cal.scale_range,
-                          cal.offset_range_nT)
 
 
 def adaptive_probability(f: np.ndarray, f_max: float, f_avg: float, p1: float, p2: float) -> np.ndarray:
@@ -85,13 +77,16 @@ class AdaptiveGA(Calibrator):
     def checking_params(cls) -> dict:
         return {"population": 400, "max_generations": 1000}
 
+    def search_box(self) -> dict:
+        return population_box(self)
+
     def _solve(self, problem: Problem) -> SolveOutput:
         if self.population < 2 or self.population % 2:
             raise InputError("aga: population must be an even number >= 2")
         if self.mutation not in ("single_bit", "per_bit"):
             raise InputError("aga: mutation must be 'single_bit' or 'per_bit'")
-        rng, obj = problem.rng, problem.objective
-        lo, hi = search_box(problem, self)
+        rng, obj = problem.rng, problem
+        lo, hi = problem.lower, problem.upper
         p, nb, m = len(lo), self.bits, self.population
         length = p * nb
         step = (hi - lo) / (2**nb - 1)  # eq. 6
@@ -152,12 +147,12 @@ class AdaptiveGA(Calibrator):
             pop = child
             k += 1
         # step 7: the best individual of all generations (kept by the shared counter)
-        x_best = obj.best_x
+        x_best = problem.best_x
         if self.polish:  # not in the paper: Levenberg-Marquardt from the GA's best individual
             from .lsq import levenberg_marquardt
 
-            levenberg_marquardt(problem, x_best)
-            x_best = obj.best_x
+            levenberg_marquardt(problem, x_best, bounded=False)
+            x_best = problem.best_x
         return SolveOutput(x_best, status="converged" if stop != "max_generations" else "max_generations",
                            message=f"{k} generations; stop: {stop}", nit=k,
                            extra={"generations": k, "best_fitness": best_g, "mean_fitness": mean_g,
@@ -226,6 +221,9 @@ class RealGA(Calibrator):
     def checking_params(cls) -> dict:
         return {"generations": 400}
 
+    def search_box(self) -> dict:
+        return population_box(self)
+
     def _select(self, f: np.ndarray, n: int, rng) -> np.ndarray:
         """Tournament: the best of ``tournament`` random individuals, ``n`` times."""
         cand = (rng.random((n, self.tournament)) * len(f)).astype(np.intp)
@@ -260,8 +258,8 @@ class RealGA(Calibrator):
             raise InputError(f"{self.name}: population must be at least 4")
         if not 0 <= self.elitism < self.population:
             raise InputError(f"{self.name}: elitism must be between 0 and population - 1")
-        rng, obj = problem.rng, problem.objective
-        lo, hi = search_box(problem, self)
+        rng, obj = problem.rng, problem
+        lo, hi = problem.lower, problem.upper
         span = hi - lo
         m, p, half = self.population, len(lo), (self.population + 1) // 2
         u = rng.random((m, p))
@@ -283,7 +281,7 @@ class RealGA(Calibrator):
             x += lo
             f = obj.values(x)
             u = children
-        return SolveOutput(obj.best_x, status="max_generations", message=f"{self.generations} generations",
+        return SolveOutput(problem.best_x, status="max_generations", message=f"{self.generations} generations",
                            nit=self.generations, extra={"generations": self.generations})
 
 

@@ -13,12 +13,16 @@ import numpy as np
 
 from magbench.errors import InputError
 
-from .base import Calibrator, Problem, SolveOutput
+from .base import Calibrator, Problem, SolveOutput, population_box
 from .objective import BudgetExhausted
 from .registry import register
 
 RESULT_NAMES = {1: "success", 2: "stopval_reached", 3: "ftol_reached", 4: "xtol_reached", 5: "maxeval_reached",
                 6: "maxtime_reached"}
+
+
+STOCHASTIC_NLOPT = ("CRS2", "ISRES", "ESCH", "MLSL", "STOGO_RAND")
+"""NLopt algorithms that draw random numbers (seeded with ``nlopt.srand``); the others ignore the seed."""
 
 
 @register
@@ -44,15 +48,20 @@ class NLoptCalibrator(Calibrator):
         self.offset_range_nT = offset_range_nT
         self.population = population
 
-    def _solve(self, problem: Problem) -> SolveOutput:
-        from .genetic import search_box
+    def search_box(self) -> dict:
+        return population_box(self)
 
+    def is_stochastic(self) -> bool:
+        """Only NLopt's randomized algorithms use the seed (``nlopt.srand``)."""
+        return any(tag in str(self.algorithm) for tag in STOCHASTIC_NLOPT)
+
+    def _solve(self, problem: Problem) -> SolveOutput:
         code = getattr(nlopt, str(self.algorithm), None)
         if not isinstance(code, int) or not str(self.algorithm)[:3] in ("LN_", "LD_", "GN_", "GD_"):
             raise InputError(f"nlopt: unknown algorithm {self.algorithm!r} (e.g. LN_BOBYQA, LD_LBFGS, GN_CRS2_LM, "
                              "GN_ISRES, GN_ESCH)")
-        obj = problem.objective
-        lo, hi = search_box(problem, self)
+        obj = problem
+        lo, hi = problem.lower, problem.upper
         span = hi - lo
         nlopt.srand(int(self.seed) if self.seed is not None else 0)
         opt = nlopt.opt(code, len(lo))
@@ -68,8 +77,8 @@ class NLoptCalibrator(Calibrator):
         opt.set_lower_bounds(np.zeros(len(lo)))
         opt.set_upper_bounds(np.ones(len(lo)))
         opt.set_maxeval(int(self.max_evaluations))
-        if obj.budget.max_time_s is not None:
-            opt.set_maxtime(obj.budget.max_time_s)
+        if problem.max_time_s is not None:
+            opt.set_maxtime(problem.max_time_s)
         opt.set_ftol_rel(self.ftol_rel)
         opt.set_xtol_rel(self.xtol_rel)
         if self.population:
@@ -86,10 +95,10 @@ class NLoptCalibrator(Calibrator):
         except BudgetExhausted:
             raise
         except Exception as exc:  # NLopt's generic failures (nlopt.runtime_error, a broken line search, ...)
-            if obj.best_x is None:
+            if problem.best_x is None:
                 raise
             result, message = -1, f" ({type(exc).__name__}: {exc})"
         status = RESULT_NAMES.get(result, {-1: "failure", -4: "roundoff_limited"}.get(result, f"nlopt_{result}"))
-        return SolveOutput(obj.best_x, status=status, message=f"NLopt {self.algorithm}: {status}{message}",
-                           nit=obj.n_evaluations, success=result > 0 or result == -4,
+        return SolveOutput(problem.best_x, status=status, message=f"NLopt {self.algorithm}: {status}{message}",
+                           nit=problem.n_evaluations, success=result > 0 or result == -4,
                            extra={"algorithm": self.algorithm, "uses_gradient": uses_gradient})

@@ -2,12 +2,14 @@
 
 Seed 000, eq. 3: ``F(X) = (1/N) sum_i (|B1_i(X)| - |B_sc,i|)^2`` with ``B1_i = M(X) (raw_i - o)``
 (CONTRACT section 1).  ``ScalarObjective`` evaluates a whole population ``X`` of shape (m, p) in one
-numpy call; ``CountedObjective`` wraps it (as COCO's observer wraps a problem) so that evaluations,
+numpy call; ``Evaluator`` wraps it (as COCO's observer wraps a problem) so that evaluations,
 budget and the convergence trace are measured the same way for every calibrator, whatever it does.
 """
 from __future__ import annotations
 
+import contextvars
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -175,46 +177,83 @@ class BudgetExhausted(Exception):
     """Raised by the counter when the budget is spent; the calibrator returns the best seen."""
 
 
-class CountedObjective:
-    """Wraps a ``ScalarObjective``: counts every parameter vector evaluated (one per population row,
-    one per residual vector), counts Jacobians separately, enforces the ``Budget`` exactly (a batch
-    that would overrun it is evaluated only up to the budget), and keeps the best point seen and a
-    convergence trace of (evaluations, best F, batch mean F) per call.
+_AUDIT: contextvars.ContextVar[list | None] = contextvars.ContextVar("magbench_evaluation_audit", default=None)
+
+
+@contextmanager
+def audit_evaluations():
+    """Within this block every ``Evaluator`` also keeps each parameter vector it evaluates, in the list
+    this context manager yields (one (m, p) array per call).  The conformance battery uses it to check
+    that the answer a solver returns went through the counter (nevergrad's benchmark re-checks the
+    optimizer's calls the same way); outside it nothing is recorded and nothing costs."""
+    log: list = []
+    token = _AUDIT.set(log)
+    try:
+        yield log
+    finally:
+        _AUDIT.reset(token)
+
+
+class Evaluator:
+    """The one evaluation counter (pymoo's ``Evaluator``, COCO's observer): every objective value,
+    residual vector and Jacobian a calibrator sees passes through it.
+
+    Counts every parameter vector evaluated (one per population row, one per residual vector) and the
+    Jacobian/gradient evaluations separately; enforces the ``Budget`` exactly (a batch that would overrun
+    it is evaluated only up to the budget, then ``BudgetExhausted`` is raised); counts the calls a solver
+    makes after it was told the budget is spent (``n_overrun_calls``: a solver that swallows
+    ``BudgetExhausted`` and keeps asking is caught); keeps the best point seen and a convergence trace of
+    (evaluations, best F, batch mean F) per call.  The objective itself is private: a calibrator gets a
+    ``Problem`` that exposes only the counted functions.
     """
 
-    def __init__(self, objective: ScalarObjective, budget: Budget | None = None):
-        self.objective = objective
+    def __init__(self, objective, budget: Budget | None = None):
+        self._objective = objective
         self.budget = budget or Budget()
         self.n_evaluations = 0
         self.n_jacobians = 0
+        self.n_overrun_calls = 0
+        self._exhausted = False
         self.best_x: np.ndarray | None = None
         self.best_f = np.inf
         self.trace: list[tuple[int, float, float]] = []
+        self._audit = _AUDIT.get()
         self._t0 = time.perf_counter()
 
     @property
-    def model(self) -> str:
-        return self.objective.model
-
-    @property
     def n_params(self) -> int:
-        return self.objective.n_params
+        return self._objective.n_params
+
+    def _refuse(self, why: str):
+        if self._exhausted:
+            self.n_overrun_calls += 1
+        self._exhausted = True
+        raise BudgetExhausted(why)
 
     def _allowance(self, m: int) -> int:
         b = self.budget
+        if self._exhausted:
+            self._refuse("the budget was already spent")
         if b.max_evaluations is None and b.max_time_s is None:
             return m
         if b.max_time_s is not None and time.perf_counter() - self._t0 >= b.max_time_s:
-            raise BudgetExhausted(f"time budget of {b.max_time_s} s reached")
+            self._refuse(f"time budget of {b.max_time_s} s reached")
         if b.max_evaluations is None:
             return m
         left = b.max_evaluations - self.n_evaluations
         if left <= 0:
-            raise BudgetExhausted(f"evaluation budget of {b.max_evaluations} reached")
+            self._refuse(f"evaluation budget of {b.max_evaluations} reached")
         return min(m, left)
+
+    @property
+    def evaluations_left(self) -> int | None:
+        b = self.budget
+        return None if b.max_evaluations is None else max(0, b.max_evaluations - self.n_evaluations)
 
     def _record(self, x: np.ndarray, f: np.ndarray) -> None:
         self.n_evaluations += len(f)
+        if self._audit is not None:
+            self._audit.append(np.array(x, dtype=float, copy=True))
         i = f.argmin()
         fi = f[i]
         if fi != fi:  # argmin prefers NaN: look again among the finite values
@@ -231,14 +270,11 @@ class CountedObjective:
         if not (isinstance(x, np.ndarray) and x.ndim == 2 and x.dtype == np.float64):
             x = np.atleast_2d(np.asarray(x, dtype=float))
         k = self._allowance(x.shape[0])
-        if k < x.shape[0]:
-            x_k = x[:k]
-        else:
-            x_k = x
-        f = self.objective.values(x_k)
+        x_k = x[:k] if k < x.shape[0] else x
+        f = self._objective.values(x_k)
         self._record(x_k, f)
         if k < x.shape[0]:
-            raise BudgetExhausted(f"evaluation budget of {self.budget.max_evaluations} reached")
+            self._refuse(f"evaluation budget of {self.budget.max_evaluations} reached")
         return f
 
     def value(self, x: np.ndarray) -> float:
@@ -247,14 +283,16 @@ class CountedObjective:
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Residual vector at one point; counts one evaluation."""
         self._allowance(1)
-        r = self.objective.residuals(x)
+        r = self._objective.residuals(x)
         self._record(np.asarray(x, dtype=float)[None, :], np.array([np.mean(r * r)]))
         return r
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
+        self._allowance(0)
         self.n_jacobians += 1
-        return self.objective.jacobian(x)
+        return self._objective.jacobian(x)
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
+        self._allowance(0)
         self.n_jacobians += 1
-        return self.objective.gradient(x)
+        return self._objective.gradient(x)

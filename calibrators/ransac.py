@@ -22,7 +22,7 @@ import numpy as np
 
 from magbench.errors import InputError
 
-from .base import Calibrator, Problem, SolveOutput
+from .base import Calibrator, ReadingsProblem, SolveOutput
 from .ellipsoid import ellipsoid_params
 from .registry import register
 
@@ -35,10 +35,6 @@ def ransac_iterations(confidence: float, inlier_fraction: float, sample_size: in
     return max(1, math.ceil(math.log(1.0 - confidence) / math.log(1.0 - p_good)))
 
 
-def _field_residual(params, raw, f_ref):
-    return np.linalg.norm(params.correct(raw), axis=1) - f_ref
-
-
 @register
 class RansacEllipsoid(Calibrator):
     """RANSAC with the ellipsoid fit as the model (seed 003)."""
@@ -47,6 +43,7 @@ class RansacEllipsoid(Calibrator):
     summary = "RANSAC around the ellipsoid fit (seed 003): epsilon from the plain fit, K from the confidence"
     supported_models = ("nine",)
     stochastic = True
+    closed_form = True  # fits ellipsoids to subsets of the readings; scores each through the counter
     check_tolerance = {"angle_rad": 1e-4, "scale": 1e-4, "offset_nT": 2.0}
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, sample_size: int = 0,
@@ -62,7 +59,7 @@ class RansacEllipsoid(Calibrator):
     def min_points(self, model: str) -> int:
         return 90  # q >= 9 and q <= n / 10
 
-    def _solve(self, problem: Problem) -> SolveOutput:
+    def _solve(self, problem: ReadingsProblem) -> SolveOutput:
         raw, f_ref = problem.raw_nT, problem.f_ref_nT
         n = len(raw)
         q = self.sample_size or max(9, min(12, n // 10))
@@ -70,10 +67,9 @@ class RansacEllipsoid(Calibrator):
             raise InputError(f"ransac: sample size q = {q} is outside 9 <= q <= n/10 = {n // 10}")
         if not (0 < self.confidence < 1 and 0 < self.inlier_fraction <= 1 and self.epsilon_sigma > 0):
             raise InputError("ransac: 0 < confidence < 1, 0 < inlier_fraction <= 1 and epsilon_sigma > 0 required")
-        obj, rng = problem.objective, problem.rng
+        rng = problem.rng
         plain = ellipsoid_params(raw, f_ref)
-        r_plain = _field_residual(plain, raw, f_ref)
-        obj.values(plain.to_vector("nine")[None, :])  # counted like every evaluation of the objective
+        r_plain = problem.residuals(plain.to_vector("nine"))  # every residual vector is counted
         epsilon = self.epsilon_sigma * float(np.std(r_plain))
         k = min(ransac_iterations(self.confidence, self.inlier_fraction, q), self.max_iterations)
         best_count, best_mask, failed = -1, None, 0
@@ -84,8 +80,7 @@ class RansacEllipsoid(Calibrator):
             except (InputError, np.linalg.LinAlgError):
                 failed += 1
                 continue
-            mask = np.abs(_field_residual(params, raw, f_ref)) <= epsilon
-            obj.values(params.to_vector("nine")[None, :])
+            mask = np.abs(problem.residuals(params.to_vector("nine"))) <= epsilon
             if mask.sum() > best_count:
                 best_count, best_mask = int(mask.sum()), mask
         if best_mask is None or best_count < 10:
@@ -93,7 +88,7 @@ class RansacEllipsoid(Calibrator):
         else:
             final, note = ellipsoid_params(raw[best_mask], f_ref[best_mask]), ""
         x = final.to_vector("nine")
-        obj.values(x[None, :])
+        problem.value(x)
         msg = (f"{k} iterations (q = {q}, epsilon = {epsilon:.3g} nT); {max(best_count, 0)} of {n} inliers; "
                f"{failed} subsets without an ellipsoid" + (f"; {note}" if note else ""))
         return SolveOutput(x, status="consensus" if not note else "plain_fit", message=msg, nit=k,

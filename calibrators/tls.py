@@ -18,7 +18,7 @@ import numpy as np
 
 from magbench.errors import InputError
 
-from .base import Calibrator, Problem, SolveOutput
+from .base import Calibrator, ReadingsProblem, SolveOutput
 from .ellipsoid import normalize, quadric_to_ellipsoid, shape_to_params
 from .registry import register
 
@@ -76,12 +76,13 @@ def l_curve_corner(sv: np.ndarray, vt: np.ndarray) -> tuple[int, list[dict]]:
 class _LinearizedFit(Calibrator):
     supported_models = ("nine",)
     check_tolerance = {"angle_rad": 1e-4, "scale": 1e-4, "offset_nT": 2.0}
+    closed_form = True
     truncate = False
 
     def min_points(self, model: str) -> int:
         return 10
 
-    def _solve(self, problem: Problem) -> SolveOutput:
+    def _solve(self, problem: ReadingsProblem) -> SolveOutput:
         if self.normalize:
             norm, mu, s = normalize(problem.raw_nT)
         else:  # the paper's formulation: readings in nT as they are (cond(A) ~ 1e10 on a vehicle)
@@ -105,7 +106,6 @@ class _LinearizedFit(Calibrator):
             raise InputError(f"{self.name}: {exc} (cond(A) = {cond:.2g}, truncation k = {k})") from None
         params = shape_to_params(shape / (s * s), mu + s * center, problem.f_ref_nT)
         xp = params.to_vector("nine")
-        problem.objective.values(xp[None, :])
         return SolveOutput(xp, status="closed_form", message=f"cond(A) = {cond:.3g}, truncation k = {k} of {N_UNKNOWNS}",
                            extra={"condition_number_A": cond, "truncation": k, "l_curve": curve})
 

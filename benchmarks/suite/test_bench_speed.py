@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from magbench.calibrators import make
-from magbench.calibrators.base import default_bounds
+from magbench.calibrators.base import population_box, search_bounds
 from magbench.calibrators.objective import ScalarObjective
 
 GENERATIONS = 1000
@@ -17,11 +17,8 @@ ACO_ITERATIONS = 1000  # 50 + 20 * 1000 = 20,050 evaluations for both ant coloni
 
 
 def _box(data):
-    """The ga/aco search box (angles +-0.1 rad, scale 1 +-0.1, offsets +-10 % of F) for the peers."""
-    f = float(np.median(data.f_ref_nT))
-    lo = np.array([-0.1] * 3 + [0.9] * 3 + [-0.1 * f] * 3)
-    hi = np.array([0.1] * 3 + [1.1] * 3 + [0.1 * f] * 3)
-    return lo, hi
+    """The very box ga's _solve is handed (angles +-0.1 rad, scale 1 +-0.1, offsets +-10 % of F), for the peers."""
+    return search_bounds("nine", data.f_ref_nT, **population_box(make("ga", model="nine")))
 
 
 @pytest.mark.benchmark(group="aga: seed 000 configuration, 80 x 1000 generations, 36 points, angles")
