@@ -94,7 +94,7 @@ class Campaign:
 
 def run_task(task: dict) -> dict:
     """One run: simulate the trial's data and validation data, fit, measure.  Never raises."""
-    from magbench.benchmarks.metrics import crb_row, run_metrics
+    from magbench.benchmarks.metrics import budget_violation, crb_row, run_metrics
     from magbench.calibrators import make
     from magbench.simulate.scenarios import get_scenario
 
@@ -105,8 +105,10 @@ def run_task(task: dict) -> dict:
         scenario = get_scenario(task["scenario"])
         data = scenario.build(task["data_seed"])
         validation = scenario.build(task["validation_seed"])
-        result = make(task["method"], model=task["model"], seed=task["seed"], **task["params"]).fit(data)
+        calibrator = make(task["method"], model=task["model"], seed=task["seed"], **task["params"])
+        result = calibrator.fit(data)
         row.update(run_metrics(result, data, validation))
+        row["error"] = budget_violation(result, calibrator.budget)
         row.update(crb_row(data, task["model"]))
         if task.get("keep_trace"):
             trace = np.asarray(result.trace, dtype=float).reshape(-1, 3)

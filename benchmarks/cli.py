@@ -155,6 +155,12 @@ def cmd_simulate(args) -> int:
     return EXIT_OK
 
 
+def _evaluations_text(result) -> str:
+    if result.evaluation_mode == "closed-form":
+        return f"closed-form ({result.n_evaluations} counted evaluations)" if result.n_evaluations else "closed-form"
+    return f"{result.n_evaluations} evaluations"
+
+
 def cmd_calibrate(args) -> int:
     from magbench.calibrators import make
 
@@ -172,7 +178,8 @@ def cmd_calibrate(args) -> int:
         lines.append("  scale  " + "  ".join(f"{k:.6f}" for k in p.scale)
                      + "    offset " + "  ".join(f"{o:.2f}" for o in p.offset_nT) + " nT")
     lines.append(f"  total-field RMS {result.rms_before_nT:.3f} -> {result.rms_after_nT:.3f} nT; "
-                 f"{result.n_evaluations} evaluations, {result.runtime_s * 1e3:.1f} ms, seed {result.seed}")
+                 f"{_evaluations_text(result)}, "
+                 f"{result.runtime_s * 1e3:.1f} ms, seed {result.seed}")
     lines += [f"  warning: {w}" for w in result.warnings]
     _emit(args, obj, "\n".join(lines))
     return EXIT_OK
@@ -181,6 +188,7 @@ def cmd_calibrate(args) -> int:
 def cmd_demo(args) -> int:
     import pandas as pd
 
+    from magbench.benchmarks.metrics import evaluations_label
     from magbench.benchmarks.runner import ARCSEC_PER_RAD, run_one
     from magbench.calibrators import available
     from magbench.simulate.scenarios import get_scenario
@@ -206,7 +214,8 @@ def cmd_demo(args) -> int:
             "d_gamma\"": part.get("gamma_err_rad", np.nan) * ARCSEC_PER_RAD,
             "rms_before_nT": part.get("rms_before_nT", np.nan),
             "rms_after_nT": part.get("rms_after_nT", np.nan),
-            "evals": pd.array(part.get("n_evaluations", pd.Series(np.nan, index=part.index)), dtype="Int64"),
+            "evals": [evaluations_label(m, n) for m, n in zip(part.get("evaluation_mode", pd.Series("counted", index=part.index)),
+                                                              part.get("n_evaluations", pd.Series(np.nan, index=part.index)))],
             "ms": part.get("runtime_s", np.nan) * 1e3,
         })
         if "scale_err_max" in part and part["scale_err_max"].notna().any():

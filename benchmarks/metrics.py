@@ -56,10 +56,31 @@ def crb_row(data: Dataset, model: str) -> dict:
             for name, v in zip(PARAM_NAMES[model], std)}
 
 
+def budget_violation(result: CalibrationResult, budget) -> str:
+    """The harness's own re-check of a run against its budget (nevergrad's ``xpbase`` re-checks the
+    optimizer's call count after the run): '' when the run kept to it, else why it did not."""
+    if result.n_overrun_calls:
+        return (f"budget overrun: the solver asked {result.n_overrun_calls} more time(s) after the counter "
+                "said the budget was spent")
+    limit = getattr(budget, "max_evaluations", None)
+    if limit is not None and result.n_evaluations > limit:
+        return f"budget overrun: {result.n_evaluations} evaluations with a budget of {limit}"
+    return ""
+
+
+def evaluations_label(mode: str, n: float) -> str:
+    """What a table shows for a run's evaluations: the count, or 'closed-form' for a method whose cost
+    a count of objective evaluations does not describe."""
+    if mode == "closed-form":
+        return "closed-form"
+    return "-" if n != n else f"{n:.0f}"
+
+
 def run_metrics(result: CalibrationResult, data: Dataset, validation: Dataset | None = None) -> dict:
     """Flat metrics of a fitted result (no truth needed for the RMS ones)."""
     p = result.params
     row = {"success": result.success, "status": result.status, "n_evaluations": result.n_evaluations,
+           "evaluation_mode": result.evaluation_mode,
            "runtime_s": result.runtime_s, "rms_before_nT": result.rms_before_nT,
            "rms_after_nT": result.rms_after_nT,
            "rms_reduction_pct": 100.0 * (1.0 - result.rms_after_nT / result.rms_before_nT),

@@ -6,7 +6,7 @@ from magbench.calibrators import make
 from magbench.errors import InputError
 from magbench.simulate.dataset import Dataset
 
-from .metrics import ARCSEC_PER_RAD, run_metrics  # noqa: F401  (ARCSEC_PER_RAD re-exported for the CLI)
+from .metrics import ARCSEC_PER_RAD, budget_violation, run_metrics  # noqa: F401  (ARCSEC_PER_RAD re-exported for the CLI)
 
 
 def run_one(dataset: Dataset, method: str, model: str, seed: int = 0, scenario: str = "", **params) -> dict:
@@ -14,7 +14,8 @@ def run_one(dataset: Dataset, method: str, model: str, seed: int = 0, scenario: 
     row = {"scenario": scenario or dataset.meta.get("scenario", ""), "method": method, "model": model,
            "seed": seed, "error": ""}
     try:
-        result = make(method, model=model, seed=seed, **params).fit(dataset)
+        calibrator = make(method, model=model, seed=seed, **params)
+        result = calibrator.fit(dataset)
     except InputError as exc:
         row["error"] = str(exc)
         return row
@@ -22,4 +23,5 @@ def run_one(dataset: Dataset, method: str, model: str, seed: int = 0, scenario: 
         row["error"] = f"{type(exc).__name__}: {exc}"
         return row
     row.update(run_metrics(result, dataset))
+    row["error"] = budget_violation(result, calibrator.budget)
     return row

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from magbench.benchmarks.metrics import ARCSEC_PER_RAD
+from magbench.benchmarks.metrics import ARCSEC_PER_RAD, evaluations_label
 
 ANGLES = ("alpha", "beta", "gamma")
 FLOAT_FORMAT = "%.10g"
@@ -24,7 +24,9 @@ def summarize(runs: pd.DataFrame) -> pd.DataFrame:
     out = []
     for (scenario, conf), part in runs.groupby(["scenario", "configuration"], sort=False):
         ok = part[(part["error"] == "") & part.get("success", pd.Series(True, index=part.index)).fillna(False).astype(bool)]
+        modes = part["evaluation_mode"].dropna() if "evaluation_mode" in part else pd.Series(dtype=object)
         row = {"scenario": scenario, "configuration": conf, "model": part["model"].iloc[0], "n_runs": len(part),
+               "evaluation_mode": modes.iloc[0] if len(modes) else "counted",
                "n_failed": int((part["error"] != "").sum()), "success_rate": len(ok) / len(part)}
         for a in ANGLES:
             col = f"{a}_err_rad"
@@ -68,7 +70,9 @@ def _cells(summary: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
         cells = []
         for c, _, f in cols:
             v = r[c]
-            if isinstance(v, float) and np.isnan(v):
+            if c == "median_n_evaluations":
+                cells.append(evaluations_label(r.get("evaluation_mode", "counted"), float(v)))
+            elif isinstance(v, float) and np.isnan(v):
                 cells.append("-")
             else:
                 cells.append(f.format(int(v) if f == "{:d}" else v))

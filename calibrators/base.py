@@ -378,6 +378,10 @@ class Calibrator:
             problem = Problem(evaluator, model, x0, lower, upper, rng, self.seed, start)
         t0 = time.perf_counter()
         try:
+            if not self.closed_form:
+                # The start is the first counted evaluation, so the counter's best point (what a run cut
+                # short by its budget returns) is never worse than no calibration.
+                evaluator.values(x0[None, :])
             out = self._solve(problem)
         except BudgetExhausted as exc:
             if evaluator.best_x is None:

@@ -1,8 +1,13 @@
-"""The conformance battery over every registered calibrator (calibrators.checks)."""
+"""The conformance battery over every registered calibrator (magbench.calibrators.checks), and a
+negative control for every check: a deliberately broken calibrator that the check must reject."""
+import numpy as np
 import pytest
 
-from magbench.calibrators import available
+from magbench.calibrators import BudgetExhausted, Calibrator, SolveOutput, available, check_calibrator
+from magbench.calibrators import checks as C
 from magbench.calibrators.checks import iter_checks
+from magbench.calibrators.ellipsoid import ellipsoid_params
+from magbench.calibrators.lsq import LeastSquares
 
 CASES = [(name, check, model) for name, cls in sorted(available().items())
          for _, check, model in iter_checks(cls)]
@@ -13,40 +18,225 @@ def test_conformance(name, check, model):
     check(available()[name], model)
 
 
-def test_battery_covers_every_calibrator():
+def test_battery_covers_every_calibrator_and_check():
     names = {c[0] for c in CASES}
     assert names == set(available())
-    assert {"lsq", "ellipsoid", "aga", "aga-lm", "ga", "rga", "aco", "nlopt"} <= names
+    assert {"lsq", "ellipsoid", "aga", "aga-lm", "ga", "rga", "aco", "nlopt", "ransac", "tls", "ttls"} <= names
+    assert {c[1] for c in CASES} == set(C.CHECKS)
 
 
-def test_battery_catches_a_broken_calibrator():
-    """A calibrator that returns a wrong answer must fail the recovery check (the battery can fail)."""
-    import numpy as np
+# -- negative controls: one broken calibrator per check ----------------------------------------------
 
-    from magbench.calibrators import Calibrator, SolveOutput, check_calibrator
 
-    class Broken(Calibrator):
-        name = "broken-test"
-        supported_models = ("angles",)
+class _Good(Calibrator):
+    """A correct minimal calibrator (Levenberg-Marquardt through the counter) to break in one way at a time."""
+
+    name = "good-control"
+    supported_models = ("angles",)
+
+    def _solve(self, problem):
+        from magbench.calibrators.lsq import levenberg_marquardt
+
+        sol = levenberg_marquardt(problem, problem.x0)
+        return SolveOutput(sol.x)
+
+
+class ReadsAroundTheCounter(_Good):
+    """Reaches through the Problem to the private objective's readings and fits them directly."""
+
+    name = "reads-around"
+    supported_models = ("nine",)
+
+    def _solve(self, problem):
+        objective = problem._evaluator._objective
+        params = ellipsoid_params(objective.raw, objective.f_ref)
+        return SolveOutput(params.to_vector("nine"))
+
+
+class EvaluatesUncounted(_Good):
+    """Runs its search on the uncounted objective, then reports the answer."""
+
+    name = "uncounted"
+
+    def _solve(self, problem):
+        from scipy.optimize import least_squares
+
+        sol = least_squares(problem._evaluator._objective.residuals, problem.x0, method="lm")
+        return SolveOutput(sol.x)
+
+
+class ChangesItsHyperparameters(LeastSquares):
+    name = "tunes-itself"
+
+    def _solve(self, problem):
+        self.max_nfev = 50  # "adapts" its own setting during the fit
+        return super()._solve(problem)
+
+
+class WorseThanStart(_Good):
+    name = "worse"
+
+    def _solve(self, problem):
+        problem.value(problem.x0 + 0.05)
+        return SolveOutput(problem.x0 + 0.05)
+
+
+class IgnoresItsSeed(_Good):
+    name = "ignores-seed"
+    stochastic = True
+
+    def _solve(self, problem):
+        rng = np.random.default_rng(0)  # not problem.rng
+        x = problem.x0 + rng.normal(0, 1e-3, (50, 3))
+        f = problem.values(x)
+        return SolveOutput(x[np.argmin(f)] if f.min() < problem.value(problem.x0) else problem.x0)
+
+
+class UsesGlobalRandomState(IgnoresItsSeed):
+    name = "global-random"
+
+    def _solve(self, problem):
+        x = problem.x0 + np.random.normal(0, 1e-3, (50, 3))  # noqa: NPY002 (the bug under test)
+        f = problem.values(x)
+        return SolveOutput(x[np.argmin(f)] if f.min() < problem.value(problem.x0) else problem.x0)
+
+
+class OverrunsItsBudget(_Good):
+    name = "overruns"
+
+    def _solve(self, problem):
+        best = problem.x0
+        for _ in range(100):
+            try:
+                problem.values(problem.x0 + np.zeros((10, 3)))
+            except BudgetExhausted:
+                continue  # swallows the counter's stop and keeps asking
+        return SolveOutput(best)
+
+
+class BusyConstructor(LeastSquares):
+    name = "busy"
+
+    def __init__(self, model="nine", seed=0, budget=None, init="auto", tol=1e-12, max_nfev=200, bounded=True):
+        super().__init__(model, seed, budget, init, tol, max_nfev, bounded)
+        self.cache_ = {}
+
+
+class ConvertingConstructor(LeastSquares):
+    name = "converts"
+
+    def __init__(self, model="nine", seed=0, budget=None, init="auto", tol=1e-12, max_nfev=200, bounded=True):
+        super().__init__(model, seed, budget, init, float(tol) * 1.0, max_nfev, bounded)
+        self.tol = float(tol) + 0.0
+
+
+class StarArgs(_Good):
+    name = "star-args"
+
+    def __init__(self, *args, model="angles", seed=0, budget=None):
+        super().__init__(model=model, seed=seed, budget=budget)
+
+
+class WrongAnswer(_Good):
+    name = "wrong"
+
+    def _solve(self, problem):
+        problem.value(np.array([0.05, 0.0, 0.0]))
+        return SolveOutput(np.array([0.05, 0.0, 0.0]))  # off by 0.034 rad in alpha
+
+
+class AcceptsAnything(_Good):
+    name = "accepts-anything"
+
+    def validate(self, dataset):
+        return []
+
+
+class WrongShape(_Good):
+    name = "wrong-shape"
+
+    def _solve(self, problem):
+        problem.value(problem.x0)
+        return SolveOutput(np.zeros(2))
+
+
+CONTROLS = [
+    (ReadsAroundTheCounter, C.check_counts_through_the_counter, "nine", "never evaluated through the counter"),
+    (EvaluatesUncounted, C.check_counts_through_the_counter, "angles", "never evaluated through the counter"),
+    (ChangesItsHyperparameters, C.check_fit_keeps_hyperparameters, "angles", "max_nfev"),
+    (WorseThanStart, C.check_not_worse_than_start, "angles", "solver's answer has rms"),
+    (IgnoresItsSeed, C.check_seed_used, "angles", "seed is ignored"),
+    (UsesGlobalRandomState, C.check_deterministic, "angles", "differ"),
+    (OverrunsItsBudget, C.check_budget_respected, "angles", "after the counter said the budget was spent"),
+    (BusyConstructor, C.check_hyperparameters, "angles", "not hyper-parameters"),
+    (ConvertingConstructor, C.check_hyperparameters, "angles", "does not store tol as given"),
+    (StarArgs, C.check_hyperparameters, "angles", r"\*args"),
+    (WrongAnswer, C.check_recovers_known_errors, "angles", "known errors not recovered|rms only"),
+    (AcceptsAnything, C.check_refuses_bad_input, "angles", "did not refuse"),
+    (WrongShape, C.check_result_fields, "angles", "not a finite vector"),
+]
+
+
+@pytest.mark.parametrize("broken,check,model,message", CONTROLS, ids=[c[0].__name__ for c in CONTROLS])
+def test_check_rejects_its_negative_control(broken, check, model, message):
+    with pytest.raises(AssertionError, match=message):
+        check(broken, model)
+
+
+@pytest.mark.parametrize("check", C.CHECKS, ids=[c.__name__ for c in C.CHECKS])
+def test_every_check_has_a_negative_control_and_passes_the_good_one(check):
+    assert check in {c[1] for c in CONTROLS}, f"{check.__name__} has no negative control"
+    check(_Good, "angles")  # the unbroken control passes: the check is not simply always failing
+
+
+def test_the_whole_battery_rejects_a_calibrator_that_reads_around_the_counter():
+    with pytest.raises(AssertionError, match="check_counts_through_the_counter"):
+        check_calibrator(ReadsAroundTheCounter)
+
+
+def test_an_iterative_calibrator_sees_no_readings():
+    from magbench.calibrators import Problem
+
+    seen = {}
+
+    class Peek(_Good):
+        name = "peek"
 
         def _solve(self, problem):
-            return SolveOutput(np.array([0.05, 0.0, 0.0]))  # off by 0.034 rad in alpha
+            seen["problem"] = problem
+            return super()._solve(problem)
 
-    with pytest.raises(AssertionError, match="known errors not recovered|rms only"):
-        check_calibrator(Broken)
+    Peek(model="angles").fit(C.check_dataset("angles"))
+    problem = seen["problem"]
+    assert type(problem) is Problem
+    for name in ("raw_nT", "f_ref_nT", "objective", "raw"):
+        assert not hasattr(problem, name)
+    with pytest.raises(AttributeError):
+        problem.raw_nT = np.zeros((3, 3))  # __slots__: nothing can be attached either
 
 
-def test_battery_catches_a_constructor_that_works():
-    from magbench.calibrators import Calibrator, check_calibrator
-    from magbench.calibrators.lsq import LeastSquares
+def test_a_closed_form_calibrator_gets_read_only_copies():
+    seen = {}
 
-    class Busy(LeastSquares):
-        name = "busy-test"
+    class Look(Calibrator):
+        name = "look"
+        supported_models = ("nine",)
+        closed_form = True
 
-        def __init__(self, model="nine", seed=0, budget=None, init="auto", tol=1e-12, max_nfev=200):
-            super().__init__(model, seed, budget, init, tol, max_nfev)
-            self.cache_ = {}
+        def _solve(self, problem):
+            seen["problem"] = problem
+            return SolveOutput(ellipsoid_params(problem.raw_nT, problem.f_ref_nT).to_vector("nine"))
 
-    with pytest.raises(AssertionError, match="not hyper-parameters"):
-        check_calibrator(Busy, models=["angles"])
-    assert issubclass(Busy, Calibrator)
+    data = C.check_dataset("nine")
+    res = Look().fit(data)
+    problem = seen["problem"]
+    assert not problem.raw_nT.flags.writeable and not problem.f_ref_nT.flags.writeable
+    assert not np.shares_memory(problem.raw_nT, data.raw_nT)
+    assert res.evaluation_mode == "closed-form" and res.as_dict()["evaluation_mode"] == "closed-form"
+
+
+def test_fit_cannot_be_overridden():
+    with pytest.raises(TypeError, match="one entry point"):
+        class OwnFit(_Good):  # noqa: F841
+            def fit(self, dataset):
+                return None
