@@ -189,7 +189,8 @@ def cmd_demo(args) -> int:
     import pandas as pd
 
     from magbench.benchmarks.metrics import evaluations_label
-    from magbench.benchmarks.runner import ARCSEC_PER_RAD, run_one
+    from magbench.benchmarks.runner import run_one
+    from magbench.paper import ARCSEC_PER_RAD
     from magbench.calibrators import available
     from magbench.simulate.scenarios import get_scenario
 
@@ -265,7 +266,7 @@ def cmd_compare(args) -> int:
 
 
 def cmd_diagnose(args) -> int:
-    from magbench.benchmarks.diagnose import diagnose, diagnosis_figure, diagnosis_text
+    from magbench.benchmarks.diagnosis import diagnose, diagnosis_figure, diagnosis_text
 
     data = load_dataset(args, require_vector=False)
     result = diagnose(data, base=args.model, folds=args.folds, seed=args.seed)

@@ -23,7 +23,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from magbench.paper import ARCSEC_PER_RAD  # noqa: E402
+from magbench.paper import ARCSEC_PER_RAD
+
 ANGLES = ("alpha", "beta", "gamma")
 GREEK = {"alpha": "α", "beta": "β", "gamma": "γ"}
 KINDS = ("errors", "accuracy_runtime", "convergence", "field_heading", "efficiency")

@@ -16,8 +16,6 @@ from magbench.calibrators.objective import ScalarObjective
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import PARAM_NAMES, ErrorParams
 
-from magbench.paper import ARCSEC_PER_RAD  # noqa: E402
-
 
 def total_field_rms(params: ErrorParams, data: Dataset) -> float:
     f = np.linalg.norm(params.correct(data.raw_nT), axis=1)

@@ -17,8 +17,8 @@ import pandas as pd
 
 from magbench.benchmarks.runner import run_one
 from magbench.simulate import simulate
+from magbench.paper import RESOLUTION_RAD
 
-from magbench.paper import RESOLUTION_RAD  # noqa: E402  (seed 000, eq. 6)
 SPHERE_METHODS = [("ga", {}), ("rga", {}), ("aco", {}), ("nlopt", {}), ("nlopt", {"algorithm": "LD_LBFGS"}),
                   ("nlopt", {"algorithm": "GN_CRS2_LM", "max_evaluations": 80000}),
                   ("nlopt", {"algorithm": "GN_ISRES", "max_evaluations": 80000}),

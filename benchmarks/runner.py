@@ -6,7 +6,7 @@ from magbench.calibrators import make
 from magbench.errors import InputError
 from magbench.simulate.dataset import Dataset
 
-from .metrics import ARCSEC_PER_RAD, budget_violation, run_metrics  # noqa: F401  (ARCSEC_PER_RAD re-exported for the CLI)
+from .metrics import budget_violation, run_metrics
 
 
 def run_one(dataset: Dataset, method: str, model: str, seed: int = 0, scenario: str = "", **params) -> dict:

@@ -4,6 +4,7 @@
 """
 from __future__ import annotations
 
+import argparse
 import json
 import platform
 import subprocess
@@ -83,8 +84,6 @@ def _fmt(r):
 
 
 def main(argv=None) -> int:
-    import argparse
-
     p = argparse.ArgumentParser(prog="python -m magbench.benchmarks.speed")
     p.add_argument("--out", default="results", help="output directory (default: results)")
     out_dir = Path(p.parse_args(argv).out)

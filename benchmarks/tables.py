@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from magbench.benchmarks.metrics import ARCSEC_PER_RAD, evaluations_label
+from magbench.benchmarks.metrics import evaluations_label
+from magbench.paper import ARCSEC_PER_RAD
 
 ANGLES = ("alpha", "beta", "gamma")
 FLOAT_FORMAT = "%.10g"

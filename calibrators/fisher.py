@@ -25,7 +25,7 @@ COND_REFUSE = 1e10
 def noise_weights(objective: ScalarObjective, x: np.ndarray) -> np.ndarray:
     """|M^T u_i|² for each sample: the residual variance per unit raw-axis noise variance."""
     mat, o = correction_matrices(np.asarray(x, dtype=float)[None, :], objective.model)
-    c = (objective.raw - o[0]) @ mat[0].T
+    c = (objective.raw_nT - o[0]) @ mat[0].T
     u = c / np.linalg.norm(c, axis=1, keepdims=True)
     return np.sum((u @ mat[0]) ** 2, axis=1)
 
@@ -59,7 +59,7 @@ def coverage(objective: ScalarObjective, x: np.ndarray) -> dict:
     with np.errstate(divide="ignore", invalid="ignore"):
         sv = np.linalg.svd(jac / np.where(norms > 0, norms, 1.0), compute_uv=False)
     cond = float(sv[0] / sv[-1]) if sv[-1] > 0 and np.all(norms > 0) else np.inf
-    f = float(np.median(objective.f_ref))
+    f = float(np.median(objective.f_ref_nT))
     sigma = crb_std(objective, x, 1.0) if np.isfinite(cond) else np.full(len(names), np.inf)
     limit_w = np.array([WARN_PER_NT[_kind(n)] * (f if _kind(n) == "offset" else 1.0) for n in names])
     limit_r = np.array([REFUSE_PER_NT[_kind(n)] * (f if _kind(n) == "offset" else 1.0) for n in names])

@@ -94,18 +94,18 @@ class ScalarObjective:
     def __init__(self, raw_nT: np.ndarray, f_ref_nT: np.ndarray, model: str):
         if model not in PARAM_NAMES:
             raise ValueError(f"unknown model {model!r}")
-        self.raw = np.asarray(raw_nT, dtype=float)
-        self.f_ref = np.broadcast_to(np.asarray(f_ref_nT, dtype=float), (self.raw.shape[0],))
+        self.raw_nT = np.asarray(raw_nT, dtype=float)
+        self.f_ref_nT = np.broadcast_to(np.asarray(f_ref_nT, dtype=float), (self.raw_nT.shape[0],))
         self.model = model
         self.n_params = n_params(model)
-        x, y, z = self.raw.T
+        x, y, z = self.raw_nT.T
         cols = [x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z]
         if model == "nine":
             cols += [x, y, z, np.ones_like(x)]
         self._design = np.ascontiguousarray(np.array(cols))  # (6 or 10, n)
         self._design_mean = self._design.mean(axis=1)
-        self._f_scaled = 2.0 * self.f_ref / self.raw.shape[0]
-        self._f2_mean = float(np.mean(self.f_ref**2))
+        self._f_scaled = 2.0 * self.f_ref_nT / self.raw_nT.shape[0]
+        self._f2_mean = float(np.mean(self.f_ref_nT**2))
 
     def values(self, x: np.ndarray, exact: bool | None = None) -> np.ndarray:
         """F(X) of eq. 3 for each row of a population: (m, p) -> (m,).
@@ -128,21 +128,21 @@ class ScalarObjective:
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Residuals at one point, computed directly as |M (raw - o)| - F (the reference form)."""
         mat, o = correction_matrices(np.asarray(x, dtype=float)[None, :], self.model)
-        c = (self.raw - o[0]) @ mat[0].T
-        return np.linalg.norm(c, axis=1) - self.f_ref
+        c = (self.raw_nT - o[0]) @ mat[0].T
+        return np.linalg.norm(c, axis=1) - self.f_ref_nT
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         """d r_i / d x (n, p), analytic: dr/dθ = u^T (dM/dθ) d, dr/do = -u^T M, u = c/|c|, d = raw - o."""
         x = np.asarray(x, dtype=float)
         mat, o = correction_matrices(x[None, :], self.model)
         mat, o = mat[0], o[0]
-        d = self.raw - o
+        d = self.raw_nT - o
         c = d @ mat.T
         u = c / np.linalg.norm(c, axis=1, keepdims=True)
         a, b, g = x[:3]
         ik = 1.0 / x[3:6] if self.model == "nine" else np.ones(3)
         ca, sa, cb, sb, cg, sg = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(g), np.sin(g)
-        jac = np.empty((self.raw.shape[0], self.n_params))
+        jac = np.empty((self.raw_nT.shape[0], self.n_params))
         # column 0 of M depends on alpha, gamma, kx; column 1 on beta, ky; column 2 on kz
         jac[:, 0] = (u[:, 0] * (-sa * cg) + u[:, 2] * (ca * cg)) * ik[0] * d[:, 0]
         jac[:, 1] = (u[:, 1] * (-sb) + u[:, 2] * cb) * ik[1] * d[:, 1]
@@ -156,7 +156,7 @@ class ScalarObjective:
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """dF/dx of eq. 3: (2/N) J^T r."""
-        return 2.0 * self.jacobian(x).T @ self.residuals(x) / self.raw.shape[0]
+        return 2.0 * self.jacobian(x).T @ self.residuals(x) / self.raw_nT.shape[0]
 
 
 @dataclass(frozen=True)

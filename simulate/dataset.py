@@ -9,7 +9,7 @@ from __future__ import annotations
 import io
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -112,8 +112,6 @@ class Dataset:
         return self.f_ref_nT is not None
 
     def with_reference(self, f_ref_nT) -> "Dataset":
-        from dataclasses import replace
-
         return replace(self, f_ref_nT=f_ref_nT)
 
     # ------------------------------------------------------------------ CSV (CONTRACT section 2)

@@ -49,7 +49,7 @@ class ReadsAroundTheCounter(_Good):
 
     def _solve(self, problem):
         objective = problem._evaluator._objective
-        params = ellipsoid_params(objective.raw, objective.f_ref)
+        params = ellipsoid_params(objective.raw_nT, objective.f_ref_nT)
         return SolveOutput(params.to_vector("nine"))
 
 

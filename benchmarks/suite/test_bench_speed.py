@@ -82,30 +82,6 @@ def test_aco_magbench(benchmark, sphere9):
     benchmark.extra_info.update(evaluations=res.n_evaluations, rms_after_nT=res.rms_after_nT)
 
 
-@pytest.mark.benchmark(group="ga vs PyGAD: 80 x 1000 generations, sphere9 (300 points, nine)")
-def test_ga_pygad_per_solution(benchmark, sphere9):
-    """PyGAD as its documentation shows it: the fitness function called once per solution (the default,
-    fitness_batch_size=None); same population, generations, data, box and objective."""
-    pygad = pytest.importorskip("pygad")
-    obj = ScalarObjective(sphere9.raw_nT, sphere9.f_ref_nT, "nine")
-    lo, hi = _box(sphere9)
-    span = hi - lo
-
-    def fitness(ga, solution, idx):  # the population form, as magbench's ga uses it
-        return -float(obj.values((lo + solution * span)[None, :], exact=False)[0])
-
-    def run():
-        ga = pygad.GA(num_generations=GENERATIONS - 1, num_parents_mating=POPULATION // 2, fitness_func=fitness,
-                      sol_per_pop=POPULATION, num_genes=9, init_range_low=0.0, init_range_high=1.0,
-                      gene_space={"low": 0.0, "high": 1.0}, random_seed=0, suppress_warnings=True)
-        ga.run()
-        return ga
-
-    ga = benchmark.pedantic(run, rounds=2, iterations=1)
-    best = -ga.best_solution(ga.last_generation_fitness)[1]
-    benchmark.extra_info.update(rms_after_nT=float(np.sqrt(best)))
-
-
 @pytest.mark.benchmark(group="aco vs mealpy ACOR: 20,050 evaluations, sphere9 (300 points, nine)")
 def test_aco_mealpy(benchmark, sphere9):
     """mealpy's OriginalACOR with the same archive (pop_size 50), ants per iteration (sample_count 20)
