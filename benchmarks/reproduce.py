@@ -11,8 +11,12 @@
 """
 from __future__ import annotations
 
+import contextlib
+import io
+import json
 import subprocess
 import sys
+from collections import Counter
 from importlib import resources
 from pathlib import Path
 
@@ -97,27 +101,22 @@ REAL_DATA = [("lu2014_table2", "nT", "nine"), ("ck_acc_mag", "G", "nine")] + \
 
 def diagnosis_reports(out: Path, blind_n: int = 70) -> Path:
     """``magbench diagnose`` on the real recordings shipped in simulate/data, and the blind check."""
-    import json
-
     from magbench.benchmarks.cli import main as cli
 
     folder = out / "diagnosis"
     folder.mkdir(parents=True, exist_ok=True)
     rows = []
     for name, units, model in REAL_DATA:
-        path = resources.files("simulate").joinpath(f"data/{name}.csv")
+        path = resources.files("magbench.simulate").joinpath(f"data/{name}.csv")
         args = ["diagnose", str(path), "--units", units, "--model", model, "--json", "--force",
                 "--figure", str(folder / f"{name}.png")]
-        import contextlib
-        import io
-
         buf, err = io.StringIO(), io.StringIO()
         with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(err):
             code = cli(args)
         if code == 0:
             result = json.loads(buf.getvalue())
             result["figure"] = f"{name}.png"
-            from magbench.benchmarks.diagnose import diagnosis_text
+            from magbench.benchmarks.diagnosis import diagnosis_text
 
             (folder / f"{name}.json").write_text(json.dumps(result, indent=2) + "\n")
             (folder / f"{name}.txt").write_text(diagnosis_text(result, f"simulate/data/{name}.csv") + "\n")
@@ -157,9 +156,9 @@ def diagnosis_reports(out: Path, blind_n: int = 70) -> Path:
 
 def blind_check(n: int) -> str:
     """The blind check of the test suite at a larger size: verdict accuracy and the confusion table."""
-    from collections import Counter
+    from magbench.benchmarks.diagnosis import blind_dataset, blind_kinds, diagnose
 
-    from magbench.benchmarks.diagnose import BLIND_KINDS, blind_dataset, diagnose
+    kinds = blind_kinds()
 
     pairs = []
     for i in range(n):
@@ -167,13 +166,12 @@ def blind_check(n: int) -> str:
         pairs.append((kind, diagnose(data, base=base)["verdict"]))
     correct = sum(k == v for k, v in pairs)
     counts = Counter(pairs)
-    verdicts = sorted({v for _, v in pairs} | set(BLIND_KINDS),
-                      key=lambda v: (BLIND_KINDS.index(v) if v in BLIND_KINDS else len(BLIND_KINDS), v))
+    verdicts = sorted({v for _, v in pairs} | set(kinds), key=lambda v: (kinds.index(v) if v in kinds else len(kinds), v))
     lines = [f"## Blind check: {n} simulated datasets, effect hidden from the diagnosis", "",
              f"Correct verdicts: {correct} of {n} ({100 * correct / n:.0f} %). Rows: the true effect; columns: "
              "the verdict.", "", "| true \\ verdict | " + " | ".join(verdicts) + " |",
              "|---|" + "---|" * len(verdicts)]
-    for k in BLIND_KINDS:
+    for k in kinds:
         lines.append(f"| {k} | " + " | ".join(str(counts.get((k, v), 0)) for v in verdicts) + " |")
     return "\n".join(lines)
 

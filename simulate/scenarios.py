@@ -6,7 +6,7 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Callable
 
@@ -16,6 +16,7 @@ from magbench import paper
 
 from . import attitude as att
 from .dataset import Dataset, Truth
+from .effects import make_effect
 from .field import ConstantField, VaryingField, igrf_field
 from .sensor import ErrorParams, SensorModel
 
@@ -53,11 +54,11 @@ class Scenario:
     effects: tuple = ()  # simulate.effects.Effect instances switched on
 
     def with_effects(self, *effects, name: str | None = None) -> "Scenario":
-        """The same scenario with effects switched on (``simulate.effects``)."""
-        from dataclasses import replace
-
+        """The same scenario with effects switched on: ``simulate.effects.Effect`` instances, or names of
+        registered effects (``simulate.effects.EFFECTS``) with their default parameters."""
+        effects = tuple(make_effect(e) if isinstance(e, str) else e for e in effects)
         label = name or "+".join([self.name] + [e.name for e in effects])
-        return replace(self, name=label, effects=tuple(self.effects) + tuple(effects))
+        return replace(self, name=label, effects=tuple(self.effects) + effects)
 
     def attitudes(self, rng: np.random.Generator) -> att.Attitudes:
         kw = dict(self.schedule_kw)
@@ -94,7 +95,7 @@ class Scenario:
         clean = self.sensor.add_noise(clean, rng_clean)
         for e in self.effects:
             raw = e.spikes(raw, rng)
-        drift_unseen = any(e.name == "field_drift" for e in self.effects)
+        drift_unseen = any(e.unseen_by_reference for e in self.effects)
         if self.reference_tracks_drift and not drift_unseen:
             f_ref = np.linalg.norm(field_ned, axis=1)
         else:

@@ -1,14 +1,19 @@
 """The sim-to-real diagnosis, checked blind: each dataset carries a randomly drawn effect (or none) that
 the diagnosis is not told."""
 import json
+import subprocess
+import sys
 from dataclasses import replace
+from importlib import resources
 
 import numpy as np
 import pytest
 
-from magbench.benchmarks.diagnose import Diagnosis, blind_dataset, diagnose
-from magbench.simulate.effects import EFFECT_NAMES, random_effect
+from magbench.benchmarks.diagnosis import Diagnosis, blind_dataset, diagnose
+from magbench.calibrators import make
+from magbench.simulate.effects import effect_names, random_effect
 from magbench.simulate.scenarios import get_scenario
+
 
 def blind_case(i: int):
     return blind_dataset(i)
@@ -19,10 +24,7 @@ def ground_truth_shrink(data, base: str, result: dict) -> float:
     noise but no effect, calibrated with the base model on the same folds."""
     clean = replace(data, raw_nT=data.truth.raw_without_effects_nT, f_ref_nT=np.linalg.norm(
         data.truth.field_ned_nT) * np.ones(len(data)))
-    d = Diagnosis(clean, base)
-    from magbench.calibrators import make
-
-    rms_clean = d._cv("none", make("lsq", model=base).fit(clean).x).rms
+    rms_clean = Diagnosis(clean, base).heldout_base(make("lsq", model=base).fit(clean).x).rms_nT
     return 100.0 * (result["rms_base_nT"] - rms_clean) / (result["rms_base_nT"] - data.truth.sensor.noise_nT)
 
 
@@ -59,7 +61,7 @@ def test_an_effect_outside_the_library_is_not_claimed():
         effect = random_effect("attitude_ripple", rng)
         data = get_scenario("tumble9q").with_effects(effect).build(500 + i)
         result = diagnose(data, base="nine")
-        assert result["verdict"] not in EFFECT_NAMES, (effect, result["verdict"], result["effects"][:2])
+        assert result["verdict"] not in effect_names(in_library=True), (effect, result["verdict"], result["effects"][:2])
 
 
 def test_clean_data_gives_none_and_json_keys():
@@ -81,10 +83,6 @@ def test_resimulation_with_the_fitted_effect_matches_the_observation(blind):
 
 
 def test_diagnose_command_on_the_paper_table2_scalar_series(tmp_path):
-    import subprocess
-    import sys
-    from importlib import resources
-
     path = resources.files("magbench.simulate").joinpath("data/lu2014_table2.csv")
     fig = tmp_path / "t2.png"
     p = subprocess.run([sys.executable, "-m", "magbench.benchmarks.cli", "diagnose", str(path), "--json", "--figure", str(fig)],
@@ -98,9 +96,6 @@ def test_diagnose_command_on_the_paper_table2_scalar_series(tmp_path):
 
 
 def test_diagnose_refuses_bad_input_in_one_line(tmp_path):
-    import subprocess
-    import sys
-
     csv = tmp_path / "noref.csv"
     data = get_scenario("tumble9q").build(1)
     replace(data, f_ref_nT=None, meta={}).to_csv(csv)

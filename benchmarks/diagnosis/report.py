@@ -1,0 +1,104 @@
+"""The outputs of a diagnosis besides its JSON: the human table and the residual figure."""
+from __future__ import annotations
+
+import numpy as np
+
+from magbench.calibrators import make
+from magbench.simulate.dataset import ScalarSeries
+from magbench.simulate.effects import effect_names
+from magbench.simulate.sensor import MODELS
+
+from .scalar import scalar_residual, together_columns
+from .vector import Diagnosis
+
+FIGURE_SIZE_IN = (8, 4.5)
+FIGURE_DPI = 110
+
+
+def _table(result: dict, source: str) -> list[str]:
+    lines = [f"diagnosis of {source} ({result['n_points']} points, base model: {result['base_model']})",
+             f"  residual RMS {result['rms_fit_nT']:.3f} nT on the fit, {result['rms_base_nT']:.3f} nT held out; "
+             f"noise floor {result['noise_floor_nT']:.3f} nT",
+             "", f"  {'effect':<14}{'held-out RMS nT':>16}{'shrink %':>10}{'z':>8}  significant"]
+    for e in result["effects"]:
+        lines.append(f"  {e['name']:<14}{e['rms_heldout_nT']:>16.3f}{e['shrink_pct']:>10.1f}{e['z']:>8.1f}  "
+                     f"{'yes' if e['significant'] else 'no'}")
+    return lines
+
+
+def _localization(loc: dict) -> list[str]:
+    if not loc:
+        return []
+    lines = ["", "  where the residual lies:"]
+    for k, v in loc.items():
+        if isinstance(v, dict):
+            lines.append(f"    {k}: " + ", ".join(f"{kk} {vv:.2f}" for kk, vv in v.items()))
+        else:
+            lines.append(f"    {k}: {v:.3f}")
+    return lines
+
+
+def diagnosis_text(result: dict, source: str = "") -> str:
+    """The human table of a diagnosis (``magbench diagnose`` without ``--json``)."""
+    lines = _table(result, source) + _localization(result.get("localization", {}))
+    if "resimulation" in result:
+        rs = result["resimulation"]
+        lines.append("")
+        lines.append(f"  re-simulated: residual RMS {rs['without_effect']['rms_nT']:.3f} nT without the effect, "
+                     f"{rs['with_effect']['rms_nT']:.3f} nT with it, observed {rs['observed']['rms_nT']:.3f} nT "
+                     f"(remaining gap {rs['remaining_gap_pct']:.1f} %)")
+    if "offset_and_scale_together" in result:
+        both = result["offset_and_scale_together"]
+        lines.append(f"  offset (1/rev) and scale (2/rev) together: held-out RMS {both['rms_heldout_nT']:.2f} nT "
+                     f"(shrink {both['shrink_pct']:.0f} %)")
+    lines.append("")
+    lines.append(f"  verdict: {result['verdict']}")
+    if result.get("figure"):
+        lines.append(f"  figure: {result['figure']}")
+    return "\n".join(lines)
+
+
+def _plot_scalar(ax, series: ScalarSeries) -> str:
+    r = scalar_residual(series)
+    x = np.asarray(series.heading_deg)
+    ax.plot(x, r, "o-", label="residual of the file's calibration")
+    cols = np.column_stack([np.ones(len(x))] + together_columns(np.radians(x)))
+    coef, *_ = np.linalg.lstsq(cols, r, rcond=None)
+    ax.plot(x, r - cols @ coef, "s-", label="after removing 1 and 2 cycles/rev (offset + scale)")
+    return "turntable heading (deg)"
+
+
+def _plot_vector(ax, data, result: dict) -> str:
+    d = Diagnosis(data, result["base_model"] if result["base_model"] in MODELS else "nine")
+    fit = make("lsq", model=d.base).fit(data)
+    r = np.linalg.norm(fit.correct(np.asarray(data.raw_nT)), axis=1) - np.asarray(data.f_ref_nT)
+    if data.heading_deg is not None:
+        x, label = np.asarray(data.heading_deg), "heading (deg)"
+    elif data.t_s is not None:
+        x, label = np.asarray(data.t_s), "time (s)"
+    else:
+        x, label = np.arange(len(r)), "sample"
+    ax.plot(x, r, ".", ms=3, label=f"base model ({result['base_model']})")
+    if result["verdict"] in effect_names(in_library=True) and "winner_params" in result:
+        ax.plot(x, d.model_residuals(result["verdict"], result["winner_params"]), ".", ms=3,
+                label=f"with {result['verdict']}")
+    return label
+
+
+def diagnosis_figure(data, result: dict, path) -> None:
+    """Residual before and after the winning effect, against heading (turntable) or time or sample."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=FIGURE_SIZE_IN)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(111)
+    label = _plot_scalar(ax, data) if isinstance(data, ScalarSeries) else _plot_vector(ax, data, result)
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_xlabel(label)
+    ax.set_ylabel("total-field residual (nT)")
+    ax.set_title(f"verdict: {result['verdict']}  (noise floor {result['noise_floor_nT']:.2f} nT)")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=FIGURE_DPI, metadata={"Software": None})
