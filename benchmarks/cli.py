@@ -10,13 +10,14 @@ import json
 import math
 import os
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from magbench.errors import InputError
 
-EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
+EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_REJECTED = 0, 1, 2, 3
 
 
 class UsageError(InputError):
@@ -65,13 +66,30 @@ def load_dataset(args, require_vector: bool = True):
 
     cli_ref = _reference_from_args(args)
     data = read_csv(args.file, units=args.units, require_vector=require_vector, expected_field_nT=cli_ref)
-    if data.f_ref_nT is None:
-        ref = cli_ref
+    if data.f_ref_nT is not None:
+        source = "the file's f_ref column"
+        if cli_ref is not None:
+            source += f" (it takes precedence over {'--field' if args.field is not None else '--igrf'})"
+    else:
+        ref, source = cli_ref, (f"--field {args.field:g}" if args.field is not None else
+                                f"--igrf {args.igrf} (IGRF-14)" if args.igrf else None)
         if ref is None and "field_nT" in data.meta:
-            ref = float(data.meta["field_nT"])
+            ref, source = _meta_field(data.meta["field_nT"]), "the file's '# field_nT:' line"
         if ref is not None:
             data = data.with_reference(np.full(len(data), ref))
+    if source is not None and hasattr(data, "meta"):
+        data = replace(data, meta={**data.meta, "reference_source": source})
     return data
+
+
+def _meta_field(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(f"the '# field_nT:' line holds {text!r}, not a number of nT") from None
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"the '# field_nT:' line must be a positive number of nT, got {text}")
+    return value
 
 
 def _parse_params(items) -> dict:
@@ -171,6 +189,8 @@ def cmd_calibrate(args) -> int:
     cal = make(args.method, model=args.model, seed=args.seed, **params)
     result = cal.fit(data)
     obj = result.as_dict()
+    ref = result.reference
+    sys.stderr.write(f"magbench: reference {ref['median_nT']:.6g} nT (median) from {ref['source']}\n")
     p = result.params
     lines = [f"{result.method} ({result.model} model), {len(data)} points, {result.status}: {result.message}",
              f"  alpha  {p.alpha_rad: .6e} rad   beta {p.beta_rad: .6e} rad   gamma {p.gamma_rad: .6e} rad"]
@@ -181,8 +201,19 @@ def cmd_calibrate(args) -> int:
                  f"{_evaluations_text(result)}, "
                  f"{result.runtime_s * 1e3:.1f} ms, seed {result.seed}")
     lines += [f"  warning: {w}" for w in result.warnings]
+    if result.accepted:
+        _emit(args, obj, "\n".join(lines))
+        return EXIT_OK
+    if args.accept_any:
+        lines += [f"  warning (rejection kept by --accept-any): {r}" for r in result.rejections]
+        obj["warnings"] = obj["warnings"] + [f"rejection kept by --accept-any: {r}" for r in result.rejections]
+        _emit(args, obj, "\n".join(lines))
+        return EXIT_OK
+    lines += [f"  REJECTED: {r}" for r in result.rejections]
     _emit(args, obj, "\n".join(lines))
-    return EXIT_OK
+    more = f" (+{len(result.rejections) - 1} more)" if len(result.rejections) > 1 else ""
+    sys.stderr.write(f"magbench: calibration rejected: {result.rejections[0]}{more}; --accept-any keeps it\n")
+    return EXIT_REJECTED
 
 
 def cmd_demo(args) -> int:
@@ -328,6 +359,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", default="nine", choices=["angles", "nine"])
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--algorithm", help="NLopt algorithm name (method nlopt)")
+    p.add_argument("--accept-any", action="store_true",
+                   help="keep a calibration that fails its acceptance checks (exit 0, the causes as warnings) "
+                        "instead of exit status 3")
     p.add_argument("--param", action="append", metavar="KEY=VALUE", help="a hyper-parameter (repeatable)")
     p.add_argument("--json", action="store_true")
     _add_reference_options(p)
@@ -360,7 +394,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_compare)
 
-    from magbench.calibrators.gradiometer import add_gradiometer_command
+    from magbench.benchmarks.gradiometer import add_gradiometer_command
 
     add_gradiometer_command(sub)
 

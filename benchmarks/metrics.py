@@ -79,6 +79,7 @@ def run_metrics(result: CalibrationResult, data: Dataset, validation: Dataset | 
     p = result.params
     row = {"success": result.success, "status": result.status, "n_evaluations": result.n_evaluations,
            "evaluation_mode": result.evaluation_mode,
+           "accepted": result.accepted, "rejections": "; ".join(result.rejections),
            "runtime_s": result.runtime_s, "rms_before_nT": result.rms_before_nT,
            "rms_after_nT": result.rms_after_nT,
            "rms_reduction_pct": 100.0 * (1.0 - result.rms_after_nT / result.rms_before_nT),

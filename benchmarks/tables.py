@@ -29,6 +29,9 @@ def summarize(runs: pd.DataFrame) -> pd.DataFrame:
         row = {"scenario": scenario, "configuration": conf, "model": part["model"].iloc[0], "n_runs": len(part),
                "evaluation_mode": modes.iloc[0] if len(modes) else "counted",
                "n_failed": int((part["error"] != "").sum()), "success_rate": len(ok) / len(part)}
+        if "accepted" in part:
+            accepted = part["accepted"].astype("boolean").fillna(False).astype(bool)
+            row["accept_rate"] = float(accepted.mean())
         for a in ANGLES:
             col = f"{a}_err_rad"
             if col in ok and ok[col].notna().any():
@@ -54,7 +57,7 @@ def summarize(runs: pd.DataFrame) -> pd.DataFrame:
 
 # compact view for the human tables: (column, header, format)
 VIEW = [("scenario", "scenario", "{}"), ("configuration", "calibrator", "{}"), ("n_runs", "runs", "{:d}"),
-        ("success_rate", "success", "{:.0%}"),
+        ("success_rate", "success", "{:.0%}"), ("accept_rate", "accepted", "{:.0%}"),
         ("median_abs_alpha_err_arcsec", "|dα| ″", "{:.3g}"), ("median_abs_beta_err_arcsec", "|dβ| ″", "{:.3g}"),
         ("median_abs_gamma_err_arcsec", "|dγ| ″", "{:.3g}"), ("median_scale_err_max", "|dk| max", "{:.2g}"),
         ("median_offset_err_max_nT", "|do| max nT", "{:.3g}"), ("median_rms_after_nT", "RMS fit nT", "{:.3g}"),

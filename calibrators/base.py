@@ -19,6 +19,7 @@ from magbench.errors import InputError
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
 
+from .acceptance import DEFAULT_LIMITS, AcceptanceLimits, assess, reference_problems
 from .fisher import coverage
 from .objective import Budget, BudgetExhausted, Evaluator, ScalarObjective, identity_vector
 
@@ -56,6 +57,9 @@ class CalibrationResult:
     solver_x: np.ndarray | None = None  # what _solve returned, before fit's safety clamp
     solver_rms_nT: float = float("nan")  # the residual RMS at solver_x
     n_overrun_calls: int = 0  # calls the solver made after the counter said the budget was spent
+    accepted: bool = True  # every acceptance check passed (calibrators/acceptance.py)
+    rejections: tuple[str, ...] = ()  # why not, one cause per entry
+    reference: dict = field(default_factory=dict)  # the reference magnitude used and its source
 
     def __post_init__(self):
         for name in ("x", "solver_x"):
@@ -99,6 +103,9 @@ class CalibrationResult:
             "message": self.message,
             "fun": self.fun,
             "warnings": list(self.warnings),
+            "accepted": self.accepted,
+            "rejections": list(self.rejections),
+            "reference": dict(self.reference),
             "hyperparameters": {k: _jsonable(v) for k, v in self.hyperparameters.items()},
             **({"extra": {k: _jsonable(v) for k, v in self.extra.items()}} if self.extra else {}),
         }
@@ -263,6 +270,9 @@ class Calibrator:
     # gets a ReadingsProblem and its rows report the evaluation mode "closed-form".  Every other
     # calibrator sees the data only through the counted objective.
     closed_form: ClassVar[bool] = False
+    # A robust calibrator screens outliers itself: the acceptance check then warns instead of rejecting.
+    robust: ClassVar[bool] = False
+    acceptance: ClassVar[AcceptanceLimits] = DEFAULT_LIMITS
     # Tolerances the conformance battery allows this method on low-noise data (angle rad, scale, nT).
     check_tolerance: ClassVar[dict] = {"angle_rad": 2e-5, "scale": 2e-5, "offset_nT": 0.5}
 
@@ -351,6 +361,9 @@ class Calibrator:
                              "--igrf LAT,LON,ALT_KM,YYYY-MM-DD, or a '# field_nT:' line")
         if not np.all(np.isfinite(dataset.f_ref_nT)) or np.any(dataset.f_ref_nT <= 0):
             raise InputError("the reference magnitude must be finite and positive on every row")
+        problem = reference_problems(dataset.raw_nT, dataset.f_ref_nT)
+        if problem:
+            raise InputError(problem)
         report = coverage(ScalarObjective(dataset.raw_nT, dataset.f_ref_nT, model), identity_vector(model))
         if report["refusal"]:
             raise InputError(report["refusal"])
@@ -397,8 +410,12 @@ class Calibrator:
             warnings.append(f"{self.name} {what}; the identity is returned")
             x, f_x, success, status = x0.copy(), f_start, False, "worse_than_start"
         warnings += self._solution_warnings(objective, x)
+        physical = search_bounds(model, dataset.f_ref_nT, **PHYSICAL_BOX)
+        rejections, notes = assess(objective, x, improved=status != "worse_than_start", robust=self.robust,
+                                   closed_form=self.closed_form, physical_box=physical, limits=self.acceptance)
         if not self.closed_form:
-            warnings += _at_bounds_warning(x, lower, upper, model)
+            rejections += _at_bounds(x, lower, upper, model)
+        warnings += notes
         return CalibrationResult(
             method=self.name, model=model, params=ErrorParams.from_vector(x, model), x=x,
             success=bool(success), status=status, message=out.message, fun=float(f_x),
@@ -408,7 +425,8 @@ class Calibrator:
             hyperparameters=self.get_params(), trace=tuple(evaluator.trace), extra=dict(out.extra),
             evaluation_mode="closed-form" if self.closed_form else "counted",
             solver_x=solver_x, solver_rms_nT=float(np.sqrt(f_solver)) if np.isfinite(f_solver) else float("nan"),
-            n_overrun_calls=evaluator.n_overrun_calls)
+            n_overrun_calls=evaluator.n_overrun_calls, accepted=not rejections, rejections=tuple(rejections),
+            reference=_reference_of(dataset))
 
     def _solution_warnings(self, objective: ScalarObjective, x: np.ndarray) -> list[str]:
         if self.model == "nine":
@@ -425,13 +443,20 @@ AT_BOUND_REL = 1e-6
 """A parameter within this fraction of its box's width from a bound is reported as on the bound."""
 
 
-def _at_bounds_warning(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, model: str) -> list[str]:
+def _at_bounds(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, model: str) -> list[str]:
     tol = AT_BOUND_REL * (upper - lower)
     at = [PARAM_NAMES[model][i] for i in np.flatnonzero((x <= lower + tol) | (x >= upper - tol))]
     if not at:
         return []
     return [f"{', '.join(at)} ended on the search bound: the data do not determine them (attitude coverage) "
-            "or the box is too small"]
+            "or the search box is too small"]
+
+
+def _reference_of(dataset: Dataset) -> dict:
+    """The reference magnitude used and where it came from (CONTRACT section 3, ``reference``)."""
+    f = np.asarray(dataset.f_ref_nT, dtype=float)
+    return {"median_nT": float(np.median(f)), "min_nT": float(f.min()), "max_nT": float(f.max()),
+            "source": dataset.meta.get("reference_source", "dataset f_ref_nT")}
 
 
 def _solver_point(x, p: int) -> tuple[np.ndarray, str]:

@@ -15,10 +15,13 @@ from magbench.simulate.sensor import PARAM_NAMES
 
 from .objective import ScalarObjective, correction_matrices
 
-# Per-nT-of-noise standard deviations above which the coverage is called ill-conditioned (warning)
-# or degenerate (refusal): (angle rad, scale, offset as a fraction of the field).
-WARN_PER_NT = {"angle": 1e-4, "scale": 1e-4, "offset": 2e-5}
-REFUSE_PER_NT = {"angle": 0.1, "scale": 0.1, "offset": 0.1}
+# Standard deviations per nT of noise *for one point's worth of information* (the Cramér-Rao standard
+# deviation times sqrt(n)) above which the attitudes are called ill-conditioned (warning) or degenerate
+# (refusal): (angle rad, scale, offset as a fraction of the field).  Normalizing by sqrt(n) measures the
+# geometry alone: a plane sampled 36 or 3,600 times has the same information per point, so it is
+# refused alike (repeating a plane adds no direction).
+WARN_PER_POINT = {"angle": 1e-3, "scale": 1e-3, "offset": 1e-3}
+REFUSE_PER_POINT = {"angle": 0.05, "scale": 0.05, "offset": 0.05}
 COND_REFUSE = 1e10
 
 
@@ -60,19 +63,22 @@ def coverage(objective: ScalarObjective, x: np.ndarray) -> dict:
         sv = np.linalg.svd(jac / np.where(norms > 0, norms, 1.0), compute_uv=False)
     cond = float(sv[0] / sv[-1]) if sv[-1] > 0 and np.all(norms > 0) else np.inf
     f = float(np.median(objective.f_ref_nT))
+    n = objective.raw_nT.shape[0]
     sigma = crb_std(objective, x, 1.0) if np.isfinite(cond) else np.full(len(names), np.inf)
-    limit_w = np.array([WARN_PER_NT[_kind(n)] * (f if _kind(n) == "offset" else 1.0) for n in names])
-    limit_r = np.array([REFUSE_PER_NT[_kind(n)] * (f if _kind(n) == "offset" else 1.0) for n in names])
-    worst = int(np.argmax(sigma / limit_w))
+    per_point = sigma * np.sqrt(n)
+    scale = np.array([f if _kind(nm) == "offset" else 1.0 for nm in names])
+    limit_w = np.array([WARN_PER_POINT[_kind(nm)] for nm in names]) * scale
+    limit_r = np.array([REFUSE_PER_POINT[_kind(nm)] for nm in names]) * scale
+    worst = int(np.argmax(per_point / limit_w))
     unit = {"angle": " rad", "offset": " nT", "scale": ""}[_kind(names[worst])]
     bound = f"{names[worst]} +-{sigma[worst]:.2g}{unit} per nT of noise (Cramér-Rao)"
     refusal = warning = None
-    if cond > COND_REFUSE or np.any(sigma > limit_r):
-        bad = [names[i] for i in np.flatnonzero(sigma > limit_r)] or [names[worst]]
+    if cond > COND_REFUSE or np.any(per_point > limit_r):
+        bad = [names[i] for i in np.flatnonzero(per_point > limit_r)] or [names[worst]]
         refusal = (f"degenerate attitude coverage: the data cannot determine {', '.join(bad)} "
                    f"(condition number {cond:.2g}; {bound}); rotate the sensor through more "
                    f"directions or use a model with fewer parameters")
-    elif np.any(sigma > limit_w):
+    elif np.any(per_point > limit_w):
         warning = f"ill-conditioned attitude coverage: condition number {cond:.2g}; worst-determined {bound}"
     return {"condition_number": cond, "sigma_per_nT": dict(zip(names, sigma.tolist())),
             "worst": names[worst], "warning": warning, "refusal": refusal}

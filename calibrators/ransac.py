@@ -44,6 +44,7 @@ class RansacEllipsoid(Calibrator):
     supported_models = ("nine",)
     stochastic = True
     closed_form = True  # fits ellipsoids to subsets of the readings; scores each through the counter
+    robust = True  # the consensus set excludes outliers (seed 003)
     check_tolerance = {"angle_rad": 1e-4, "scale": 1e-4, "offset_nT": 2.0}
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, sample_size: int = 0,

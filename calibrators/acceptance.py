@@ -1,0 +1,203 @@
+"""Acceptance checks after every fit: a number we cannot stand behind is a rejection, not an answer.
+
+In the spirit of ArduPilot's compass calibrator (``AP_Compass_Calibrator``: radius range, diagonal and
+off-diagonal limits, offset limit, fitness), but each check names its cause:
+
+- **identifiability**: the Cramér-Rao standard deviation of every parameter at the estimate and the
+  estimated noise, against a tolerance per kind (angles, scale, offset);
+- **physical range**: the estimate inside the physical box (angles within 0.5 rad, scales 0.5..2,
+  offsets within twice the field), and an iterative method's answer off its own search bound;
+- **improvement**: the solver's answer is better than no calibration;
+- **outliers**: residuals screened robustly (median and MAD); a method that is not robust to outliers
+  is rejected when there are any, with the count and the advice to use ``ransac``;
+- **fitness**: the residual on the inliers against the optimum these data allow (the judge's own
+  least-squares polish of the answer): a search that stopped short is rejected, and the optimum's
+  residual is the noise at which identifiability is judged (independent of how well the method did).
+
+The reference against the readings (units, ADC counts, a wrong or jumping reference, mixed units) is
+checked before the fit (``reference_problems``): it is bad input, refused with exit status 2.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from magbench.simulate.sensor import PARAM_NAMES
+
+from .fisher import crb_std
+from .objective import ScalarObjective
+
+MAD_TO_SIGMA = 1.4826
+"""Median absolute deviation to standard deviation for Gaussian noise."""
+REFERENCE_MAX_NFEV = 30
+"""Evaluations the judge's own least-squares polish may take (from a good answer it needs one or two)."""
+
+
+@dataclass(frozen=True)
+class AcceptanceLimits:
+    """Tolerances of the acceptance checks.
+
+    ``crb_angle_rad``, ``crb_scale``, ``crb_offset_fraction`` (of the field): the largest Cramér-Rao
+    standard deviation a parameter may have at the estimated noise (0.001 rad is 3.4 arc-minutes; 0.1 %
+    of the field is 50 nT at 50,000 nT).  ``outlier_sigmas``: a residual further than this many robust
+    standard deviations from the median is an outlier (at 6 sigma, Gaussian noise gives one false
+    outlier in about 500 million points).  ``fitness_ratio``: the residual RMS on the inliers may be at
+    most this multiple of the optimum the data allow (plus ``fitness_floor_fraction`` of the field, so that
+    exact data are not judged on rounding).
+    """
+
+    crb_angle_rad: float = 1e-3
+    crb_scale: float = 1e-3
+    crb_offset_fraction: float = 1e-3
+    outlier_sigmas: float = 6.0
+    fitness_ratio: float = 2.0
+    fitness_floor_fraction: float = 1e-7
+
+    def tolerance(self, name: str, field_nT: float) -> float:
+        if name.endswith("_rad"):
+            return self.crb_angle_rad
+        if name.endswith("_nT"):
+            return self.crb_offset_fraction * field_nT
+        return self.crb_scale
+
+
+DEFAULT_LIMITS = AcceptanceLimits()
+
+
+def robust_sigma(residuals_nT: np.ndarray) -> float:
+    """MAD-based standard deviation of the residuals (insensitive to a few large errors)."""
+    r = np.asarray(residuals_nT, dtype=float)
+    return float(MAD_TO_SIGMA * np.median(np.abs(r - np.median(r))))
+
+
+def outlier_mask(residuals_nT: np.ndarray, field_nT: float, limits: AcceptanceLimits = DEFAULT_LIMITS) -> np.ndarray:
+    """Points whose residual lies more than ``outlier_sigmas`` robust standard deviations from the median
+    (the robust sigma floored at 1e-9 of the field, so that exact data have no outliers)."""
+    r = np.asarray(residuals_nT, dtype=float)
+    sigma = max(robust_sigma(r), 1e-9 * field_nT)
+    return np.abs(r - np.median(r)) > limits.outlier_sigmas * sigma
+
+
+def identifiability(objective: ScalarObjective, x: np.ndarray, noise_nT: float, field_nT: float,
+                    limits: AcceptanceLimits = DEFAULT_LIMITS) -> list[str]:
+    """A rejection for each parameter whose Cramér-Rao standard deviation at ``x`` and ``noise_nT``
+    exceeds its tolerance: the data given do not determine it."""
+    names = PARAM_NAMES[objective.model]
+    with np.errstate(all="ignore"):
+        std = crb_std(objective, x, max(noise_nT, 1e-9 * field_nT))
+    out = []
+    for name, s in zip(names, std):
+        tol = limits.tolerance(name, field_nT)
+        if not s <= tol:
+            unit = " rad" if name.endswith("_rad") else (" nT" if name.endswith("_nT") else "")
+            out.append(f"{name} is not determined by these data: +-{s:.3g}{unit} (Cramér-Rao at the estimated "
+                       f"noise {noise_nT:.3g} nT) exceeds the tolerance {tol:.3g}{unit}; cover more attitudes")
+    return out
+
+
+def physical_range(x: np.ndarray, model: str, physical_lower: np.ndarray, physical_upper: np.ndarray) -> list[str]:
+    names = PARAM_NAMES[model]
+    bad = [f"{names[i]} = {x[i]:.4g}" for i in np.flatnonzero(~((x > physical_lower) & (x < physical_upper)))]
+    if not bad:
+        return []
+    return [f"{', '.join(bad)} outside the physical range (angles within 0.5 rad, scales 0.5..2, offsets "
+            "within twice the field): the fit absorbed something else (outliers, wrong units, too little coverage)"]
+
+
+def reference_fit(objective: ScalarObjective, x: np.ndarray, physical_box: tuple[np.ndarray, np.ndarray],
+                  max_nfev: int = REFERENCE_MAX_NFEV) -> tuple[np.ndarray, float]:
+    """The judge's own optimum: least squares (trust-region reflective inside the physical box, analytic
+    Jacobian) polished from the calibrator's answer, and its residual RMS.  Outside the counter: it
+    measures the answer, it is not part of the contest.  From an answer already at the optimum it stops
+    after one or two evaluations."""
+    lo, hi = physical_box
+    start = np.clip(x, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
+    with np.errstate(all="ignore"):
+        sol = least_squares(objective.residuals, start, jac=objective.jacobian, method="trf", bounds=(lo, hi),
+                            x_scale="jac", max_nfev=max_nfev)
+    rms_start = float(np.sqrt(np.mean(objective.residuals(x) ** 2)))
+    rms_ref = float(np.sqrt(np.mean(sol.fun ** 2)))
+    return (sol.x, rms_ref) if rms_ref <= rms_start else (np.asarray(x, dtype=float), rms_start)
+
+
+def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust: bool, closed_form: bool,
+           physical_box: tuple[np.ndarray, np.ndarray], limits: AcceptanceLimits = DEFAULT_LIMITS
+           ) -> tuple[list[str], list[str]]:
+    """Rejections and warnings for the estimate ``x`` on the data of ``objective``: improvement, physical
+    range, outliers (robust screening), fitness against the data's own optimum, and identifiability at
+    the noise that optimum leaves."""
+    rejections: list[str] = []
+    warnings: list[str] = []
+    field_nT = float(np.median(objective.f_ref_nT))
+    if not improved:
+        rejections.append("the calibration is no better than none (the solver's answer was worse than the start)")
+    rejections += physical_range(x, objective.model, *physical_box)
+    r = objective.residuals(x)
+    mask = outlier_mask(r, field_nT, limits)
+    n_out = int(mask.sum())
+    if n_out:
+        threshold = limits.outlier_sigmas * max(robust_sigma(r), 1e-9 * field_nT)
+        what = (f"{n_out} of {len(r)} points are outliers (residual beyond {limits.outlier_sigmas:g} robust sigma "
+                f"= {threshold:.3g} nT; worst {np.max(np.abs(r[mask])):.3g} nT)")
+        if robust:
+            warnings.append(what + ": screened by the robust method")
+        else:
+            rejections.append(what + ": remove them or use --method ransac")
+    n, p = int((~mask).sum()), len(x)
+    if n <= p:
+        return rejections + [f"only {n} points are left after the outlier screening for {p} parameters"], warnings
+    inliers = objective if not n_out else ScalarObjective(objective.raw_nT[~mask], objective.f_ref_nT[~mask],
+                                                          objective.model)
+    x_ref, rms_ref = reference_fit(inliers, x, physical_box)
+    rms_x = float(np.sqrt(np.mean(r[~mask] ** 2)))
+    floor = limits.fitness_floor_fraction * field_nT
+    if rms_x > limits.fitness_ratio * rms_ref + floor:
+        why = ("a closed-form fit does not minimize the total-field error (it assumes one constant field "
+               "magnitude and equal weights)" if closed_form else
+               "the search stopped short (budget, premature convergence) or ended in a local minimum")
+        rejections.append(f"the residual {rms_x:.3g} nT is {rms_x / max(rms_ref, floor):.3g} times the optimum these "
+                          f"data allow ({rms_ref:.3g} nT): {why}")
+    noise = rms_ref * np.sqrt(n / (n - p))
+    rejections += identifiability(inliers, x_ref, noise, field_nT, limits)
+    return rejections, warnings
+
+
+SCALE_RANGE = (0.5, 2.0)
+"""The physical range of a scale factor: readings whose magnitude is outside this multiple of the
+reference cannot be explained by any sensor in the physical box."""
+UNIT_OUTLIER_FACTOR = 3.0
+"""A row whose magnitude differs from the median row by more than this factor looks like another unit."""
+MIXED_UNITS_FRACTION = 0.05
+"""When at least this fraction of rows is off by ``UNIT_OUTLIER_FACTOR``, the file mixes units (fewer
+such rows are spikes, left to the outlier screening after the fit)."""
+REFERENCE_JUMP = 0.02
+"""A change of the reference by more than 2 % from one row to the next is a jump, not a field variation."""
+
+
+def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray) -> str | None:
+    """Why the reference and the readings cannot belong together, or None: the readings' magnitude
+    against the reference (wrong units, raw ADC counts, a wrong reference), rows in mixed units, and a
+    reference that jumps between values."""
+    mag = np.linalg.norm(raw_nT, axis=1)
+    ratio = mag / f_ref_nT
+    typical = float(np.median(ratio))
+    if not SCALE_RANGE[0] <= typical <= SCALE_RANGE[1]:
+        return (f"the readings' magnitude (median {np.median(mag):.4g}) is {typical:.3g} times the reference "
+                f"(median {np.median(f_ref_nT):.6g} nT): wrong --units, raw ADC counts, or a wrong reference")
+    off = (ratio > typical * UNIT_OUTLIER_FACTOR) | (ratio < typical / UNIT_OUTLIER_FACTOR)
+    if off.mean() >= MIXED_UNITS_FRACTION:
+        rows = np.flatnonzero(off)
+        factor = float(np.median(ratio[off]) / typical)
+        return (f"{off.sum()} of {len(off)} rows (e.g. rows {', '.join(map(str, rows[:3]))}) have {factor:.3g} "
+                "times the magnitude of the others: the file mixes units")
+    if len(f_ref_nT) > 1:
+        step = np.abs(np.diff(f_ref_nT)) / f_ref_nT[:-1]
+        jumps = int(np.sum(step > REFERENCE_JUMP))
+        if jumps:
+            i = int(np.argmax(step))
+            return (f"the reference jumps {jumps} time(s) by more than {100 * REFERENCE_JUMP:g} % between rows "
+                    f"(e.g. {f_ref_nT[i]:.6g} -> {f_ref_nT[i + 1]:.6g} nT at row {i + 1}): one sensor in one "
+                    "place has a smooth reference")
+    return None
