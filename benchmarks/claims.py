@@ -163,7 +163,7 @@ def write_claims(out: Path) -> Path:
                      "2 cycles per revolution on a level turntable is the signature of unequal x/y scale factors"))
     # seed 001 -----------------------------------------------------------------------------------
     try:
-        from magbench.calibrators.gradiometer import run_gradiometer
+        from magbench.benchmarks.gradiometer import run_gradiometer
 
         g = run_gradiometer(seed=0)
         (out / "gradiometer.json").write_text(json.dumps(g, indent=2, default=float) + "\n")

@@ -254,35 +254,47 @@ class RealGA(Calibrator):
         return s
 
     def _solve(self, problem: Problem) -> SolveOutput:
-        if self.population < 4:
-            raise InputError(f"{self.name}: population must be at least 4")
-        if not 0 <= self.elitism < self.population:
-            raise InputError(f"{self.name}: elitism must be between 0 and population - 1")
-        rng, obj = problem.rng, problem
-        lo, hi = problem.lower, problem.upper
-        span = hi - lo
-        m, p, half = self.population, len(lo), (self.population + 1) // 2
-        u = rng.random((m, p))
-        x = lo + u * span
+        return real_ga(problem, self)
+
+
+def real_ga(problem: Problem, ga) -> SolveOutput:
+    """The generational loop of ``RealGA`` and its variants, on any ``Problem``: ``ga`` (a ``RealGA``, or
+    any object with its settings and operators, as seed 001's gradiometer ``RowGA``) supplies the
+    settings (``population``, ``generations``, ``pc``, ``elitism``) and the operators (``_select``,
+    ``_crossover``, ``_mutate``); ``problem`` the counted objective, the search box and the rng.
+
+    Genes are normalized to [0, 1] over the box; each generation is evaluated in one counted call of
+    ``problem.values``.  Returns the best point the counter has seen.
+    """
+    if ga.population < 4:
+        raise InputError(f"{ga.name}: population must be at least 4")
+    if not 0 <= ga.elitism < ga.population:
+        raise InputError(f"{ga.name}: elitism must be between 0 and population - 1")
+    rng, obj = problem.rng, problem
+    lo, hi = problem.lower, problem.upper
+    span = hi - lo
+    m, p, half = ga.population, len(lo), (ga.population + 1) // 2
+    u = rng.random((m, p))
+    x = lo + u * span
+    f = obj.values(x)
+    for gen in range(1, ga.generations):
+        t = gen / ga.generations
+        pa, pb = u[ga._select(f, 2 * half, rng)].reshape(2, half, p)
+        cross = rng.random(half) < ga.pc
+        children = ga._crossover(pa, pb, cross, rng).reshape(2 * half, p)[:m]
+        children = ga._mutate(children, t, rng)
+        np.maximum(children, 0.0, out=children)
+        np.minimum(children, 1.0, out=children)
+        if ga.elitism == 1:
+            children[-1] = u[np.argmin(f)]
+        elif ga.elitism:
+            children[-ga.elitism:] = u[np.argpartition(f, ga.elitism - 1)[:ga.elitism]]
+        np.multiply(children, span, out=x)
+        x += lo
         f = obj.values(x)
-        for gen in range(1, self.generations):
-            t = gen / self.generations
-            pa, pb = u[self._select(f, 2 * half, rng)].reshape(2, half, p)
-            cross = rng.random(half) < self.pc
-            children = self._crossover(pa, pb, cross, rng).reshape(2 * half, p)[:m]
-            children = self._mutate(children, t, rng)
-            np.maximum(children, 0.0, out=children)
-            np.minimum(children, 1.0, out=children)
-            if self.elitism == 1:
-                children[-1] = u[np.argmin(f)]
-            elif self.elitism:
-                children[-self.elitism:] = u[np.argpartition(f, self.elitism - 1)[:self.elitism]]
-            np.multiply(children, span, out=x)
-            x += lo
-            f = obj.values(x)
-            u = children
-        return SolveOutput(problem.best_x, status="max_generations", message=f"{self.generations} generations",
-                           nit=self.generations, extra={"generations": self.generations})
+        u = children
+    return SolveOutput(problem.best_x, status="max_generations", message=f"{ga.generations} generations",
+                       nit=ga.generations, extra={"generations": ga.generations})
 
 
 @register

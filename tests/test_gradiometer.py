@@ -1,18 +1,29 @@
-"""Seed 001's gradiometer calibration (calibrators/gradiometer.py)."""
+"""Seed 001's gradiometer: simulator (simulate/gradiometer.py), calibrations (calibrators/gradiometer.py),
+experiment and command (benchmarks/gradiometer.py)."""
 import argparse
 import json
 
 import numpy as np
 import pytest
 
-from magbench.calibrators.gradiometer import (GradiometerParams, add_gradiometer_command, ellipsoid_calibration,
-                                     ga_gradient_calibration, gradient_rms, run_gradiometer,
-                                     simulate_gradiometer)
+from magbench.benchmarks.gradiometer import add_gradiometer_command, gradient_rms, run_gradiometer
+from magbench.calibrators.gradiometer import (RowGA, RowObjective, ellipsoid_calibration, ga_gradient_calibration,
+                                              true_calibration)
+from magbench.calibrators.objective import Budget, Evaluator
 from magbench.errors import InputError
+from magbench.simulate.gradiometer import GradiometerParams, simulate_gradiometer
 
 
 def _strip_runtime(r: dict) -> dict:
     return {k: v for k, v in r.items() if not k.startswith("runtime")}
+
+
+def _ga(seed=2, budget=None, rng_seed=0, **ga):
+    ds = simulate_gradiometer(seed=seed)
+    ell = ellipsoid_calibration(ds.raw1_nT, ds.raw2_nT, ds.f_ref_nT)
+    cal = ga_gradient_calibration(ds.raw1_nT, ds.raw2_nT, ell, np.random.default_rng(rng_seed), budget=budget,
+                                  **({"population": 20, "generations": 30} | ga))
+    return ds, ell, cal
 
 
 def test_same_seed_same_numbers():
@@ -29,11 +40,13 @@ def test_same_seed_same_numbers():
 def test_simulator_model_is_exact_without_noise():
     """Eq. 7: the true M1, M2, B1h, B2h make the gradient vanish whatever the field does in time."""
     ds = simulate_gradiometer(fluctuation_nT=200.0, noise_nT=0.0, seed=1)
-    assert np.max(gradient_rms(ds.params.solution, ds)) < 1e-8
-    b1, b2 = ds.params.solution.corrected(ds.raw1_nT, ds.raw2_nT)
+    truth = true_calibration(ds.params)
+    assert np.max(gradient_rms(truth, ds)) < 1e-8
+    b1, b2 = truth.corrected(ds.raw1_nT, ds.raw2_nT)
     np.testing.assert_allclose(b1, ds.field_body_nT, atol=1e-7)
-    mag = np.linalg.norm(ds.field_body_nT, axis=1)
+    mag = ds.f_true_nT
     assert 150.0 < mag.max() - mag.min() <= 400.0  # the ambient field does fluctuate
+    assert ds.f_ref_nT == pytest.approx(50_000.0)
 
 
 def test_ga_beats_single_sensor_fits_under_fluctuation():
@@ -72,15 +85,73 @@ def test_truth_recovered_without_fluctuation_and_low_noise():
 
 
 def test_three_six_gene_gas_seeded_from_ellipsoid():
-    ds = simulate_gradiometer(seed=2)
-    ell = ellipsoid_calibration(ds.raw1_nT, ds.raw2_nT, ds.reference_nT)
-    ga = ga_gradient_calibration(ds.raw1_nT, ds.raw2_nT, ell, np.random.default_rng(0), population=20,
-                                 generations=30, neighbourhood=0.02)
+    ds, ell, ga = _ga()
     assert len(ga.info["best_fitness_nT"]) == 3 and len(ga.info["rotations"]) == 12
     assert ga.info["n_evaluations"] == 3 * 20 * 30
+    assert ga.info["status"] == ["max_generations"] * 3
     assert np.max(np.abs(ga.m1 - ell.m1)) <= 0.02 + 1e-12  # searched within the neighbourhood
-    np.testing.assert_array_equal(ga.h1, ell.h1)  # point (2): hard iron from the ellipsoid fit
-    assert all(h[-1] <= h[0] for h in ga.info["history"])
+    np.testing.assert_array_equal(ga.h1_nT, ell.h1_nT)  # point (2): hard iron from the ellipsoid fit
+    for h, best in zip(ga.info["history"], ga.info["best_fitness_nT"]):
+        assert len(h) == 30 and all(np.diff(h) <= 0) and h[-1] == best  # one counted call per generation
+
+
+def test_row_objective_is_eq11_modulus():
+    """Point (3): the fitness is the modulus of eq. 11's left side over the chosen attitudes; the
+    population is evaluated in one call."""
+    rng = np.random.default_rng(1)
+    d1, d2 = rng.normal(size=(2, 12, 3)) * 1e4
+    obj = RowObjective(d1, d2)
+    x = rng.normal(size=(7, 6))
+    r = x[:, :3] @ d1.T - x[:, 3:] @ d2.T
+    np.testing.assert_allclose(obj.modulus(obj.values(x)), np.linalg.norm(r, axis=1), rtol=1e-12)
+    np.testing.assert_allclose(obj.residuals(x[0]), r[0], rtol=1e-12)
+    eps = 1e-6
+    num = [(obj.values((x[0] + eps * e)[None])[0] - obj.values((x[0] - eps * e)[None])[0]) / (2 * eps)
+           for e in np.eye(6)]
+    np.testing.assert_allclose(obj.gradient(x[0]), num, rtol=1e-5)
+
+
+def test_ga_counts_through_the_counter(monkeypatch):
+    """Every fitness evaluation of the three GAs goes through the one Evaluator: with a budget the count
+    never exceeds it and equals the counter's; the same seed gives the same numbers."""
+    counters = []
+    original = Evaluator.__init__
+
+    def spy(self, objective, budget=None):
+        original(self, objective, budget)
+        if isinstance(objective, RowObjective):
+            counters.append(self)
+
+    monkeypatch.setattr(Evaluator, "__init__", spy)
+    for n in (1, 2, 100, 1000, 1799, 5000):
+        counters.clear()
+        _, ell, cal = _ga(budget=Budget(max_evaluations=n))
+        (counter,) = counters
+        assert cal.info["n_evaluations"] == counter.n_evaluations == min(n, 1800)
+        assert counter.n_overrun_calls == 0
+        _, _, again = _ga(budget=Budget(max_evaluations=n))
+        np.testing.assert_array_equal(again.m1, cal.m1)
+        np.testing.assert_array_equal(again.m2, cal.m2)
+        assert json.dumps(again.info) == json.dumps(cal.info)
+    # a small budget is shared by the three GAs; a GA that got nothing keeps the ellipsoid fit's rows
+    counters.clear()
+    _, ell, cal = _ga(budget=Budget(max_evaluations=2))
+    assert cal.info["status"][0] == "not run: budget spent"
+    np.testing.assert_array_equal(cal.m1[0], ell.m1[0])
+
+
+def test_ga_time_budget_stops_all_rows():
+    _, ell, cal = _ga(budget=Budget(max_time_s=1e-9), generations=1000)
+    assert cal.info["n_evaluations"] == 0
+    assert cal.info["status"][0] == "budget: stopped"
+    assert cal.info["status"][1:] == ["not run: budget spent"] * 2
+    np.testing.assert_array_equal(cal.m2, ell.m2)
+
+
+def test_row_ga_settings_refused():
+    for bad in ({"population": 2}, {"elitism": 60}, {"pc": 1.5}, {"tournament": 0}, {"generations": 1.5}):
+        with pytest.raises(InputError):
+            RowGA(**bad)
 
 
 def test_paper_parameters():
