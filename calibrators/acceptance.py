@@ -40,17 +40,18 @@ class AcceptanceLimits:
     """Tolerances of the acceptance checks.
 
     ``crb_angle_rad``, ``crb_scale``, ``crb_offset_fraction`` (of the field): the largest Cramér-Rao
-    standard deviation a parameter may have at the estimated noise (0.001 rad is 3.4 arc-minutes; 0.1 %
-    of the field is 50 nT at 50,000 nT).  ``outlier_sigmas``: a residual further than this many robust
+    standard deviation a parameter may have at the estimated noise (0.003 rad is 10 arc-minutes; 0.3 %
+    of the field is 150 nT at 50,000 nT): beyond them the data do not determine the parameter well
+    enough for the estimate to be worth reporting.  ``outlier_sigmas``: a residual further than this many robust
     standard deviations from the median is an outlier (at 6 sigma, Gaussian noise gives one false
     outlier in about 500 million points).  ``fitness_ratio``: the residual RMS on the inliers may be at
     most this multiple of the optimum the data allow (plus ``fitness_floor_fraction`` of the field, so that
     exact data are not judged on rounding).
     """
 
-    crb_angle_rad: float = 1e-3
-    crb_scale: float = 1e-3
-    crb_offset_fraction: float = 1e-3
+    crb_angle_rad: float = 3e-3
+    crb_scale: float = 3e-3
+    crb_offset_fraction: float = 3e-3
     outlier_sigmas: float = 6.0
     fitness_ratio: float = 2.0
     fitness_floor_fraction: float = 1e-7
@@ -164,10 +165,11 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     return rejections, warnings
 
 
-SCALE_RANGE = (0.5, 2.0)
-"""The physical range of a scale factor: readings whose magnitude is outside this multiple of the
-reference cannot be explained by any sensor in the physical box."""
-UNIT_OUTLIER_FACTOR = 3.0
+MAGNITUDE_RATIO_RANGE = (0.2, 5.0)
+"""The median reading magnitude over the reference that a sensor in the physical box can produce (scales
+0.5..2 and offsets up to twice the field widen 1 to about 0.2..5): outside it, the units or the reference
+are wrong."""
+UNIT_OUTLIER_FACTOR = 30.0
 """A row whose magnitude differs from the median row by more than this factor looks like another unit."""
 MIXED_UNITS_FRACTION = 0.05
 """When at least this fraction of rows is off by ``UNIT_OUTLIER_FACTOR``, the file mixes units (fewer
@@ -183,7 +185,7 @@ def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray) -> str | None:
     mag = np.linalg.norm(raw_nT, axis=1)
     ratio = mag / f_ref_nT
     typical = float(np.median(ratio))
-    if not SCALE_RANGE[0] <= typical <= SCALE_RANGE[1]:
+    if not MAGNITUDE_RATIO_RANGE[0] <= typical <= MAGNITUDE_RATIO_RANGE[1]:
         return (f"the readings' magnitude (median {np.median(mag):.4g}) is {typical:.3g} times the reference "
                 f"(median {np.median(f_ref_nT):.6g} nT): wrong --units, raw ADC counts, or a wrong reference")
     off = (ratio > typical * UNIT_OUTLIER_FACTOR) | (ratio < typical / UNIT_OUTLIER_FACTOR)

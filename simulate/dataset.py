@@ -170,83 +170,155 @@ def guess_unit(median_magnitude: float, expected_nT: float) -> str:
     return best
 
 
+MAX_ABS_NT = 1.0e9
+"""No reading or reference exceeds 1 T (1e9 nT) in magnitude: a larger number is a broken row, not a field."""
+MAX_ABS_OTHER = 1.0e12
+"""The largest magnitude accepted in the other numeric columns (time in s, temperature, heading)."""
+DELIMITERS = (",", ";", "\t")
+"""Column separators recognised in the header row (CONTRACT: comma; semicolon and tab are read too)."""
+ENCODINGS = ("utf-8-sig",)
+"""UTF-8, with or without a byte-order mark (CONTRACT section 2)."""
+
+
+def _file_head(path: Path) -> tuple[dict, int, str]:
+    """The metadata of the ``#`` lines before the header, the number of lines before the header, and the
+    header line; refuses what is not a readable UTF-8 text file."""
+    if path.is_dir():
+        raise InputError(f"{path} is a directory, not a data file")
+    if not path.exists():
+        raise InputError(f"no such file: {path}")
+    meta_lines, skipped = [], 0
+    try:
+        with path.open("r", encoding=ENCODINGS[0], newline="") as handle:
+            for line in handle:
+                if line.startswith("#") or not line.strip():
+                    if line.startswith("#"):
+                        meta_lines.append(line.rstrip("\r\n"))
+                    skipped += 1
+                    continue
+                if "\x00" in line:
+                    raise InputError(f"{path} is not UTF-8 text (it has NUL bytes: UTF-16 or binary?)")
+                return _parse_meta(meta_lines), skipped, line.rstrip("\r\n")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path} is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+    raise InputError(f"{path} has no header row and no data")
+
+
+def _header(path: Path, line: str) -> tuple[str, list[str]]:
+    """The separator and the column names (stripped, lower case); duplicates in any case are refused."""
+    sep = max(DELIMITERS, key=line.count)
+    if line.count(sep) == 0:
+        sep = ","
+    names = [c.strip().strip('"').strip().lower() for c in line.split(sep)]
+    seen: dict[str, int] = {}
+    for name in names:
+        seen[name] = seen.get(name, 0) + 1
+    dup = sorted(n for n, k in seen.items() if k > 1 and n)
+    if dup:
+        raise InputError(f"{path}: column(s) {', '.join(dup)} appear more than once in the header "
+                         "(names are case-insensitive)")
+    return sep, names
+
+
+def _table(path: Path, skipped: int, sep: str, names: list[str]):
+    import pandas as pd
+
+    try:
+        frame = pd.read_csv(path, sep=sep, skiprows=skipped + 1, header=None, names=names, dtype=str,
+                            encoding=ENCODINGS[0], skipinitialspace=True, comment=None, engine="c",
+                            na_filter=False, skip_blank_lines=True, index_col=False)
+    except Exception as exc:  # pandas raises several parser errors
+        raise InputError(f"{path} is not a readable CSV file: {str(exc).splitlines()[0]}") from None
+    if len(frame) == 0:
+        raise InputError(f"{path} has a header but no data rows")
+    return frame
+
+
+def _numeric(path: Path, frame, name: str, first_line: int) -> np.ndarray:
+    """A column as finite floats within +-MAX_ABS_NT; refuses a bad value naming its line."""
+    import pandas as pd
+
+    text = frame[name]
+    values = pd.to_numeric(text.str.strip(), errors="coerce").to_numpy(dtype=float)
+    is_field = name in FIELD_COLUMNS
+    limit = MAX_ABS_NT if is_field else MAX_ABS_OTHER
+    with np.errstate(invalid="ignore"):
+        bad = np.flatnonzero(~(np.abs(values) <= limit))
+    if bad.size:
+        rows = ", ".join(str(first_line + i) for i in bad[:5])
+        more = f" and {bad.size - 5} more" if bad.size > 5 else ""
+        raw_value = text.iloc[bad[0]]
+        absurd = "beyond any magnetic field (1e9 nT)" if is_field else f"beyond any plausible value ({limit:g})"
+        why = absurd if np.isfinite(values[bad[0]]) else "missing, non-numeric or non-finite"
+        raise InputError(f"{path}: column {name} has a value {why} ({raw_value!r}) on line {rows}{more}")
+    return values
+
+
+def _meta_field_nT(path: Path, meta: dict) -> float | None:
+    text = meta.get("field_nT")
+    if text is None:
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(f"{path}: metadata line 'field_nT: {text}' is not a number") from None
+    if not (math.isfinite(value) and 0 < value <= MAX_ABS_NT):
+        raise InputError(f"{path}: metadata line 'field_nT: {text}' must be a positive number of nT")
+    return value
+
+
 def read_csv(path, units: str = "nT", require_vector: bool = True, expected_field_nT: float | None = None):
     """Read a data file (CONTRACT section 2) into a ``Dataset`` (or a ``ScalarSeries`` when the file has
     ``f_meas`` instead of bx, by, bz and ``require_vector`` is false).
 
     ``units`` applies to every field column of the file (bx, by, bz, f_ref, f_meas); the ``# field_nT:``
-    metadata line is in nT by its name.  Refuses, with an ``InputError`` naming the line, non-numeric or
-    non-finite values; refuses a file whose magnitudes look like another unit than ``units`` (compared
-    with ``expected_field_nT``, else the file's ``# field_nT:``, else the geomagnetic range).
+    metadata line is in nT by its name.  Refuses, with an ``InputError`` naming the line, non-numeric,
+    non-finite or absurd values (beyond 1 T), duplicate column names in any letter case, a directory,
+    an unreadable or non-UTF-8 file, and a file whose magnitudes look like another unit than ``units``
+    (compared with ``expected_field_nT``, else the file's ``# field_nT:``, else the geomagnetic range).
+    The file is read once by pandas' C parser (two million rows in about a second).
     """
-    import pandas as pd
-
     path = Path(path)
     if units not in UNIT_FACTORS_NT:
         raise InputError(f"unknown unit {units!r}: use one of nT, uT, mG, G")
-    if not path.is_file():
-        raise InputError(f"no such file: {path}")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path} is not UTF-8 text ({exc.reason})") from None
-    lines = text.splitlines()
-    head = 0
-    while head < len(lines) and (lines[head].startswith("#") or not lines[head].strip()):
-        head += 1
-    meta = _parse_meta([ln for ln in lines[:head] if ln.startswith("#")])
-    if head >= len(lines):
-        raise InputError(f"{path} has no header row and no data")
-    try:
-        frame = pd.read_csv(io.StringIO("\n".join(lines[head:])), skipinitialspace=True)
-    except Exception as exc:  # pandas raises several parser errors
-        raise InputError(f"{path} is not a readable CSV file: {str(exc).splitlines()[0]}") from None
-    frame.columns = [str(c).strip().lower() for c in frame.columns]
-    if len(frame) == 0:
-        raise InputError(f"{path} has a header but no data rows")
-
-    has_vector = all(c in frame.columns for c in ("bx", "by", "bz"))
-    scalar_col = next((c for c in ("f_meas", "f_meas_before") if c in frame.columns), None)
+    meta, skipped, header_line = _file_head(path)
+    sep, names = _header(path, header_line)
+    frame = _table(path, skipped, sep, names)
+    first_line = skipped + 2
+    has_vector = all(c in names for c in ("bx", "by", "bz"))
+    scalar_col = next((c for c in ("f_meas", "f_meas_before") if c in names), None)
     if not has_vector and (require_vector or scalar_col is None):
-        missing = [c for c in ("bx", "by", "bz") if c not in frame.columns]
+        missing = [c for c in ("bx", "by", "bz") if c not in names]
         extra = " (it is a scalar-only series: use 'magbench diagnose')" if scalar_col else ""
         raise InputError(f"{path} lacks column(s) {', '.join(missing)}{extra}")
 
-    def column(name, required=False):
-        if name not in frame.columns:
-            return None
-        values = pd.to_numeric(frame[name], errors="coerce").to_numpy(dtype=float)
-        bad = np.flatnonzero(~np.isfinite(values))
-        if bad.size:
-            rows = ", ".join(str(head + 2 + i) for i in bad[:5])
-            more = f" and {bad.size - 5} more" if bad.size > 5 else ""
-            raw_value = frame[name].iloc[bad[0]]
-            raise InputError(f"{path}: column {name} has a missing, non-numeric or non-finite value "
-                             f"({raw_value!r}) on line {rows}{more}")
-        return values
+    def column(name):
+        return _numeric(path, frame, name, first_line) if name in names else None
 
     factor = UNIT_FACTORS_NT[units]
     f_ref = column("f_ref")
+    if f_ref is not None and np.any(f_ref <= 0):
+        row = first_line + int(np.flatnonzero(f_ref <= 0)[0])
+        raise InputError(f"{path}: f_ref must be a positive magnitude, not {f_ref[f_ref <= 0][0]:g} (line {row})")
     f_ref = f_ref * factor if f_ref is not None else None
-    field_meta = meta.get("field_nT")
-    if expected_field_nT is None and field_meta is not None:
-        try:
-            expected_field_nT = float(field_meta)
-        except ValueError:
-            raise InputError(f"{path}: metadata line 'field_nT: {field_meta}' is not a number") from None
+    field_meta = _meta_field_nT(path, meta)
+    if expected_field_nT is None:
+        expected_field_nT = field_meta
 
     common = dict(t_s=column("t"), temp_C=column("temp"), heading_deg=column("heading_deg"))
     meta = {**meta, "source_file": str(path), "units_read": units}
     if has_vector:
         raw = np.column_stack([column(c) for c in ("bx", "by", "bz")])
-        magnitude = float(np.median(np.linalg.norm(raw, axis=1)))
+        magnitude = float(np.median(np.sqrt(np.einsum("ij,ij->i", raw, raw))))
     else:
         raw = None
         magnitude = float(np.median(column(scalar_col)))
     check_units(magnitude, units, expected_field_nT, where=str(path))
     if has_vector:
         return Dataset(raw * factor, f_ref_nT=f_ref, meta=meta, **common)
-    extra = {c: column(c) * factor for c in FIELD_COLUMNS if c in frame.columns and c not in ("f_ref",)}
+    extra = {c: column(c) * factor for c in FIELD_COLUMNS if c in names and c not in ("f_ref",)}
     return ScalarSeries(column(scalar_col) * factor, f_ref_nT=f_ref, extra=extra, meta=meta, **common)
 
 

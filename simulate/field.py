@@ -7,10 +7,19 @@
 """
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
+import io
+import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
+
+IGRF_VALID = (_dt.datetime(1900, 1, 1), _dt.datetime(2030, 1, 1))
+"""IGRF-14's coefficients: definitive and predictive, 1900 to 2030 (exclusive)."""
+IGRF_ALTITUDE_KM = (-12.0, 6000.0)
+"""Altitudes accepted for a reference from IGRF: from the deepest ocean to beyond low Earth orbit."""
 
 
 @dataclass(frozen=True)
@@ -58,10 +67,25 @@ def igrf_field(lat_deg: float, lon_deg: float, alt_km: float, date) -> ConstantF
         date = _dt.datetime.fromisoformat(date)
     elif isinstance(date, _dt.date) and not isinstance(date, _dt.datetime):
         date = _dt.datetime(date.year, date.month, date.day)
+    if not all(math.isfinite(v) for v in (lat_deg, lon_deg, alt_km)):
+        raise ValueError("latitude, longitude and altitude must be finite numbers")
     if not -90.0 <= lat_deg <= 90.0:
         raise ValueError(f"latitude {lat_deg} is outside [-90, 90] degrees")
-    be, bn, bu = ppigrf.igrf(lon_deg, lat_deg, alt_km, date)
-    return ConstantField((float(np.ravel(bn)[0]), float(np.ravel(be)[0]), -float(np.ravel(bu)[0])))
+    if not -180.0 <= lon_deg <= 360.0:
+        raise ValueError(f"longitude {lon_deg} is outside [-180, 360] degrees")
+    if not IGRF_ALTITUDE_KM[0] <= alt_km <= IGRF_ALTITUDE_KM[1]:
+        raise ValueError(f"altitude {alt_km} km is implausible for a magnetometer (IGRF is used here from "
+                         f"{IGRF_ALTITUDE_KM[0]:g} to {IGRF_ALTITUDE_KM[1]:g} km)")
+    if not IGRF_VALID[0] <= date < IGRF_VALID[1]:
+        raise ValueError(f"date {date.date()} is outside IGRF-14's validity ({IGRF_VALID[0].date()} to "
+                         f"{IGRF_VALID[1].date()}, exclusive)")
+    with contextlib.redirect_stdout(io.StringIO()), warnings.catch_warnings():  # ppigrf prints its warnings
+        warnings.simplefilter("ignore")
+        be, bn, bu = ppigrf.igrf(lon_deg, lat_deg, alt_km, date)
+    vector = (float(np.ravel(bn)[0]), float(np.ravel(be)[0]), -float(np.ravel(bu)[0]))
+    if not all(math.isfinite(v) for v in vector):
+        raise ValueError(f"IGRF-14 gives no field at {lat_deg}, {lon_deg}, {alt_km} km on {date.date()}")
+    return ConstantField(vector)
 
 
 @dataclass(frozen=True)
