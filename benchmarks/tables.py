@@ -84,18 +84,35 @@ def _cells(summary: pd.DataFrame) -> tuple[list[str], list[list[str]]]:
     return [h for _, h, _ in cols], rows
 
 
+def md_escape(text: str) -> str:
+    """A table cell for GitHub Markdown: pipes and backslashes escaped, HTML markup neutralized (so a
+    label such as ``<script>`` is shown, not run), control characters and line breaks removed."""
+    text = "".join(ch if ch.isprintable() else " " for ch in str(text))
+    text = text.replace("\\", "\\\\").replace("|", "\\|")
+    for a, b in (("&", "&amp;"), ("<", "&lt;"), (">", "&gt;")):
+        text = text.replace(a, b)
+    for ch in "*_`[]":
+        text = text.replace(ch, "\\" + ch)
+    return text.strip() or " "
+
+
 def to_markdown(summary: pd.DataFrame) -> str:
     head, rows = _cells(summary)
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    lines = ["| " + " | ".join(md_escape(h) for h in head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(md_escape(c) for c in r) + " |" for r in rows]
     return "\n".join(lines) + "\n"
 
 
+_TEX_SPECIALS = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
+                 "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
+                 "<": r"\textless{}", ">": r"\textgreater{}", "|": r"\textbar{}",
+                 "α": r"$\alpha$", "β": r"$\beta$", "γ": r"$\gamma$", "″": r"$''$", "°": r"$^\circ$"}
+
+
 def _tex_escape(s: str) -> str:
-    for a, b in (("\\", r"\textbackslash{}"), ("&", r"\&"), ("%", r"\%"), ("_", r"\_"), ("#", r"\#"),
-                 ("α", r"$\alpha$"), ("β", r"$\beta$"), ("γ", r"$\gamma$"), ("″", "''"), ("°", r"$^\circ$")):
-        s = s.replace(a, b)
-    return s
+    """Text for LaTeX: every special character escaped (one pass, so escapes are not escaped again),
+    control characters dropped."""
+    return "".join(_TEX_SPECIALS.get(ch, ch) for ch in str(s) if ch.isprintable())
 
 
 def to_latex(summary: pd.DataFrame) -> str:

@@ -318,9 +318,27 @@ class Calibrator:
             raise InputError(f"{cls.name} has no hyper-parameter {', '.join(sorted(unknown))}; "
                              f"it has {', '.join(cls._param_names())}")
 
+    @classmethod
+    def check_param_values(cls, params: dict) -> None:
+        """Refuse hyper-parameter values of the wrong type, judged by the constructor's annotations
+        (``population: int`` refuses ``"abc"`` and ``2.5``; ``float`` takes integers; ``X | None`` takes
+        None); annotations naming other types are not checked here."""
+        sig = inspect.signature(cls.__init__)
+        for name, value in params.items():
+            if name not in sig.parameters:
+                continue
+            allowed = _annotation_types(sig.parameters[name].annotation)
+            if allowed is None or isinstance(value, allowed) and not (isinstance(value, bool) and bool not in allowed):
+                if isinstance(value, float) and not np.isfinite(value):
+                    raise InputError(f"{cls.name}: hyper-parameter {name} must be finite, not {value}")
+                continue
+            wanted = " or ".join(sorted({t.__name__ for t in allowed} - {"NoneType"} | ({"None"} if type(None) in allowed else set())))
+            raise InputError(f"{cls.name}: hyper-parameter {name} must be {wanted}, not {value!r}")
+
     def set_params(self, **params) -> "Calibrator":
         """A new calibrator with some hyper-parameters changed (the original is untouched)."""
         self.check_param_names(params)
+        self.check_param_values(params)
         return type(self)(**{**self.get_params(), **params})
 
     @classmethod
@@ -437,6 +455,23 @@ class Calibrator:
 
     def _solve(self, problem: Problem) -> SolveOutput:  # pragma: no cover - abstract
         raise NotImplementedError
+
+
+_ANNOTATION_TYPES = {"int": (int,), "float": (float, int), "str": (str,), "bool": (bool,), "None": (type(None),)}
+
+
+def _annotation_types(annotation) -> tuple | None:
+    """The Python types a simple annotation (``int``, ``float | None``, ...) allows, or None when it names
+    something else (then nothing is checked)."""
+    if annotation is inspect.Parameter.empty:
+        return None
+    text = annotation if isinstance(annotation, str) else getattr(annotation, "__name__", str(annotation))
+    types: tuple = ()
+    for part in (p.strip() for p in str(text).split("|")):
+        if part not in _ANNOTATION_TYPES:
+            return None
+        types += _ANNOTATION_TYPES[part]
+    return types
 
 
 AT_BOUND_REL = 1e-6

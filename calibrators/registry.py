@@ -14,7 +14,13 @@ _plugin_errors: dict[str, str] = {}
 
 
 def register(cls: type) -> type:
-    """Class decorator: add a calibrator under ``cls.name``; a second class with the same name is refused."""
+    """Class decorator: add a calibrator under ``cls.name``.  A class that is not a ``Calibrator``, has no
+    name, or takes a name already registered by another class is refused (``ValueError``) and the registry
+    is left as it was."""
+    from .base import Calibrator
+
+    if not (isinstance(cls, type) and issubclass(cls, Calibrator)):
+        raise ValueError(f"{getattr(cls, '__qualname__', repr(cls))} is not a Calibrator subclass")
     name = getattr(cls, "name", "")
     if not name:
         raise ValueError(f"{cls.__name__} has no 'name'")
@@ -30,18 +36,26 @@ def unregister(name: str) -> None:
 
 
 def _load_plugins() -> None:
+    """Register the entry points of the group ``magbench.calibrators``.  A plug-in that fails to import,
+    is not a Calibrator subclass, or would shadow a registered name is not registered; why is kept
+    (``plugin_errors``) for ``magbench list`` and for ``--method NAME``."""
     global _plugins_loaded
     if _plugins_loaded:
         return
     _plugins_loaded = True
     for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
+        where = f"entry point {ep.name} = {ep.value}"
         try:
             cls = ep.load()
-            if not getattr(cls, "name", ""):
+        except Exception as exc:  # a broken plug-in must not break the built-ins
+            _plugin_errors[ep.name] = f"{where} failed to import: {type(exc).__name__}: {exc}"
+            continue
+        try:
+            if isinstance(cls, type) and not getattr(cls, "name", ""):
                 cls.name = ep.name
             register(cls)
-        except Exception as exc:  # a broken plug-in must not break the built-ins
-            _plugin_errors[ep.name] = f"{type(exc).__name__}: {exc}"
+        except ValueError as exc:
+            _plugin_errors[ep.name] = f"{where} refused: {exc}"
 
 
 def available() -> dict[str, type]:
@@ -53,20 +67,23 @@ def available() -> dict[str, type]:
 
 
 def plugin_errors() -> dict[str, str]:
+    """Plug-ins that did not load, by entry-point name, with the reason."""
     available()
     return dict(_plugin_errors)
 
 
 def get(name: str) -> type:
     calibrators = available()
-    try:
+    if name in calibrators:
         return calibrators[name]
-    except KeyError:
-        raise InputError(f"unknown calibrator {name!r}; known: {', '.join(sorted(calibrators))}") from None
+    if name in _plugin_errors:
+        raise InputError(f"calibrator {name!r} is unavailable: {_plugin_errors[name]}")
+    raise InputError(f"unknown calibrator {name!r}; known: {', '.join(sorted(calibrators))}")
 
 
 def make(name: str, **params):
     """Instantiate a registered calibrator with hyper-parameters."""
     cls = get(name)
     cls.check_param_names(params)
+    cls.check_param_values(params)
     return cls(**params)
