@@ -46,7 +46,9 @@ class AcceptanceLimits:
     standard deviations from the median is an outlier (at 6 sigma, Gaussian noise gives one false
     outlier in about 500 million points).  ``fitness_ratio``: the residual RMS on the inliers may be at
     most this multiple of the optimum the data allow (plus ``fitness_floor_fraction`` of the field, so that
-    exact data are not judged on rounding).
+    exact data are not judged on rounding).  ``profile_chi2``: moving the offset by its tolerance along
+    the least-covered direction must raise the sum of squares by at least this many noise variances (a
+    likelihood-ratio test at about 3 sigma).
     """
 
     crb_angle_rad: float = 3e-3
@@ -55,6 +57,7 @@ class AcceptanceLimits:
     outlier_sigmas: float = 6.0
     fitness_ratio: float = 2.0
     fitness_floor_fraction: float = 1e-7
+    profile_chi2: float = 9.0
 
     def tolerance(self, name: str, field_nT: float) -> float:
         if name.endswith("_rad"):
@@ -123,6 +126,56 @@ def reference_fit(objective: ScalarObjective, x: np.ndarray, physical_box: tuple
     return (sol.x, rms_ref) if rms_ref <= rms_start else (np.asarray(x, dtype=float), rms_start)
 
 
+def least_covered_direction(raw_nT: np.ndarray) -> tuple[np.ndarray, float]:
+    """The unit direction in which the readings spread least (the normal of a near-planar record) and
+    the ratio of the spread along it to the largest spread (1 on a sphere, about 0.05 for a vehicle
+    pitching and rolling by 5 degrees, 0 for a level turntable)."""
+    centred = raw_nT - raw_nT.mean(axis=0)
+    values, vectors = np.linalg.eigh(centred.T @ centred / len(centred))
+    return vectors[:, 0], float(np.sqrt(max(values[0], 0.0) / values[-1])) if values[-1] > 0 else 0.0
+
+
+def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, field_nT: float,
+                   limits: AcceptanceLimits = DEFAULT_LIMITS) -> list[str]:
+    """Profile-likelihood check of the offset along the least-covered direction, where near-planar data
+    admit the 'far-centre' family of solutions that a local (Cramér-Rao) bound does not see: the offset
+    is moved by the tolerance along that direction (both ways), every other parameter refitted, and the
+    increase of the sum of squares is compared with ``profile_chi2`` noise variances (a likelihood-ratio
+    test).  A rejection when the data hardly tell the two apart."""
+    if objective.model != "nine":
+        return []
+    normal, ratio = least_covered_direction(objective.raw_nT)
+    step = limits.tolerance("o_nT", field_nT)
+    basis = np.linalg.qr(np.column_stack([normal, np.eye(3)]))[0][:, :3]  # normal first, then two more
+    base = float(np.sum(objective.residuals(x) ** 2))
+    increases = []
+    for sign in (1.0, -1.0):
+        fixed = x.copy()
+        fixed[6:9] = x[6:9] + sign * step * basis[:, 0]
+        transform = np.zeros((9, 8))
+        transform[:6, :6] = np.eye(6)
+        transform[6:9, 6:8] = basis[:, 1:3]
+
+        def full(z, fixed=fixed, transform=transform):
+            return fixed + transform @ (z - _Z0)
+
+        with np.errstate(all="ignore"):
+            sol = least_squares(lambda z: objective.residuals(full(z)), _Z0.copy(),
+                                jac=lambda z: objective.jacobian(full(z)) @ transform, method="lm",
+                                x_scale="jac", max_nfev=REFERENCE_MAX_NFEV)
+        increases.append((float(np.sum(sol.fun ** 2)) - base) / noise_nT ** 2)
+    worst = min(increases)
+    if worst >= limits.profile_chi2:
+        return []
+    return [f"the offset along the least-covered direction is not determined: moving it by {step:.3g} nT (and "
+            f"refitting the rest) raises the squared error by only {max(worst, 0.0):.3g} noise variances (a "
+            f"determined offset needs {limits.profile_chi2:g}); the readings lie close to a plane (out-of-plane "
+            f"spread {100 * ratio:.2g} % of the in-plane spread): tilt the sensor more or use --model angles"]
+
+
+_Z0 = np.zeros(8)
+
+
 def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust: bool, closed_form: bool,
            physical_box: tuple[np.ndarray, np.ndarray], limits: AcceptanceLimits = DEFAULT_LIMITS
            ) -> tuple[list[str], list[str]]:
@@ -162,13 +215,14 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
                           f"data allow ({rms_ref:.3g} nT): {why}")
     noise = rms_ref * np.sqrt(n / (n - p))
     rejections += identifiability(inliers, x_ref, noise, field_nT, limits)
+    rejections += profile_offset(inliers, x_ref, noise, field_nT, limits)
     return rejections, warnings
 
 
-MAGNITUDE_RATIO_RANGE = (0.2, 5.0)
-"""The median reading magnitude over the reference that a sensor in the physical box can produce (scales
-0.5..2 and offsets up to twice the field widen 1 to about 0.2..5): outside it, the units or the reference
-are wrong."""
+MAGNITUDE_RATIO_RANGE = (0.45, 5.0)
+"""The median reading magnitude over the reference that a sensor in the physical box can produce: scales
+0.5..2 (an offset only raises the median magnitude of a covered sphere) and offsets up to twice the field
+(up to about 5 with the largest scale): outside it, the units or the reference are wrong."""
 UNIT_OUTLIER_FACTOR = 30.0
 """A row whose magnitude differs from the median row by more than this factor looks like another unit."""
 MIXED_UNITS_FRACTION = 0.05
