@@ -5,15 +5,27 @@ seed and the validation-data seed, shared by every calibrator of that trial so t
 on the same data) and, under it, one per calibrator configuration (the calibrator's own seed).  Every
 (scenario, calibrator, trial) therefore has its own seed, and the table does not depend on the order
 or the machine the runs are executed on (serially, ``--jobs N`` local processes, or a Dask cluster).
+
+Durability: every finished run is appended, as it completes, to ``runs.partial.jsonl`` in the output
+folder (a header line with the campaign's definition, then one JSON line per run keyed by (scenario,
+configuration, trial), its traces and fields included).  Ctrl-C (or SIGTERM) cancels the pending work,
+terminates the local worker processes without waiting for the running ones, and writes the tables of
+what finished with ``"complete": false`` in the manifest; ``resume=True`` runs only the missing runs and
+gives the same tables as an uninterrupted campaign.  The rows of the tables always come from the
+checkpoint's JSON, so a resumed campaign and an uninterrupted one are built from identical values.
+Local workers exit on their own when the campaign process dies (a watchdog thread polls their parent).
 """
 from __future__ import annotations
 
 import json
 import os
 import platform
+import signal
 import subprocess
 import sys
+import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
@@ -25,6 +37,27 @@ from magbench.errors import InputError
 
 RUNTIME_COLUMNS = ("runtime_s", "median_runtime_s")
 TRACE_POINTS = 200  # convergence traces are thinned to at most this many points per run
+CHECKPOINT = "runs.partial.jsonl"  # one header line, then one JSON line per finished run
+CHECKPOINT_VERSION = 1
+TABLE_FILES = ("runs.csv", "summary.csv", "summary.md", "summary.tex", "traces.csv", "fields.csv", "manifest.json")
+CHUNK_MAX = 4  # runs per unit of work sent to a worker: an interrupt loses at most this many per worker
+WATCHDOG_S = 0.5  # how often a local worker checks that the campaign process is still alive
+
+
+class CampaignInterrupted(KeyboardInterrupt):
+    """A campaign stopped by SIGINT/SIGTERM after writing the tables of the finished runs."""
+
+    def __init__(self, out: Path, n_done: int, n_total: int, signum: int = signal.SIGINT):
+        super().__init__(f"{n_done} of {n_total} runs finished")
+        self.out, self.n_done, self.n_total, self.signum = Path(out), n_done, n_total, signum
+        self.n_missing = n_total - n_done
+        self.exit_status = 128 + int(signum)
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM received while a campaign runs (handled as Ctrl-C)."""
+
+    signum = signal.SIGTERM
 
 
 @dataclass(frozen=True)
@@ -63,6 +96,11 @@ class Campaign:
     seed: int = 0
     traces: bool = True  # keep convergence traces and field-vs-heading curves of trial 0
 
+    def definition(self) -> dict:
+        """What identifies the campaign (a resume must match it); JSON-ready."""
+        return {"scenarios": list(self.scenarios), "configurations": [m.label for m in self.methods],
+                "trials": int(self.trials), "seed": int(self.seed), "traces": bool(self.traces)}
+
     def tasks(self) -> tuple[list[dict], list[dict]]:
         """All runs as picklable dicts, and the (scenario, method) pairs skipped as not applicable."""
         from magbench.calibrators import available
@@ -70,6 +108,10 @@ class Campaign:
 
         cals = available()
         tasks, skipped = [], []
+        for kind, names in (("scenario", list(self.scenarios)), ("configuration", [m.label for m in self.methods])):
+            twice = sorted({n for n in names if names.count(n) > 1})
+            if twice:
+                raise InputError(f"{kind} {twice[0]!r} given twice")
         for spec in self.methods:
             if spec.name not in cals:
                 raise InputError(f"unknown calibrator {spec.name!r}; known: {', '.join(sorted(cals))}")
@@ -129,44 +171,280 @@ def run_chunk(tasks: list[dict]) -> list[dict]:
     return [run_task(t) for t in tasks]
 
 
-def _chunks(tasks: list[dict], n: int) -> list[list[dict]]:
-    size = max(1, min(64, len(tasks) // max(1, 4 * n)))
-    return [tasks[i:i + size] for i in range(0, len(tasks), size)]
+def task_key(item: dict) -> tuple:
+    """A run's stable identity in a campaign (a task or its row)."""
+    return (item["scenario"], item["configuration"], int(item["trial"]))
 
 
-def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, progress: bool = True) -> list[dict]:
-    """Run the tasks serially, on ``jobs`` local processes, or on a Dask cluster; rows in task order."""
+def _chunks(items: list, n: int) -> list[list]:
+    size = max(1, min(CHUNK_MAX, len(items) // max(1, 4 * n)))
+    return [items[i:i + size] for i in range(0, len(items), size)]
+
+
+def _worker_init(parent_pid: int) -> None:
+    """In a local worker: Ctrl-C is the campaign process's business (it terminates us), SIGTERM kills,
+    and a daemon thread ends the worker as soon as the campaign process is gone (even by SIGKILL)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    ppid = os.getppid()  # the campaign process, or the fork server that exits with it
+    if ppid == 1 or (ppid != parent_pid and not _alive(parent_pid)):
+        os._exit(1)
+
+    def watch():
+        while True:
+            time.sleep(WATCHDOG_S)
+            if os.getppid() != ppid:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="magbench-parent-watchdog", daemon=True).start()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            return f.read().rsplit(b")", 1)[1].split()[0] not in (b"Z", b"X")
+    except OSError:
+        try:
+            os.kill(pid, 0)
+            return True
+        except ProcessLookupError:
+            return False
+        except OSError:
+            return True
+
+
+@contextmanager
+def _sigterm_as_interrupt():
+    """While a campaign runs in the main thread, SIGTERM stops it like Ctrl-C (the finished runs kept)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise _Terminated()
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old if old is not None else signal.SIG_DFL)
+
+
+def _stop_pool(pool) -> None:
+    """Cancel what has not started and terminate the workers now, without waiting for running chunks."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    for p in procs:
+        try:
+            p.terminate()
+        except (OSError, AttributeError, ValueError):
+            pass
+    pool.shutdown(wait=False, cancel_futures=True)
+    deadline = time.monotonic() + 3.0
+    for p in procs:
+        try:
+            p.join(max(0.0, deadline - time.monotonic()))
+            if p.is_alive():
+                p.kill()
+                p.join(1.0)
+        except (OSError, AttributeError, ValueError, AssertionError):
+            pass
+
+
+def _run_pool(tasks: list[dict], jobs: int, finish) -> None:
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    pool = ProcessPoolExecutor(max_workers=jobs, initializer=_worker_init, initargs=(os.getpid(),))
+    try:
+        futures = {pool.submit(run_chunk, [tasks[i] for i in idx]): idx
+                   for idx in _chunks(list(range(len(tasks))), jobs)}
+        for fut in as_completed(futures):
+            finish(futures[fut], fut.result())
+    except BaseException:
+        _stop_pool(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _run_dask(tasks: list[dict], address: str, finish) -> None:
+    from distributed import Client, as_completed
+
+    client = Client(address, timeout="20s")
+    try:
+        chunks = _chunks(list(range(len(tasks))), 8)
+        futures = client.map(run_chunk, [[tasks[i] for i in idx] for idx in chunks], pure=False)
+        index = {f.key: idx for f, idx in zip(futures, chunks)}
+        try:
+            for fut in as_completed(futures):
+                finish(index[fut.key], fut.result())
+        except BaseException:
+            try:
+                client.cancel(futures, force=True)
+            except Exception:  # the cluster may be gone; nothing more to cancel then
+                pass
+            raise
+    finally:
+        try:
+            client.close(timeout=5)
+        except Exception:
+            pass
+
+
+def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, progress: bool = True,
+            on_row=None, n_done: int = 0) -> list[dict]:
+    """Run the tasks serially, on ``jobs`` local processes, or on a Dask cluster; rows in task order.
+
+    ``on_row(task, row)`` is called in this process as each run finishes (its return value, when not
+    None, replaces the row); ``n_done`` runs done earlier start the progress bar.  On Ctrl-C or SIGTERM
+    the pending work is cancelled, local workers terminated, and ``KeyboardInterrupt`` re-raised."""
     from tqdm import tqdm
 
-    bar = tqdm(total=len(tasks), desc="runs", unit="run", disable=not progress, file=sys.stderr,
-               mininterval=0.5, dynamic_ncols=True)
-    chunks = _chunks(tasks, jobs if not dask_address else 8)
-    results: list[list[dict] | None] = [None] * len(chunks)
+    bar = tqdm(total=n_done + len(tasks), initial=n_done, desc="runs", unit="run", disable=not progress,
+               file=sys.stderr, mininterval=0.5, dynamic_ncols=True)
+    results: list[dict | None] = [None] * len(tasks)
+
+    def finish(indices, rows):
+        for i, row in zip(indices, rows):
+            if on_row is not None:
+                row = on_row(tasks[i], row) or row
+            results[i] = row
+        bar.update(len(rows))
+
     try:
-        if dask_address:
-            from distributed import Client, as_completed
-
-            with Client(dask_address, timeout="20s") as client:
-                futures = client.map(run_chunk, chunks, pure=False)
-                index = {f.key: i for i, f in enumerate(futures)}
-                for fut in as_completed(futures):
-                    results[index[fut.key]] = fut.result()
-                    bar.update(len(results[index[fut.key]]))
-        elif jobs > 1:
-            from concurrent.futures import ProcessPoolExecutor, as_completed as done
-
-            with ProcessPoolExecutor(max_workers=jobs) as pool:
-                futures = {pool.submit(run_chunk, c): i for i, c in enumerate(chunks)}
-                for fut in done(futures):
-                    results[futures[fut]] = fut.result()
-                    bar.update(len(results[futures[fut]]))
-        else:
-            for i, c in enumerate(chunks):
-                results[i] = run_chunk(c)
-                bar.update(len(c))
+        with _sigterm_as_interrupt():
+            if not tasks:
+                pass
+            elif dask_address:
+                _run_dask(tasks, dask_address, finish)
+            elif jobs > 1:
+                _run_pool(tasks, jobs, finish)
+            else:
+                for i, task in enumerate(tasks):
+                    finish([i], [run_task(task)])
     finally:
         bar.close()
-    return [row for chunk in results for row in chunk]
+    return results
+
+
+# ------------------------------------------------------------------------------------ checkpoint
+def _json_default(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (np.integer, np.floating, np.bool_)):
+        return o.item()
+    return str(o)
+
+
+class Checkpoint:
+    """``runs.partial.jsonl``: a header with the campaign's definition, then one line per finished run.
+
+    Each line is written with one unbuffered ``write`` as its run comes back, so a run the campaign
+    process has received is on disk even if that process is killed the next instant; a torn last line
+    (a kill in the middle of a write) is dropped when the file is read."""
+
+    def __init__(self, path: Path, header: dict, done: dict | None = None):
+        self.path = Path(path)
+        self.done = dict(done or {})
+        if done is None:  # a fresh checkpoint: the header, atomically
+            tmp = self.path.with_name(self.path.name + ".tmp")
+            tmp.write_text(json.dumps(header) + "\n", encoding="utf-8")
+            os.replace(tmp, self.path)
+        self._file = open(self.path, "ab", buffering=0)
+
+    @staticmethod
+    def read(path: Path) -> tuple[dict | None, dict]:
+        """(header, {key: row}) of a checkpoint; a torn last line is cut off the file."""
+        path = Path(path)
+        data = path.read_bytes()
+        if data and not data.endswith(b"\n"):  # a kill during a write: drop the torn line
+            data = data[:data.rfind(b"\n") + 1]
+            with open(path, "r+b") as f:
+                f.truncate(len(data))
+        header, done = None, {}
+        for n, line in enumerate(data.splitlines()):
+            try:
+                item = json.loads(line)
+            except ValueError:
+                continue
+            if n == 0:
+                header = item if isinstance(item, dict) and "campaign" in item else None
+                if header is None:
+                    break
+            elif isinstance(item, dict) and "key" in item and "row" in item:
+                done.setdefault(tuple(item["key"]), item["row"])
+        return header, done
+
+    def add(self, task: dict, row: dict) -> dict:
+        """Append a finished run; return the row as it is stored (the JSON round trip)."""
+        line = json.dumps({"key": list(task_key(task)), "row": row}, default=_json_default) + "\n"
+        self._file.write(line.encode("utf-8"))
+        stored = json.loads(line)["row"]
+        self.done[task_key(task)] = stored
+        return stored
+
+    def close(self) -> None:
+        if not self._file.closed:
+            try:
+                os.fsync(self._file.fileno())
+            except OSError:
+                pass
+            self._file.close()
+
+
+def stored_definition(out: Path) -> tuple[dict | None, str]:
+    """The definition of the campaign held in ``out`` (checkpoint header, else manifest) and its source."""
+    out = Path(out)
+    if (out / CHECKPOINT).is_file():
+        header, _ = Checkpoint.read(out / CHECKPOINT)
+        if header is not None:
+            return header["campaign"], CHECKPOINT
+    if (out / "manifest.json").is_file():
+        try:
+            man = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
+        except ValueError:
+            return None, "manifest.json"
+        if "campaign" in man:
+            return man["campaign"], "manifest.json"
+        if {"scenarios", "trials", "root_seed", "configurations"} <= set(man):  # written before checkpoints
+            return {"scenarios": man["scenarios"], "configurations": list(man["configurations"]),
+                    "trials": man["trials"], "seed": man["root_seed"]}, "manifest.json"
+    return None, ""
+
+
+def _check_same_campaign(stored: dict, campaign: Campaign, out: Path, source: str) -> None:
+    here = campaign.definition()
+    names = {"scenarios": "--scenarios", "configurations": "--methods", "trials": "--trials", "seed": "--seed",
+             "traces": "traces"}
+    diff = [f"{names.get(k, k)} {stored[k]} there, {here[k]} here" for k in here
+            if k in stored and json.loads(json.dumps(stored[k])) != json.loads(json.dumps(here[k]))]
+    if diff:
+        raise InputError(f"cannot resume: {out} holds another campaign ({'; '.join(diff)}, from its {source}); "
+                         "repeat its arguments, or use --force to start over")
+
+
+def clear_outputs(out) -> list[Path]:
+    """Remove what a campaign writes in ``out`` (tables, manifest, checkpoint, figures, report.html) and
+    nothing else: figures/ loses only its .png/.svg files, and goes only if that leaves it empty."""
+    out = Path(out)
+    removed = []
+    for name in (*TABLE_FILES, CHECKPOINT, CHECKPOINT + ".tmp", "report.html"):
+        path = out / name
+        if path.is_file() or path.is_symlink():
+            path.unlink()
+            removed.append(path)
+    figures = out / "figures"
+    if figures.is_symlink():
+        figures.unlink()
+        removed.append(figures)
+    elif figures.is_dir():
+        for path in sorted(figures.iterdir()):
+            if path.suffix in (".png", ".svg") and (path.is_file() or path.is_symlink()):
+                path.unlink()
+                removed.append(path)
+        try:
+            figures.rmdir()
+        except OSError:  # something else lives there: not ours to delete
+            pass
+    return removed
 
 
 def _git_commit() -> str:
@@ -203,19 +481,74 @@ def manifest(campaign: Campaign, skipped: list[dict], command: str) -> dict:
 
 
 def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str | None = None,
-                 command: str = "", progress: bool = True) -> pd.DataFrame:
-    """Run a campaign and write runs.csv, summary.{csv,md,tex}, traces.csv, fields.csv, manifest.json."""
+                 command: str = "", progress: bool = True, resume: bool = False) -> pd.DataFrame:
+    """Run a campaign and write runs.csv, summary.{csv,md,tex}, traces.csv, fields.csv, manifest.json.
+
+    Finished runs go to the checkpoint as they complete.  ``resume=True`` continues the campaign held in
+    ``out_dir`` (InputError if it is another campaign), running only the missing runs.  On Ctrl-C or
+    SIGTERM the tables of the finished runs are written (manifest ``"complete": false``) and
+    ``CampaignInterrupted`` is raised.  The returned frame's ``attrs`` say ``n_new`` (runs done by this
+    call), ``n_resumed`` (taken from the checkpoint) and ``already_complete`` (a resume with nothing to
+    do: then nothing is rewritten)."""
+    out = Path(out_dir)
+    tasks, skipped = campaign.tasks()
+    ckpt_path = out / CHECKPOINT
+    done: dict | None = None
+    if resume:
+        stored, source = stored_definition(out)
+        if stored is not None:
+            _check_same_campaign(stored, campaign, out, source)
+        if source == CHECKPOINT:
+            keys = {task_key(t) for t in tasks}
+            done = {k: v for k, v in Checkpoint.read(ckpt_path)[1].items() if k in keys}
+        elif stored is not None:
+            man = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
+            if man.get("complete", True) and (out / "runs.csv").is_file():
+                runs = pd.read_csv(out / "runs.csv", keep_default_na=False)
+                runs.attrs.update(n_new=0, n_resumed=len(runs), already_complete=True, n_missing=0)
+                return runs
+            raise InputError(f"cannot resume: {out} has no {CHECKPOINT} holding its finished runs; "
+                             "use --force to start over")
+        elif out.is_dir() and any(out.iterdir()):
+            raise InputError(f"cannot resume: {out} holds no campaign (no readable {CHECKPOINT} or manifest.json)")
+    out.mkdir(parents=True, exist_ok=True)
+    header = {"magbench_checkpoint": CHECKPOINT_VERSION, "campaign": campaign.definition(), "command": command}
+    checkpoint = Checkpoint(ckpt_path, header, done)
+    todo = [t for t in tasks if task_key(t) not in checkpoint.done]
+    n_resumed = len(tasks) - len(todo)
+    t0 = time.perf_counter()
+    interrupted = None
+    try:
+        execute(todo, jobs=jobs, dask_address=dask_address, progress=progress, on_row=checkpoint.add,
+                n_done=n_resumed)
+    except KeyboardInterrupt as exc:
+        interrupted = exc
+    finally:
+        checkpoint.close()
+    wall = time.perf_counter() - t0
+    on_disk = Checkpoint.read(ckpt_path)[1]  # what an interrupt may not have let reach checkpoint.done is there
+    rows = [on_disk[task_key(t)] for t in tasks if task_key(t) in on_disk]
+    n_missing = len(tasks) - len(rows)
+    runs = _write_campaign_tables(campaign, out, rows, skipped, command, wall, jobs, dask_address, n_missing)
+    runs.attrs.update(n_new=len(rows) - n_resumed, n_resumed=n_resumed, already_complete=False,
+                      n_missing=n_missing)
+    if n_missing == 0:
+        ckpt_path.unlink(missing_ok=True)  # the tables hold everything now
+    if interrupted is not None:
+        raise CampaignInterrupted(out, len(rows), len(tasks), getattr(interrupted, "signum", signal.SIGINT)) \
+            from interrupted
+    return runs
+
+
+def _write_campaign_tables(campaign: Campaign, out: Path, rows: list[dict], skipped: list[dict], command: str,
+                           wall: float, jobs: int, dask_address: str | None, n_missing: int) -> pd.DataFrame:
     from magbench.benchmarks.tables import write_tables
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    tasks, skipped = campaign.tasks()
-    t0 = time.perf_counter()
-    rows = execute(tasks, jobs=jobs, dask_address=dask_address, progress=progress)
-    wall = time.perf_counter() - t0
-    traces, fields = [], []
+    traces, fields, flat = [], [], []
     for row in rows:
-        extra = row.pop("_extra", {})
+        row = dict(row)
+        extra = row.pop("_extra", {}) or {}
+        flat.append(row)
         for ev, best, mean in extra.get("trace", []):
             traces.append({"scenario": row["scenario"], "configuration": row["configuration"],
                            "evaluations": int(ev), "best_F": best, "mean_F": mean})
@@ -224,18 +557,28 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
             for i in range(len(f["heading_deg"])):
                 fields.append({"scenario": row["scenario"], "configuration": row["configuration"],
                                **{k: v[i] for k, v in f.items()}})
-    runs = pd.DataFrame(rows)
-    order = {s: i for i, s in enumerate(campaign.scenarios)}
-    m_order = {m.label: i for i, m in enumerate(campaign.methods)}
-    runs = runs.sort_values(by=["scenario", "configuration", "trial"],
-                            key=lambda c: c.map(order) if c.name == "scenario" else
-                            (c.map(m_order) if c.name == "configuration" else c), kind="stable")
-    runs = runs.reset_index(drop=True)
+    runs = pd.DataFrame(flat)
+    if len(runs):
+        order = {s: i for i, s in enumerate(campaign.scenarios)}
+        m_order = {m.label: i for i, m in enumerate(campaign.methods)}
+        runs = runs.sort_values(by=["scenario", "configuration", "trial"],
+                                key=lambda c: c.map(order) if c.name == "scenario" else
+                                (c.map(m_order) if c.name == "configuration" else c), kind="stable")
+        runs = runs.reset_index(drop=True)
+    else:
+        runs = pd.DataFrame(columns=["scenario", "method", "configuration", "model", "trial", "seed", "data_seed",
+                                     "error"])
     man = manifest(campaign, skipped, command)
+    man["campaign"] = campaign.definition()
+    man["complete"] = n_missing == 0
+    man["n_missing"] = n_missing
     man["wall_time_s"] = round(wall, 3)
     man["jobs"] = jobs
     man["dask"] = bool(dask_address)
     man["n_runs"] = len(runs)
     man["n_failed"] = int((runs["error"] != "").sum()) if len(runs) else 0
+    for name, frame in (("traces.csv", traces), ("fields.csv", fields)):
+        if not frame:  # write_tables skips an empty one: do not leave an older file behind
+            (out / name).unlink(missing_ok=True)
     write_tables(runs, pd.DataFrame(traces), pd.DataFrame(fields), man, out)
     return runs

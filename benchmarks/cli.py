@@ -264,7 +264,10 @@ def cmd_demo(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from magbench.benchmarks.campaign import Campaign, MethodSpec, run_campaign
+    import shlex
+
+    from magbench.benchmarks.campaign import (CHECKPOINT, Campaign, CampaignInterrupted, MethodSpec, clear_outputs,
+                                              run_campaign)
     from magbench.calibrators import available
     from magbench.simulate.scenarios import get_scenario
 
@@ -276,23 +279,55 @@ def cmd_compare(args) -> int:
         methods = sorted(available())
     if args.trials < 1 or args.jobs < 1:
         raise InputError("--trials and --jobs must be at least 1")
+    if args.force and args.resume:
+        raise InputError("--force starts the campaign over and --resume continues it: give one of them")
     out = Path(args.out)
-    if out.exists() and any(out.iterdir()) and not args.force:
-        raise InputError(f"{out} exists and is not empty; refusing to overwrite it (use --force)")
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out} exists and is not a directory")
+    if out.exists() and any(out.iterdir()) and not (args.force or args.resume):
+        hint = (f"it holds an interrupted campaign ({CHECKPOINT}): use --resume to complete it or --force to start "
+                "over" if (out / CHECKPOINT).exists() else "use --resume to complete its campaign or --force to "
+                "overwrite it")
+        raise InputError(f"{out} exists and is not empty; refusing to overwrite it ({hint})")
     campaign = Campaign(scenarios, tuple(MethodSpec.parse(m) for m in methods), trials=args.trials, seed=args.seed)
-    command = "magbench " + " ".join(args._argv)
-    runs = run_campaign(campaign, out, jobs=args.jobs, dask_address=args.dask, command=command,
-                        progress=not args.json and not args.quiet)
-    if not args.no_figures:
+    campaign.tasks()  # bad methods are refused before anything in --out is touched
+    if args.force:
+        clear_outputs(out)
+    command = "magbench " + shlex.join(args._argv)
+    try:
+        runs = run_campaign(campaign, out, jobs=args.jobs, dask_address=args.dask, command=command,
+                            progress=not args.json and not args.quiet, resume=args.resume)
+    except CampaignInterrupted as stop:
+        argv = [a for a in args._argv if a != "--force"] + ([] if args.resume else ["--resume"])
+        sys.stderr.write(f"magbench: interrupted: {stop.n_done} of {stop.n_total} runs finished, kept in {out} "
+                         f"(tables of those written, manifest marked incomplete); to run the {stop.n_missing} "
+                         f"missing: magbench {shlex.join(argv)}\n")
+        if args.json:
+            _emit(args, {"out": str(out), "complete": False, "n_runs": stop.n_done, "n_missing": stop.n_missing,
+                         "resume": "magbench " + shlex.join(argv)}, "")
+        return stop.exit_status
+    attrs = runs.attrs
+    figures = not args.no_figures and (not attrs.get("already_complete") or not (out / "report.html").is_file())
+    if figures:
         from magbench.benchmarks.figures import make_figures
         from magbench.benchmarks.report import write_report
 
         make_figures(out)
         write_report(out)
     failed = int((runs["error"] != "").sum())
-    obj = {"out": str(out), "n_runs": len(runs), "n_failed": failed,
-           "summary": str(out / "summary.md"), "report": None if args.no_figures else str(out / "report.html")}
-    _emit(args, obj, (out / "summary.md").read_text() + f"\n{len(runs)} runs ({failed} failed) in {out}")
+    obj = {"out": str(out), "n_runs": len(runs), "n_failed": failed, "complete": True,
+           "n_new": int(attrs.get("n_new", len(runs))), "n_resumed": int(attrs.get("n_resumed", 0)),
+           "summary": str(out / "summary.md"),
+           "report": str(out / "report.html") if (out / "report.html").is_file() and not args.no_figures else None}
+    if attrs.get("already_complete"):
+        note = (f"\ncampaign in {out} was already complete ({len(runs)} runs, {failed} failed): nothing new to run"
+                + ("; report.html written" if figures else ", nothing rewritten"))
+    elif attrs.get("n_resumed"):
+        note = (f"\n{len(runs)} runs ({failed} failed) in {out}: {attrs['n_resumed']} from the checkpoint, "
+                f"{attrs['n_new']} run now")
+    else:
+        note = f"\n{len(runs)} runs ({failed} failed) in {out}"
+    _emit(args, obj, (out / "summary.md").read_text() + note)
     return EXIT_OK
 
 
@@ -389,7 +424,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=int, default=1, help="local worker processes")
     p.add_argument("--dask", metavar="ADDRESS", help="run on an existing Dask cluster (tcp://host:port)")
     p.add_argument("--no-figures", action="store_true", help="tables only")
-    p.add_argument("--force", action="store_true", help="write into a non-empty directory")
+    p.add_argument("--force", action="store_true",
+                   help="start over in a non-empty directory: first delete the campaign outputs there (tables, "
+                        "manifest, checkpoint, figures, report.html), nothing else")
+    p.add_argument("--resume", action="store_true",
+                   help="complete an interrupted campaign in --out: same arguments, only the missing runs are run "
+                        "(every finished run is kept in DIR/runs.partial.jsonl as it completes)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_compare)
@@ -429,9 +469,9 @@ def main(argv=None) -> int:
     except InputError as exc:
         sys.stderr.write(f"magbench: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}\n")
         return EXIT_USAGE
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:  # 130 for Ctrl-C (128 + SIGINT); 143 for a SIGTERM turned into one
         sys.stderr.write("magbench: interrupted\n")
-        return EXIT_FAIL
+        return getattr(exc, "exit_status", 128 + 2)
     except Exception as exc:  # anything else is our fault: one line, status 1, traceback on request
         if os.environ.get("MAGBENCH_DEBUG"):
             raise

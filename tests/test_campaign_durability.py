@@ -1,0 +1,267 @@
+"""Campaigns lose nothing: finished runs are checkpointed as they complete, Ctrl-C stops at once and keeps
+them, --resume completes the campaign with the tables of an uninterrupted run, killing the campaign
+process leaves no worker behind, --force clears only the campaign's own outputs."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pandas as pd
+import pytest
+
+from magbench.benchmarks import campaign as campaign_module
+from magbench.benchmarks.campaign import (CHECKPOINT, RUNTIME_COLUMNS, Campaign, CampaignInterrupted, Checkpoint,
+                                          MethodSpec, run_campaign)
+from magbench.benchmarks.cli import main
+
+# ~0.25 s per ga run: long enough to interrupt, short enough for seconds-long tests
+METHODS = ["lsq", "ga:generations=500"]
+TRIALS = 12
+SEED = 7
+N_RUNS = len(METHODS) * TRIALS
+
+
+def compare_args(out, *extra, trials=TRIALS, seed=SEED):
+    return ["compare", "--scenarios", "sphere9", "--methods", *METHODS, "--trials", str(trials), "--seed", str(seed),
+            "--out", str(out), "--no-figures", *extra]
+
+
+def start(args, tmp_path, name):
+    """``python -m magbench ARGS`` in the background; stdout/stderr to files (a stray worker holding a pipe
+    must not be able to block the test)."""
+    stdout, stderr = open(tmp_path / f"{name}.out", "w"), open(tmp_path / f"{name}.err", "w")
+    proc = subprocess.Popen([sys.executable, "-P", "-m", "magbench", *args], stdout=stdout, stderr=stderr,
+                            stdin=subprocess.DEVNULL)
+    stdout.close()
+    stderr.close()
+    return proc
+
+
+def checkpoint_lines(out):
+    path = out / CHECKPOINT
+    return path.read_text().splitlines() if path.is_file() else []
+
+
+def wait_for_runs(proc, out, n, timeout=120.0):
+    """Wait until the checkpoint holds ``n`` finished runs (its first line is the header)."""
+    deadline = time.monotonic() + timeout
+    while len(checkpoint_lines(out)) < n + 1:
+        assert proc.poll() is None, "the campaign ended before it could be interrupted"
+        assert time.monotonic() < deadline, "no run was checkpointed"
+        time.sleep(0.02)
+    return checkpoint_lines(out)
+
+
+def descendants(pid):
+    try:
+        import psutil
+    except ImportError:  # /proc: children of children
+        found, frontier = [], [pid]
+        while frontier:
+            parent = frontier.pop()
+            for entry in os.listdir("/proc"):
+                if entry.isdigit():
+                    try:
+                        with open(f"/proc/{entry}/stat") as f:
+                            ppid = int(f.read().rsplit(")", 1)[1].split()[1])
+                    except (OSError, IndexError, ValueError):
+                        continue
+                    if ppid == parent:
+                        found.append(int(entry))
+                        frontier.append(int(entry))
+        return found
+    return [p.pid for p in psutil.Process(pid).children(recursive=True)]
+
+
+def alive(pid):
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] not in ("Z", "X")
+    except OSError:
+        return False
+
+
+def wait_gone(pids, timeout=10.0):
+    deadline = time.monotonic() + timeout
+    while any(alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    return [p for p in pids if alive(p)]
+
+
+def table(path):
+    frame = pd.read_csv(path, keep_default_na=False)
+    return frame.drop(columns=[c for c in RUNTIME_COLUMNS if c in frame])
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    out = tmp_path_factory.mktemp("uninterrupted") / "camp"
+    assert main(compare_args(out, "--quiet")) == 0
+    return out
+
+
+def test_ctrl_c_keeps_finished_runs_and_resume_gives_the_uninterrupted_tables(uninterrupted, tmp_path):
+    out = tmp_path / "camp"
+    proc = start(compare_args(out, "--jobs", "2", "--quiet"), tmp_path, "first")
+    try:
+        before = wait_for_runs(proc, out, 1)
+        workers = descendants(proc.pid)
+        sent = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        status = proc.wait(timeout=60)
+        stopped_after = time.monotonic() - sent
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    err = (tmp_path / "first.err").read_text()
+    assert status == 130, err
+    assert stopped_after < 15, stopped_after
+    assert not wait_gone(workers), "a worker outlived the interrupted campaign"
+    assert (tmp_path / "first.out").read_text() == ""
+    message = [line for line in err.splitlines() if line.strip()]
+    assert len(message) == 1 and "interrupted" in message[0] and "--resume" in message[0], err
+    after = checkpoint_lines(out)
+    assert after[:len(before)] == before  # append-only: nothing finished was lost
+    n_done = len(after) - 1
+    assert 1 <= n_done < N_RUNS
+    assert f"{n_done} of {N_RUNS} runs" in message[0]
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["complete"] is False and manifest["n_missing"] == N_RUNS - n_done
+    assert manifest["n_runs"] == n_done == len(pd.read_csv(out / "runs.csv"))
+    assert not (out / "report.html").exists()
+
+    # the same command again is refused (it would start over); --resume completes it, the bar starting at n_done
+    assert main(compare_args(out, "--quiet")) == 2
+    proc = start(compare_args(out, "--jobs", "2", "--resume"), tmp_path, "resume")
+    assert proc.wait(timeout=300) == 0, (tmp_path / "resume.err").read_text()
+    assert f"{n_done}/{N_RUNS}" in (tmp_path / "resume.err").read_text()
+    assert f"{n_done} from the checkpoint, {N_RUNS - n_done} run now" in (tmp_path / "resume.out").read_text()
+    for name in ("runs.csv", "summary.csv", "traces.csv"):
+        pd.testing.assert_frame_equal(table(out / name), table(uninterrupted / name))
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["complete"] is True and manifest["n_missing"] == 0 and manifest["n_runs"] == N_RUNS
+    assert not (out / CHECKPOINT).exists()  # the tables hold everything now
+
+
+def test_killed_campaign_process_leaves_no_worker(tmp_path):
+    out = tmp_path / "camp"
+    proc = start(compare_args(out, "--jobs", "2", "--quiet", trials=40), tmp_path, "killed")
+    try:
+        wait_for_runs(proc, out, 1)
+        workers = descendants(proc.pid)
+        assert workers, "no worker process to watch"
+        proc.send_signal(signal.SIGKILL)
+        assert proc.wait(timeout=30) == -signal.SIGKILL
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    left = wait_gone(workers)
+    for pid in left:  # do not leave them running for the rest of the suite
+        os.kill(pid, signal.SIGKILL)
+    assert not left, f"workers {left} outlived their campaign process"
+    # what finished before the kill is still there to resume
+    header, done = Checkpoint.read(out / CHECKPOINT)
+    assert header["campaign"]["trials"] == 40 and len(done) >= 1
+
+
+def test_sigterm_stops_like_ctrl_c(tmp_path):
+    out = tmp_path / "camp"
+    proc = start(compare_args(out, "--jobs", "2", "--quiet"), tmp_path, "term")
+    try:
+        wait_for_runs(proc, out, 1)
+        workers = descendants(proc.pid)
+        proc.send_signal(signal.SIGTERM)
+        status = proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert status == 128 + signal.SIGTERM, (tmp_path / "term.err").read_text()
+    assert not wait_gone(workers)
+    assert json.loads((out / "manifest.json").read_text())["complete"] is False
+
+
+def test_interrupted_serial_campaign_resumes_in_process(uninterrupted, tmp_path, monkeypatch):
+    real, calls = campaign_module.run_task, []
+
+    def interrupted_after_five(task):
+        calls.append(task)
+        if len(calls) == 6:
+            raise KeyboardInterrupt
+        return real(task)
+
+    camp = Campaign(("sphere9",), tuple(MethodSpec.parse(m) for m in METHODS), trials=TRIALS, seed=SEED)
+    monkeypatch.setattr(campaign_module, "run_task", interrupted_after_five)
+    with pytest.raises(CampaignInterrupted) as stop:
+        run_campaign(camp, tmp_path, progress=False)
+    assert (stop.value.n_done, stop.value.n_missing, stop.value.exit_status) == (5, N_RUNS - 5, 130)
+    monkeypatch.setattr(campaign_module, "run_task", real)
+    runs = run_campaign(camp, tmp_path, progress=False, resume=True)
+    assert (runs.attrs["n_resumed"], runs.attrs["n_new"]) == (5, N_RUNS - 5)
+    for name in ("runs.csv", "summary.csv", "traces.csv"):
+        pd.testing.assert_frame_equal(table(tmp_path / name), table(uninterrupted / name))
+
+
+def test_torn_last_checkpoint_line_is_dropped(tmp_path):
+    camp = Campaign(("sphere9",), (MethodSpec("lsq"),), trials=3, seed=1)
+    path = tmp_path / CHECKPOINT
+    ck = Checkpoint(path, {"campaign": camp.definition()})
+    tasks, _ = camp.tasks()
+    for task in tasks[:2]:
+        ck.add(task, {"scenario": task["scenario"], "configuration": task["configuration"], "trial": task["trial"]})
+    ck.close()
+    with open(path, "ab") as f:
+        f.write(b'{"key": ["sphere9", "lsq", 2], "row": {"scen')  # killed in the middle of a write
+    header, done = Checkpoint.read(path)
+    assert header["campaign"] == camp.definition() and sorted(done) == [("sphere9", "lsq", 0), ("sphere9", "lsq", 1)]
+    assert path.read_bytes().endswith(b"}\n")
+
+
+def test_resume_with_other_arguments_is_refused(tmp_path, capsys):
+    out = tmp_path / "camp"
+    out.mkdir()
+    camp = Campaign(("sphere9",), tuple(MethodSpec.parse(m) for m in METHODS), trials=TRIALS, seed=SEED)
+    Checkpoint(out / CHECKPOINT, {"campaign": camp.definition()}).close()
+    saved = (out / CHECKPOINT).read_bytes()
+    for changed in (compare_args(out, "--resume", trials=TRIALS + 1), compare_args(out, "--resume", seed=SEED + 1),
+                    [a if a != "lsq" else "ellipsoid" for a in compare_args(out, "--resume")],
+                    [a if a != "sphere9" else "cap9" for a in compare_args(out, "--resume")]):
+        capsys.readouterr()
+        assert main(changed) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "cannot resume" in err, err
+        assert (out / CHECKPOINT).read_bytes() == saved and sorted(os.listdir(out)) == [CHECKPOINT]
+    assert main(compare_args(out, "--resume", "--force")) == 2  # contradictory
+
+
+def test_resuming_a_complete_campaign_runs_and_rewrites_nothing(tmp_path, capsys):
+    out = tmp_path / "camp"
+    assert main(compare_args(out, "--quiet", trials=2)) == 0
+    stamps = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
+    capsys.readouterr()
+    assert main(compare_args(out, "--resume", "--json", trials=2)) == 0
+    obj = json.loads(capsys.readouterr().out)
+    assert obj["complete"] is True and obj["n_new"] == 0 and obj["n_runs"] == 4
+    assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == stamps
+    assert main(compare_args(out, "--resume", "--quiet", trials=2)) == 0
+    assert "already complete" in capsys.readouterr().out
+    assert main(compare_args(out, "--resume", trials=3)) == 2
+
+
+def test_force_clears_the_campaign_outputs_and_nothing_else(tmp_path):
+    out = tmp_path / "camp"
+    (out / "figures").mkdir(parents=True)
+    stale = ["figures/errors_lu2014.png", "figures/errors_lu2014.svg", "report.html", "traces.csv", "fields.csv",
+             "summary.tex", CHECKPOINT]
+    mine = ["notes.txt", "figures/sketch.txt"]
+    for name in stale + mine:
+        (out / name).write_text("old\n")
+    assert main(compare_args(out, "--quiet", trials=2)) == 2  # not empty: refused without --force
+    assert main(compare_args(out, "--quiet", "--force", trials=2)) == 0
+    for name in ("figures/errors_lu2014.png", "figures/errors_lu2014.svg", "report.html", "fields.csv", CHECKPOINT):
+        assert not (out / name).exists(), name
+    for name in mine:
+        assert (out / name).read_text() == "old\n", name
+    assert (out / "summary.tex").read_text() != "old\n" and (out / "traces.csv").read_text() != "old\n"
+    assert json.loads((out / "manifest.json").read_text())["complete"] is True
