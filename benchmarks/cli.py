@@ -74,7 +74,7 @@ def load_dataset(args, require_vector: bool = True):
         ref, source = cli_ref, (f"--field {args.field:g}" if args.field is not None else
                                 f"--igrf {args.igrf} (IGRF-14)" if args.igrf else None)
         if ref is None and "field_nT" in data.meta:
-            ref, source = _meta_field(data.meta["field_nT"]), "the file's '# field_nT:' line"
+            ref, source = float(data.meta["field_nT"]), "the file's '# field_nT:' line"  # checked by read_csv
         if ref is not None:
             data = data.with_reference(np.full(len(data), ref))
     if source is not None and hasattr(data, "meta"):
@@ -82,14 +82,32 @@ def load_dataset(args, require_vector: bool = True):
     return data
 
 
-def _meta_field(text: str) -> float:
+def _seed(text: str) -> int:
+    """argparse type of every --seed: a non-negative integer (numpy's SeedSequence and nlopt.srand need one)."""
     try:
-        value = float(text)
+        value = int(text)
     except ValueError:
-        raise InputError(f"the '# field_nT:' line holds {text!r}, not a number of nT") from None
-    if not (math.isfinite(value) and value > 0):
-        raise InputError(f"the '# field_nT:' line must be a positive number of nT, got {text}")
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value} is negative; seeds are non-negative integers")
     return value
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} must be at least 1")
+    return value
+
+
+def _printable(text: str) -> str:
+    """A message safe for a terminal: control characters (escape sequences, carriage returns, NUL) are
+    shown escaped, never echoed raw."""
+    return "".join(ch if ch.isprintable() or ch == " " else ch.encode("unicode_escape").decode("ascii")
+                   for ch in text)
 
 
 def _parse_params(items) -> dict:
@@ -125,6 +143,7 @@ def _json_default(o):
 # ---------------------------------------------------------------------------------------- commands
 def cmd_list(args) -> int:
     from magbench.calibrators import available
+    from magbench.calibrators.registry import plugin_errors
     from magbench.simulate.scenarios import get_scenario, scenario_names
     from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
@@ -133,9 +152,12 @@ def cmd_list(args) -> int:
     scen = [{"name": n, "model": get_scenario(n).model, "description": get_scenario(n).description}
             for n in scenario_names()]
     effects = list_effects()
+    broken = [{"name": n, "reason": why} for n, why in sorted(plugin_errors().items())]
     obj = {"calibrators": cals, "models": [{"name": m, "parameters": list(PARAM_NAMES[m])} for m in MODELS],
-           "scenarios": scen, "effects": effects}
+           "scenarios": scen, "effects": effects, "unavailable_plugins": broken}
     lines = ["calibrators:"] + [f"  {c['name']:<10} [{', '.join(c['models'])}] {c['summary']}" for c in cals]
+    if broken:
+        lines += ["plug-ins that did not load:"] + [f"  {b['name']:<10} {_printable(b['reason'])}" for b in broken]
     lines += ["models:"] + [f"  {m['name']:<10} {', '.join(m['parameters'])}" for m in obj["models"]]
     lines += ["scenarios:"] + [f"  {s['name']:<13} ({s['model']}) {s['description']}" for s in scen]
     lines += ["effects:"] + [f"  {e['name']:<13} {e['description']}" for e in effects]
@@ -157,11 +179,15 @@ def cmd_simulate(args) -> int:
 
     scenario = get_scenario(args.scenario)
     out = Path(args.out)
+    if args.truth and Path(args.truth).resolve() == out.resolve():
+        raise InputError(f"--out and --truth name the same file ({out}): the truth would overwrite the data")
     for path in filter(None, [out, Path(args.truth) if args.truth else None]):
         if path.exists() and not args.force:
             raise InputError(f"{path} exists; refusing to overwrite it (use --force)")
         if not path.parent.exists():
             raise InputError(f"directory {path.parent} does not exist")
+        if path.is_dir():
+            raise InputError(f"{path} is a directory, not a file")
     data = scenario.build(args.seed)
     data.to_csv(out)
     if args.truth:
@@ -182,11 +208,11 @@ def _evaluations_text(result) -> str:
 def cmd_calibrate(args) -> int:
     from magbench.calibrators import make
 
-    data = load_dataset(args)
     params = _parse_params(args.param)
     if args.algorithm:
         params["algorithm"] = args.algorithm
-    cal = make(args.method, model=args.model, seed=args.seed, **params)
+    cal = make(args.method, model=args.model, seed=args.seed, **params)  # an unknown method before reading
+    data = load_dataset(args)
     result = cal.fit(data)
     obj = result.as_dict()
     ref = result.reference
@@ -381,7 +407,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="simulate a scenario to a CSV file and its truth to JSON")
     p.add_argument("--scenario", required=True)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--out", required=True, metavar="FILE.csv")
     p.add_argument("--truth", metavar="FILE.json")
     p.add_argument("--force", action="store_true", help="overwrite existing output files")
@@ -392,7 +418,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("file", metavar="FILE.csv")
     p.add_argument("--method", required=True)
     p.add_argument("--model", default="nine", choices=["angles", "nine"])
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--algorithm", help="NLopt algorithm name (method nlopt)")
     p.add_argument("--accept-any", action="store_true",
                    help="keep a calibration that fails its acceptance checks (exit 0, the causes as warnings) "
@@ -405,8 +431,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("diagnose", help="where the calibration residual lies and which unmodelled effect causes it")
     p.add_argument("file", metavar="FILE.csv")
     p.add_argument("--model", default="nine", choices=["angles", "nine"], help="the base calibration model")
-    p.add_argument("--folds", type=int, default=5, help="cross-validation folds")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--folds", type=_positive_int, default=5, help="cross-validation folds (default 5)")
+    p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--figure", metavar="PATH.png", help="figure of the residual before/after the winning effect")
     p.add_argument("--no-figure", action="store_true")
     p.add_argument("--force", action="store_true", help="overwrite the figure")
@@ -419,7 +445,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--methods", nargs="+", default=["all"], metavar="NAME[:KEY=VALUE...]",
                    help="calibrators, optionally with hyper-parameters (nlopt:algorithm=GN_ISRES); 'all' = every one")
     p.add_argument("--trials", type=int, default=10)
-    p.add_argument("--seed", type=int, default=0, help="root seed; every run's seed is spawned from it")
+    p.add_argument("--seed", type=_seed, default=0, help="root seed, a non-negative integer; every run's seed is spawned from it (default 0)")
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--jobs", type=int, default=1, help="local worker processes")
     p.add_argument("--dask", metavar="ADDRESS", help="run on an existing Dask cluster (tcp://host:port)")
@@ -445,13 +471,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("reproduce", help="regenerate everything committed in results/")
     p.add_argument("--out", default="results", metavar="DIR")
-    p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--jobs", type=_positive_int, default=2, help="local worker processes (default 2)")
     p.add_argument("--quick", action="store_true", help="few trials (a smoke test, not the committed results)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_reproduce)
 
     p = sub.add_parser("demo", help="simulate seed 000's experiment and a sphere, compare every calibrator")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_demo)
     return parser
@@ -467,7 +493,7 @@ def main(argv=None) -> int:
             return EXIT_USAGE
         return args.func(args)
     except InputError as exc:
-        sys.stderr.write(f"magbench: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}\n")
+        sys.stderr.write(f"magbench: {_printable(str(exc).splitlines()[0]) if str(exc) else type(exc).__name__}\n")
         return EXIT_USAGE
     except KeyboardInterrupt as exc:  # 130 for Ctrl-C (128 + SIGINT); 143 for a SIGTERM turned into one
         sys.stderr.write("magbench: interrupted\n")
@@ -475,7 +501,7 @@ def main(argv=None) -> int:
     except Exception as exc:  # anything else is our fault: one line, status 1, traceback on request
         if os.environ.get("MAGBENCH_DEBUG"):
             raise
-        sys.stderr.write(f"magbench: internal error: {type(exc).__name__}: {exc} "
+        sys.stderr.write(f"magbench: internal error: {type(exc).__name__}: {_printable(str(exc))} "
                          "(set MAGBENCH_DEBUG=1 for a traceback)\n")
         return EXIT_FAIL
 

@@ -22,17 +22,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from magbench.simulate.sensor import PARAM_NAMES
 
 from .fisher import crb_std
-from .objective import ScalarObjective
+from .objective import ScalarObjective, lm_normal
 
 MAD_TO_SIGMA = 1.4826
 """Median absolute deviation to standard deviation for Gaussian noise."""
-REFERENCE_MAX_NFEV = 30
-"""Evaluations the judge's own least-squares polish may take (from a good answer it needs one or two)."""
+REFERENCE_MAX_ITER = 30
+"""Iterations the judge's own least-squares polish may take (from a good answer it needs one or two)."""
 
 
 @dataclass(frozen=True)
@@ -111,19 +110,19 @@ def physical_range(x: np.ndarray, model: str, physical_lower: np.ndarray, physic
 
 
 def reference_fit(objective: ScalarObjective, x: np.ndarray, physical_box: tuple[np.ndarray, np.ndarray],
-                  max_nfev: int = REFERENCE_MAX_NFEV) -> tuple[np.ndarray, float]:
-    """The judge's own optimum: least squares (trust-region reflective inside the physical box, analytic
-    Jacobian) polished from the calibrator's answer, and its residual RMS.  Outside the counter: it
-    measures the answer, it is not part of the contest.  From an answer already at the optimum it stops
-    after one or two evaluations."""
+                  max_iter: int = REFERENCE_MAX_ITER) -> tuple[np.ndarray, float]:
+    """The judge's own optimum: Levenberg-Marquardt inside the physical box on the normal equations
+    (analytic Jacobian, bounded memory), polished from the calibrator's answer, and its residual RMS.
+    Outside the counter: it measures the answer, it is not part of the contest.  From an answer already
+    at the optimum it stops after one or two passes over the data."""
     lo, hi = physical_box
     start = np.clip(x, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
+    n = objective.raw_nT.shape[0]
     with np.errstate(all="ignore"):
-        sol = least_squares(objective.residuals, start, jac=objective.jacobian, method="trf", bounds=(lo, hi),
-                            x_scale="jac", max_nfev=max_nfev)
+        x_ref, cost, _ = lm_normal(objective.normal_equations, start, lo, hi, tol=1e-10, max_iter=max_iter)
     rms_start = float(np.sqrt(np.mean(objective.residuals(x) ** 2)))
-    rms_ref = float(np.sqrt(np.mean(sol.fun ** 2)))
-    return (sol.x, rms_ref) if rms_ref <= rms_start else (np.asarray(x, dtype=float), rms_start)
+    rms_ref = float(np.sqrt(cost / n))
+    return (x_ref, rms_ref) if rms_ref <= rms_start else (np.asarray(x, dtype=float), rms_start)
 
 
 def least_covered_direction(raw_nT: np.ndarray) -> tuple[np.ndarray, float]:
@@ -147,23 +146,22 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
     normal, ratio = least_covered_direction(objective.raw_nT)
     step = limits.tolerance("o_nT", field_nT)
     basis = np.linalg.qr(np.column_stack([normal, np.eye(3)]))[0][:, :3]  # normal first, then two more
+    transform = np.zeros((9, 8))
+    transform[:6, :6] = np.eye(6)
+    transform[6:9, 6:8] = basis[:, 1:3]
     base = float(np.sum(objective.residuals(x) ** 2))
     increases = []
     for sign in (1.0, -1.0):
         fixed = x.copy()
-        fixed[6:9] = x[6:9] + sign * step * basis[:, 0]
-        transform = np.zeros((9, 8))
-        transform[:6, :6] = np.eye(6)
-        transform[6:9, 6:8] = basis[:, 1:3]
+        fixed[6:9] += sign * step * basis[:, 0]
 
-        def full(z, fixed=fixed, transform=transform):
-            return fixed + transform @ (z - _Z0)
+        def reduced(z, fixed=fixed):
+            a, g, cost = objective.normal_equations(fixed + transform @ z)
+            return transform.T @ a @ transform, transform.T @ g, cost
 
         with np.errstate(all="ignore"):
-            sol = least_squares(lambda z: objective.residuals(full(z)), _Z0.copy(),
-                                jac=lambda z: objective.jacobian(full(z)) @ transform, method="lm",
-                                x_scale="jac", max_nfev=REFERENCE_MAX_NFEV)
-        increases.append((float(np.sum(sol.fun ** 2)) - base) / noise_nT ** 2)
+            _, cost, _ = lm_normal(reduced, np.zeros(8), tol=1e-10, max_iter=REFERENCE_MAX_ITER)
+        increases.append((cost - base) / noise_nT ** 2)
     worst = min(increases)
     if worst >= limits.profile_chi2:
         return []
@@ -171,9 +169,6 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
             f"refitting the rest) raises the squared error by only {max(worst, 0.0):.3g} noise variances (a "
             f"determined offset needs {limits.profile_chi2:g}); the readings lie close to a plane (out-of-plane "
             f"spread {100 * ratio:.2g} % of the in-plane spread): tilt the sensor more or use --model angles"]
-
-
-_Z0 = np.zeros(8)
 
 
 def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust: bool, closed_form: bool,

@@ -163,6 +163,15 @@ class Problem:
     def gradient(self, x: np.ndarray) -> np.ndarray:
         return self._evaluator.gradient(x)
 
+    def normal_equations(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(J^T J, J^T r, r^T r)`` accumulated in bounded memory: one counted evaluation, one Jacobian."""
+        return self._evaluator.normal_equations(x)
+
+    @property
+    def n_points(self) -> int:
+        """How many readings the objective sums over (their number, not their values)."""
+        return self._evaluator.n_points
+
     # what the counter knows
     @property
     def n_params(self) -> int:

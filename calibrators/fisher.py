@@ -34,9 +34,8 @@ def noise_weights(objective: ScalarObjective, x: np.ndarray) -> np.ndarray:
 
 
 def fisher_information(objective: ScalarObjective, x: np.ndarray, noise_nT: float) -> np.ndarray:
-    jac = objective.jacobian(x)
-    w = 1.0 / (noise_nT ** 2 * noise_weights(objective, x))
-    return jac.T @ (jac * w[:, None])
+    """``J^T W J / sigma²`` with ``W = 1/|M^T u|²``, accumulated block by block (bounded memory)."""
+    return objective.normal_equations(x, weighted=True)[0] / noise_nT ** 2
 
 
 def crb_covariance(objective: ScalarObjective, x: np.ndarray, noise_nT: float) -> np.ndarray:
@@ -57,11 +56,12 @@ def coverage(objective: ScalarObjective, x: np.ndarray) -> dict:
     Jacobian, the CRB standard deviation per nT of noise, the worst parameter relative to the
     thresholds, and ``warning``/``refusal`` messages (``None`` when fine)."""
     names = PARAM_NAMES[objective.model]
-    jac = objective.jacobian(x)
-    norms = np.linalg.norm(jac, axis=0)
+    gram = objective.normal_equations(x)[0]  # J^T J: the singular values of J are its eigenvalues' roots
+    norms = np.sqrt(np.maximum(np.diag(gram), 0.0))
     with np.errstate(divide="ignore", invalid="ignore"):
-        sv = np.linalg.svd(jac / np.where(norms > 0, norms, 1.0), compute_uv=False)
-    cond = float(sv[0] / sv[-1]) if sv[-1] > 0 and np.all(norms > 0) else np.inf
+        scaled = gram / np.outer(np.where(norms > 0, norms, 1.0), np.where(norms > 0, norms, 1.0))
+        ev = np.linalg.eigvalsh(scaled)
+    cond = float(np.sqrt(ev[-1] / ev[0])) if ev[0] > 0 and np.all(norms > 0) else np.inf
     f = float(np.median(objective.f_ref_nT))
     n = objective.raw_nT.shape[0]
     sigma = crb_std(objective, x, 1.0) if np.isfinite(cond) else np.full(len(names), np.inf)

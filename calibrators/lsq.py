@@ -5,22 +5,32 @@ reaches the Cramér-Rao bound (tests/test_lsq.py)."""
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult, least_squares
 
 from magbench.errors import InputError
 
 from .base import Calibrator, Problem, SolveOutput
+from .objective import lm_normal
 from .registry import register
+
+
+LARGE_RECORD = 100_000
+"""From this many readings on, least squares runs on the normal equations accumulated block by block
+(bounded memory, one pass per iteration) instead of on the full (n, p) Jacobian."""
 
 
 def levenberg_marquardt(problem: Problem, x_start: np.ndarray, tol: float = 1e-12, max_nfev: int = 200,
                         bounded: bool = True):
     """Least squares on the problem's counted residuals and analytic Jacobian from ``x_start``: the
     trust-region reflective method inside the problem's search box (``bounded``), or plain
-    Levenberg-Marquardt (MINPACK)."""
+    Levenberg-Marquardt (MINPACK); on a long record, Levenberg-Marquardt on the normal equations."""
     left = problem.evaluations_left
     if left is not None:
         max_nfev = max(1, min(max_nfev, left))
+    if problem.n_points >= LARGE_RECORD:
+        lo, hi = (problem.lower, problem.upper) if bounded else (None, None)
+        x, cost, calls = lm_normal(problem.normal_equations, x_start, lo, hi, tol=tol, max_iter=max_nfev - 1)
+        return OptimizeResult(x=x, status=2, nfev=calls, message="normal-equation Levenberg-Marquardt converged")
     if bounded:
         lo, hi = problem.lower, problem.upper
         x_start = np.clip(x_start, lo + 1e-12, hi - 1e-12)

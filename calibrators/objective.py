@@ -98,14 +98,23 @@ class ScalarObjective:
         self.f_ref_nT = np.broadcast_to(np.asarray(f_ref_nT, dtype=float), (self.raw_nT.shape[0],))
         self.model = model
         self.n_params = n_params(model)
-        x, y, z = self.raw_nT.T
-        cols = [x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z]
-        if model == "nine":
-            cols += [x, y, z, np.ones_like(x)]
-        self._design = np.ascontiguousarray(np.array(cols))  # (6 or 10, n)
-        self._design_mean = self._design.mean(axis=1)
-        self._f_scaled = 2.0 * self.f_ref_nT / self.raw_nT.shape[0]
-        self._f2_mean = float(np.mean(self.f_ref_nT**2))
+        self._raw_t = np.ascontiguousarray(self.raw_nT.T)  # (3, n): one contiguous row per axis
+        self._design_cache: np.ndarray | None = None  # built on the first population call
+
+    @property
+    def _design(self) -> np.ndarray:
+        """The quadric design (6 or 10, n) of the population form, built once when first needed (local
+        methods on large records never need it)."""
+        if self._design_cache is None:
+            x, y, z = self.raw_nT.T
+            cols = [x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z]
+            if self.model == "nine":
+                cols += [x, y, z, np.ones_like(x)]
+            self._design_cache = np.ascontiguousarray(np.array(cols))
+            self._design_mean = self._design_cache.mean(axis=1)
+            self._f_scaled = 2.0 * self.f_ref_nT / self.raw_nT.shape[0]
+            self._f2_mean = float(np.mean(self.f_ref_nT**2))
+        return self._design_cache
 
     def values(self, x: np.ndarray, exact: bool | None = None) -> np.ndarray:
         """F(X) of eq. 3 for each row of a population: (m, p) -> (m,).
@@ -126,37 +135,125 @@ class ScalarObjective:
         return q @ self._design_mean - c2 @ self._f_scaled + self._f2_mean
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
-        """Residuals at one point, computed directly as |M (raw - o)| - F (the reference form)."""
+        """Residuals at one point, computed directly as |M (raw - o)| - F (the reference form), block by block."""
         mat, o = correction_matrices(np.asarray(x, dtype=float)[None, :], self.model)
-        c = (self.raw_nT - o[0]) @ mat[0].T
-        return np.linalg.norm(c, axis=1) - self.f_ref_nT
+        out = np.empty(self.raw_nT.shape[0])
+        for rows in self._blocks():
+            c = _lower_times(mat[0], self._raw_t[:, rows] - o[0][:, None])
+            out[rows] = np.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])
+        out -= self.f_ref_nT
+        return out
 
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
-        """d r_i / d x (n, p), analytic: dr/dθ = u^T (dM/dθ) d, dr/do = -u^T M, u = c/|c|, d = raw - o."""
+    def _block(self, x: np.ndarray, rows: slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Residuals r, the transposed Jacobian J^T (p, m) and the noise weights |M^T u|² of a block of rows.
+
+        Analytic: dr/dθ = u^T (dM/dθ) d, dr/do = -u^T M, u = c/|c|, d = raw - o, c = M d.  Column 0 of M
+        depends on alpha, gamma, kx; column 1 on beta, ky; column 2 on kz.  M is lower triangular, so the
+        products are written out (a (m, 3) x (3, 3) BLAS call is slow for long m).
+        """
         x = np.asarray(x, dtype=float)
         mat, o = correction_matrices(x[None, :], self.model)
         mat, o = mat[0], o[0]
-        d = self.raw_nT - o
-        c = d @ mat.T
-        u = c / np.linalg.norm(c, axis=1, keepdims=True)
+        d = self._raw_t[:, rows] - o[:, None]  # (3, m)
+        c = _lower_times(mat, d)
+        norm = np.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])
+        u = c / norm
         a, b, g = x[:3]
         ik = 1.0 / x[3:6] if self.model == "nine" else np.ones(3)
         ca, sa, cb, sb, cg, sg = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(g), np.sin(g)
-        jac = np.empty((self.raw_nT.shape[0], self.n_params))
-        # column 0 of M depends on alpha, gamma, kx; column 1 on beta, ky; column 2 on kz
-        jac[:, 0] = (u[:, 0] * (-sa * cg) + u[:, 2] * (ca * cg)) * ik[0] * d[:, 0]
-        jac[:, 1] = (u[:, 1] * (-sb) + u[:, 2] * cb) * ik[1] * d[:, 1]
-        jac[:, 2] = (u[:, 0] * (-ca * sg) + u[:, 1] * cg + u[:, 2] * (-sa * sg)) * ik[0] * d[:, 0]
+        jt = np.empty((self.n_params, d.shape[1]))
+        jt[0] = (u[0] * (-sa * cg) + u[2] * (ca * cg)) * (ik[0] * d[0])
+        jt[1] = (u[1] * (-sb) + u[2] * cb) * (ik[1] * d[1])
+        jt[2] = (u[0] * (-ca * sg) + u[1] * cg + u[2] * (-sa * sg)) * (ik[0] * d[0])
+        mtu = np.empty_like(u)  # M^T u (M lower triangular: M^T upper)
+        mtu[0] = mat[0, 0] * u[0] + mat[1, 0] * u[1] + mat[2, 0] * u[2]
+        mtu[1] = mat[1, 1] * u[1] + mat[2, 1] * u[2]
+        mtu[2] = mat[2, 2] * u[2]
         if self.model == "nine":
-            jac[:, 3] = -(u @ mat[:, 0]) * d[:, 0] * ik[0]
-            jac[:, 4] = -(u @ mat[:, 1]) * d[:, 1] * ik[1]
-            jac[:, 5] = -(u @ mat[:, 2]) * d[:, 2] * ik[2]
-            jac[:, 6:9] = -u @ mat
-        return jac
+            jt[3:6] = -mtu * d * ik[:, None]
+            jt[6:9] = -mtu
+        return norm - self.f_ref_nT[rows], jt, mtu[0] * mtu[0] + mtu[1] * mtu[1] + mtu[2] * mtu[2]
+
+    def _blocks(self):
+        n = self.raw_nT.shape[0]
+        return [slice(i, min(i + CHUNK_ROWS, n)) for i in range(0, n, CHUNK_ROWS)]
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        """d r_i / d x (n, p), analytic (see ``_block``), computed block by block."""
+        out = np.empty((self.n_params, self.raw_nT.shape[0]))
+        for rows in self._blocks():
+            out[:, rows] = self._block(x, rows)[1]
+        return out.T
+
+    def normal_equations(self, x: np.ndarray, weighted: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(J^T W J, J^T W r, r^T W r)`` accumulated over blocks of ``CHUNK_ROWS`` rows, so that the
+        memory is bounded whatever the record's length (W = I, or 1/|M^T u|² with ``weighted``: the Fisher
+        information per unit noise variance)."""
+        p = self.n_params
+        jtj, jtr, rtr = np.zeros((p, p)), np.zeros(p), 0.0
+        for rows in self._blocks():
+            r, jt, w = self._block(x, rows)
+            if weighted:
+                jw = jt / w
+                jtj += jw @ jt.T
+                jtr += jw @ r
+                rtr += float(r @ (r / w))
+            else:
+                jtj += jt @ jt.T
+                jtr += jt @ r
+                rtr += float(r @ r)
+        return jtj, jtr, rtr
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """dF/dx of eq. 3: (2/N) J^T r."""
-        return 2.0 * self.jacobian(x).T @ self.residuals(x) / self.raw_nT.shape[0]
+        return 2.0 * self.normal_equations(x)[1] / self.raw_nT.shape[0]
+
+
+def _lower_times(mat: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """M d for a lower-triangular 3x3 M and d of shape (3, m), written out."""
+    c = np.empty_like(d)
+    np.multiply(d[0], mat[0, 0], out=c[0])
+    c[1] = mat[1, 0] * d[0] + mat[1, 1] * d[1]
+    c[2] = mat[2, 0] * d[0] + mat[2, 1] * d[1] + mat[2, 2] * d[2]
+    return c
+
+
+def lm_normal(normal_equations, x: np.ndarray, lower: np.ndarray | None = None, upper: np.ndarray | None = None,
+              tol: float = 1e-12, max_iter: int = 100) -> tuple[np.ndarray, float, int]:
+    """Levenberg-Marquardt on the normal equations (Marquardt's diagonal scaling; a step leaving the box
+    is projected back onto it): ``normal_equations(x)`` returns ``(J^T J, J^T r, r^T r)``, which a long
+    record accumulates block by block in bounded memory.  Stops when the sum of squares or the step no
+    longer changes relative to ``tol``.  Returns the point, its sum of squares and the number of calls."""
+    x = np.asarray(x, dtype=float).copy()
+    a, g, cost = normal_equations(x)
+    calls, damping = 1, 1e-3
+    for _ in range(max_iter):
+        diag = np.maximum(np.diag(a), 1e-300)
+        try:
+            step = np.linalg.solve(a + damping * np.diag(diag), -g)
+        except np.linalg.LinAlgError:
+            damping *= 10.0
+            continue
+        trial = x + step
+        if lower is not None:
+            trial = np.clip(trial, lower, upper)
+        a_t, g_t, cost_t = normal_equations(trial)
+        calls += 1
+        if np.isfinite(cost_t) and cost_t < cost:
+            done = cost - cost_t <= tol * cost or np.linalg.norm(trial - x) <= tol * (np.linalg.norm(x) + tol)
+            x, a, g, cost = trial, a_t, g_t, cost_t
+            damping = max(damping / 3.0, 1e-15)
+            if done:
+                break
+        else:
+            damping *= 4.0
+            if damping > 1e15:
+                break
+    return x, float(cost), calls
+
+
+CHUNK_ROWS = 1 << 15
+"""Rows per block of the Jacobian computations: a block of the (p, m) Jacobian stays in the cache."""
 
 
 @dataclass(frozen=True)
@@ -291,6 +388,19 @@ class Evaluator:
         self._allowance(0)
         self.n_jacobians += 1
         return self._objective.jacobian(x)
+
+    def normal_equations(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(J^T J, J^T r, r^T r)`` at one point: one counted evaluation and one Jacobian."""
+        self._allowance(1)
+        out = self._objective.normal_equations(x)
+        self.n_jacobians += 1
+        n = self._objective.raw_nT.shape[0]
+        self._record(np.asarray(x, dtype=float)[None, :], np.array([out[2] / n]))
+        return out
+
+    @property
+    def n_points(self) -> int:
+        return self._objective.raw_nT.shape[0]
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         self._allowance(0)
