@@ -30,6 +30,9 @@ from .objective import ScalarObjective, lm_normal
 
 MAD_TO_SIGMA = 1.4826
 """Median absolute deviation to standard deviation for Gaussian noise."""
+PROFILE_ATOL = 0.02
+"""The profile refit stops once an iteration lowers the sum of squares by less than this many noise
+variances (the test compares the increase with 9 of them)."""
 REFERENCE_MAX_ITER = 30
 """Iterations the judge's own least-squares polish may take (from a good answer it needs one or two)."""
 
@@ -159,8 +162,9 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
             a, g, cost = objective.normal_equations(fixed + transform @ z)
             return transform.T @ a @ transform, transform.T @ g, cost
 
-        with np.errstate(all="ignore"):
-            _, cost, _ = lm_normal(reduced, np.zeros(8), tol=1e-10, max_iter=REFERENCE_MAX_ITER)
+        with np.errstate(all="ignore"):  # the increase is needed to a small fraction of one noise variance
+            _, cost, _ = lm_normal(reduced, np.zeros(8), tol=1e-10, max_iter=REFERENCE_MAX_ITER,
+                                   atol=PROFILE_ATOL * noise_nT ** 2)
         increases.append((cost - base) / noise_nT ** 2)
     worst = min(increases)
     if worst >= limits.profile_chi2:

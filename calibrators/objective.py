@@ -219,11 +219,12 @@ def _lower_times(mat: np.ndarray, d: np.ndarray) -> np.ndarray:
 
 
 def lm_normal(normal_equations, x: np.ndarray, lower: np.ndarray | None = None, upper: np.ndarray | None = None,
-              tol: float = 1e-12, max_iter: int = 100) -> tuple[np.ndarray, float, int]:
+              tol: float = 1e-12, max_iter: int = 100, atol: float = 0.0) -> tuple[np.ndarray, float, int]:
     """Levenberg-Marquardt on the normal equations (Marquardt's diagonal scaling; a step leaving the box
     is projected back onto it): ``normal_equations(x)`` returns ``(J^T J, J^T r, r^T r)``, which a long
     record accumulates block by block in bounded memory.  Stops when the sum of squares or the step no
-    longer changes relative to ``tol``.  Returns the point, its sum of squares and the number of calls."""
+    longer changes relative to ``tol``, or the sum of squares by less than ``atol``.  Returns the point, its
+    sum of squares and the number of calls."""
     x = np.asarray(x, dtype=float).copy()
     a, g, cost = normal_equations(x)
     calls, damping = 1, 1e-3
@@ -240,7 +241,8 @@ def lm_normal(normal_equations, x: np.ndarray, lower: np.ndarray | None = None, 
         a_t, g_t, cost_t = normal_equations(trial)
         calls += 1
         if np.isfinite(cost_t) and cost_t < cost:
-            done = cost - cost_t <= tol * cost or np.linalg.norm(trial - x) <= tol * (np.linalg.norm(x) + tol)
+            done = (cost - cost_t <= max(tol * cost, atol)
+                    or np.linalg.norm(trial - x) <= tol * (np.linalg.norm(x) + tol))
             x, a, g, cost = trial, a_t, g_t, cost_t
             damping = max(damping / 3.0, 1e-15)
             if done:

@@ -172,6 +172,8 @@ def guess_unit(median_magnitude: float, expected_nT: float) -> str:
 
 MAX_ABS_NT = 1.0e9
 """No reading or reference exceeds 1 T (1e9 nT) in magnitude: a larger number is a broken row, not a field."""
+NUMERIC_COLUMNS = FIELD_COLUMNS + ("t", "temp", "heading_deg", "ax", "ay", "az")
+"""Columns read as numbers (CONTRACT section 2); any other column is kept as text and ignored."""
 MAX_ABS_OTHER = 1.0e12
 """The largest magnitude accepted in the other numeric columns (time in s, temperature, heading)."""
 DELIMITERS = (",", ";", "\t")
@@ -222,13 +224,19 @@ def _header(path: Path, line: str) -> tuple[str, list[str]]:
     return sep, names
 
 
-def _table(path: Path, skipped: int, sep: str, names: list[str]):
+def _table(path: Path, skipped: int, sep: str, names: list[str], numeric: list[str]):
+    """The data rows: the numeric columns parsed straight to floats (the fast path: two million rows in
+    about a second, no string objects); when that fails, everything as text so that the bad value can be
+    named by ``_numeric``."""
     import pandas as pd
 
+    options = dict(sep=sep, skiprows=skipped + 1, header=None, names=names, encoding=ENCODINGS[0],
+                   skipinitialspace=True, comment=None, engine="c", skip_blank_lines=True, index_col=False)
     try:
-        frame = pd.read_csv(path, sep=sep, skiprows=skipped + 1, header=None, names=names, dtype=str,
-                            encoding=ENCODINGS[0], skipinitialspace=True, comment=None, engine="c",
-                            na_filter=False, skip_blank_lines=True, index_col=False)
+        try:
+            frame = pd.read_csv(path, dtype={n: np.float64 for n in numeric}, na_filter=False, **options)
+        except ValueError:
+            frame = pd.read_csv(path, dtype=str, na_filter=False, **options)
     except Exception as exc:  # pandas raises several parser errors
         raise InputError(f"{path} is not a readable CSV file: {str(exc).splitlines()[0]}") from None
     if len(frame) == 0:
@@ -241,7 +249,10 @@ def _numeric(path: Path, frame, name: str, first_line: int) -> np.ndarray:
     import pandas as pd
 
     text = frame[name]
-    values = pd.to_numeric(text.str.strip(), errors="coerce").to_numpy(dtype=float)
+    if text.dtype == np.float64:
+        values = text.to_numpy()
+    else:
+        values = pd.to_numeric(text.astype(str).str.strip(), errors="coerce").to_numpy(dtype=float)
     is_field = name in FIELD_COLUMNS
     limit = MAX_ABS_NT if is_field else MAX_ABS_OTHER
     with np.errstate(invalid="ignore"):
@@ -285,7 +296,8 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
         raise InputError(f"unknown unit {units!r}: use one of nT, uT, mG, G")
     meta, skipped, header_line = _file_head(path)
     sep, names = _header(path, header_line)
-    frame = _table(path, skipped, sep, names)
+    numeric = [c for c in names if c in NUMERIC_COLUMNS]
+    frame = _table(path, skipped, sep, names, numeric)
     first_line = skipped + 2
     has_vector = all(c in names for c in ("bx", "by", "bz"))
     scalar_col = next((c for c in ("f_meas", "f_meas_before") if c in names), None)
