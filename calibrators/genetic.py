@@ -6,6 +6,8 @@ and mutation act on the whole population as arrays (no Python loop over individu
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from magbench.errors import InputError
@@ -85,28 +87,16 @@ class AdaptiveGA(Calibrator):
             raise InputError("aga: population must be an even number >= 2")
         if self.mutation not in ("single_bit", "per_bit"):
             raise InputError("aga: mutation must be 'single_bit' or 'per_bit'")
-        rng, obj = problem.rng, problem
-        lo, hi = problem.lower, problem.upper
-        p, nb, m = len(lo), self.bits, self.population
-        length = p * nb
-        step = (hi - lo) / (2**nb - 1)  # eq. 6
-        half = m // 2
-        # The bit string s = (s_alpha, s_beta, ...) of eq. 7 is held as one nb-bit integer per gene,
-        # most significant bit first; crossover and mutation below act on bit positions exactly as on
-        # the string, with integer masks instead of (m, length) bit arrays.
-        gene_of = np.arange(length) // nb
-        bit_of = nb - 1 - np.arange(length) % nb  # significance of each string position within its gene
-        # crossover at cut c swaps the string positions >= c: in gene j (positions j*nb .. j*nb+nb-1,
-        # MSB first) its lowest clip((j+1)*nb - c, 0, nb) bits; c = length means no crossover
-        gene_end = (np.arange(p) + 1) * nb
-        swap_masks = (1 << np.clip(gene_end[None, :] - np.arange(length + 1)[:, None], 0, nb)) - 1
-
-        pop = rng.integers(0, 2**nb, size=(m, p), dtype=np.int64)  # step 1: random bit strings
+        rng, lo, hi = problem.rng, problem.lower, problem.upper
+        layout = _BitLayout.of(len(lo), self.bits)
+        step = (hi - lo) / (2**self.bits - 1)  # eq. 6
+        m = self.population
+        pop = rng.integers(0, 2**self.bits, size=(m, len(lo)), dtype=np.int64)  # step 1: random bit strings
         k, k_max, g_prev = 1, self.k_max, None
         best_g, mean_g = [], []
         stop = "max_generations"
         while True:
-            g = 1.0 / (1.0 + obj.values(lo + pop * step))  # eq. 7, eq. 8 (step 2)
+            g = 1.0 / (1.0 + problem.values(lo + pop * step))  # eq. 7, eq. 8 (step 2)
             g_avg, g_max = g.sum() / m, g.max()
             best_g.append(g_max)
             mean_g.append(g_avg)
@@ -118,33 +108,7 @@ class AdaptiveGA(Calibrator):
                     break
                 k_max *= 2
             g_prev = g_avg
-            u = rng.random(4 * m)  # this generation's uniform draws, in one call
-            # step 3: roulette wheel, eq. 9 (u < 1, so the pointer always lands inside the wheel)
-            cum = np.cumsum(g)
-            idx = np.searchsorted(cum, u[:m] * cum[-1], side="right")
-            mates, g_mates = pop[idx], g[idx]
-            # step 4: random pairs, single-point crossover at a random cut 1..length-1 with the Pc of eq. 4
-            order = np.argsort(u[m:2 * m])
-            a, b = order[:half], order[half:]
-            pa, pb = mates[a], mates[b]
-            f_pair = np.maximum(g_mates[a], g_mates[b])
-            pc = adaptive_probability(f_pair, g_max, g_avg, self.pc1, self.pc2)
-            cross = u[2 * m:2 * m + half] < pc
-            cut = np.where(cross, 1 + (u[2 * m + half:3 * m] * (length - 1)).astype(np.int64), length)
-            diff = (pa ^ pb) & swap_masks[cut]
-            child = np.concatenate([pa ^ diff, pb ^ diff])
-            # step 5: mutation with the Pm of eq. 5 (fitness of the individual before crossover)
-            pm = adaptive_probability(np.concatenate([g_mates[a], g_mates[b]]), g_max, g_avg, self.pm1, self.pm2)
-            if self.mutation == "single_bit":
-                rows = np.flatnonzero(u[3 * m:] < pm)
-                pos = rng.integers(0, length, size=rows.size)
-                child[rows, gene_of[pos]] ^= 1 << bit_of[pos]
-            else:
-                flips = rng.random((m, length)) < pm[:, None]
-                child ^= (flips.reshape(m, p, nb) << np.arange(nb - 1, -1, -1)).sum(axis=2)
-            if self.elitism:  # not in the paper: the best individuals replace the first children
-                child[:self.elitism] = pop[np.argpartition(-g, self.elitism - 1)[:self.elitism]]
-            pop = child
+            pop = self._next_generation(pop, g, g_max, g_avg, layout, rng)
             k += 1
         # step 7: the best individual of all generations (kept by the shared counter)
         x_best = problem.best_x
@@ -157,6 +121,61 @@ class AdaptiveGA(Calibrator):
                            message=f"{k} generations; stop: {stop}", nit=k,
                            extra={"generations": k, "best_fitness": best_g, "mean_fitness": mean_g,
                                   "resolution": step.tolist()})
+
+    def _next_generation(self, pop: np.ndarray, g: np.ndarray, g_max: float, g_avg: float, layout: "_BitLayout",
+                         rng: np.random.Generator) -> np.ndarray:
+        """Steps 3-5 of seed 000 section 2.2 on the whole population: roulette selection (eq. 9), random
+        pairing with single-point crossover at the adaptive Pc (eq. 4), mutation at the adaptive Pm
+        (eq. 5); then the optional elitism (not in the paper)."""
+        m, half, length = len(pop), len(pop) // 2, layout.length
+        u = rng.random(4 * m)  # this generation's uniform draws, in one call
+        # step 3: roulette wheel, eq. 9 (u < 1, so the pointer always lands inside the wheel)
+        cum = np.cumsum(g)
+        idx = np.searchsorted(cum, u[:m] * cum[-1], side="right")
+        mates, g_mates = pop[idx], g[idx]
+        # step 4: random pairs, single-point crossover at a random cut 1..length-1 with the Pc of eq. 4
+        order = np.argsort(u[m:2 * m])
+        a, b = order[:half], order[half:]
+        pa, pb = mates[a], mates[b]
+        pc = adaptive_probability(np.maximum(g_mates[a], g_mates[b]), g_max, g_avg, self.pc1, self.pc2)
+        cross = u[2 * m:2 * m + half] < pc
+        cut = np.where(cross, 1 + (u[2 * m + half:3 * m] * (length - 1)).astype(np.int64), length)
+        diff = (pa ^ pb) & layout.swap_masks[cut]
+        child = np.concatenate([pa ^ diff, pb ^ diff])
+        # step 5: mutation with the Pm of eq. 5 (fitness of the individual before crossover)
+        pm = adaptive_probability(np.concatenate([g_mates[a], g_mates[b]]), g_max, g_avg, self.pm1, self.pm2)
+        if self.mutation == "single_bit":
+            rows = np.flatnonzero(u[3 * m:] < pm)
+            pos = rng.integers(0, length, size=rows.size)
+            child[rows, layout.gene_of[pos]] ^= 1 << layout.bit_of[pos]
+        else:
+            p, nb = pop.shape[1], length // pop.shape[1]
+            flips = rng.random((m, length)) < pm[:, None]
+            child ^= (flips.reshape(m, p, nb) << np.arange(nb - 1, -1, -1)).sum(axis=2)
+        if self.elitism:  # not in the paper: the best individuals replace the first children
+            child[:self.elitism] = pop[np.argpartition(-g, self.elitism - 1)[:self.elitism]]
+        return child
+
+
+@dataclass(frozen=True)
+class _BitLayout:
+    """Where each position of seed 000's bit string (eq. 7) lies.  The string s = (s_alpha, s_beta, ...)
+    is held as one nb-bit integer per gene, most significant bit first; crossover and mutation act on
+    bit positions exactly as on the string, with integer masks instead of (m, length) bit arrays."""
+
+    length: int
+    gene_of: np.ndarray  # gene of each string position
+    bit_of: np.ndarray  # significance of each string position within its gene
+    swap_masks: np.ndarray  # (length + 1, p): the bits of each gene that a cut at c swaps
+
+    @classmethod
+    def of(cls, p: int, nb: int) -> "_BitLayout":
+        length = p * nb
+        # a cut at c swaps the string positions >= c: in gene j (positions j*nb .. j*nb+nb-1, MSB first)
+        # its lowest clip((j+1)*nb - c, 0, nb) bits; c = length means no crossover
+        gene_end = (np.arange(p) + 1) * nb
+        swap_masks = (1 << np.clip(gene_end[None, :] - np.arange(length + 1)[:, None], 0, nb)) - 1
+        return cls(length, np.arange(length) // nb, nb - 1 - np.arange(length) % nb, swap_masks)
 
 
 @register
