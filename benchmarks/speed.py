@@ -11,6 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+COMMAND = "python -m magbench.benchmarks.speed"
 
 
 def suite_file(name: str) -> Path:
@@ -23,7 +24,6 @@ def suite_file(name: str) -> Path:
     from magbench.errors import InputError
 
     raise InputError(f"the benchmark suite (benchmarks/suite/{name}) is not here: run from a source checkout")
-COMMAND = "python -m magbench.benchmarks.speed"
 
 
 def run(out_dir: Path) -> Path:
