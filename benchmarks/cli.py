@@ -18,6 +18,13 @@ import numpy as np
 from magbench.errors import InputError
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_REJECTED = 0, 1, 2, 3
+EXIT_STATUS_HELP = """exit status:
+  0    success
+  2    bad input or usage (one line on stderr; nothing on stdout; the input is never changed)
+  3    a calibration ran but its acceptance checks reject it (the cause on stderr; --json still
+       prints the whole result with "accepted": false and "rejections"); --accept-any keeps it (exit 0)
+  130  interrupted; an interrupted campaign keeps its finished runs: compare ... --resume completes it
+  1    anything else (set MAGBENCH_DEBUG=1 for a traceback)"""
 
 
 class UsageError(InputError):
@@ -395,7 +402,8 @@ def cmd_reproduce(args) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="magbench", description="Simulate tri-axial fluxgate magnetometers and benchmark "
-                     "their calibration algorithms.")
+                     "their calibration algorithms.", epilog=EXIT_STATUS_HELP,
+                     formatter_class=argparse.RawDescriptionHelpFormatter)
     from magbench import __version__
 
     parser.add_argument("--version", action="version", version=f"magbench {__version__}")
