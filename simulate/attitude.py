@@ -10,8 +10,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-SCHEDULES = ("turntable", "sphere", "cap", "vehicle", "tumble")
-
 
 @dataclass(frozen=True)
 class Attitudes:
