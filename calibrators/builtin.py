@@ -1,2 +1,2 @@
 """Importing this module registers the built-in calibrators."""
-from . import aco, ellipsoid, genetic, lsq, nloptcal, ransac, tls  # noqa: F401
+from . import aco, cmaes, de, ellipsoid, genetic, lsq, nloptcal, ransac, tls  # noqa: F401

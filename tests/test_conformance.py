@@ -21,7 +21,8 @@ def test_conformance(name, check, model):
 def test_battery_covers_every_calibrator_and_check():
     names = {c[0] for c in CASES}
     assert names == set(available())
-    assert {"lsq", "ellipsoid", "aga", "aga-lm", "ga", "rga", "aco", "nlopt", "ransac", "tls", "ttls"} <= names
+    assert {"lsq", "ellipsoid", "aga", "aga-lm", "ga", "rga", "aco", "nlopt", "ransac", "tls", "ttls", "cmaes",
+            "de"} <= names
     assert {c[1] for c in CASES} == set(C.CHECKS)
 
 
