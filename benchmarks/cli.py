@@ -468,7 +468,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_compare)
 
-    from magbench.benchmarks.gradiometer import add_gradiometer_command
+    from magbench.benchmarks.gradiometer_cli import add_gradiometer_command
 
     add_gradiometer_command(sub)
 

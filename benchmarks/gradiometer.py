@@ -21,8 +21,6 @@ each sensor) while their gradient stays right.
 """
 from __future__ import annotations
 
-import argparse
-import json
 import time
 
 import numpy as np
@@ -244,34 +242,3 @@ def format_report(r: dict) -> str:
     """The human table of ``run_gradiometer``'s result."""
     parts = (_header(r), _gradient_table(r), _sensor_table(r), _parameter_table(r), _ga_summary(r))
     return "\n\n".join("\n".join(p) for p in parts)
-
-
-# --------------------------------------------------------------------------------------------------
-# The command
-# --------------------------------------------------------------------------------------------------
-
-def _cmd_gradiometer(args) -> int:
-    r = run_gradiometer(seed=args.seed, n_points=args.points, fluctuation_nT=args.fluctuation_nT,
-                        noise_nT=args.noise_nT)
-    print(json.dumps(r) if args.json else format_report(r))
-    return 0
-
-
-def add_gradiometer_command(subparsers) -> argparse.ArgumentParser:
-    """Add ``gradiometer`` (seed 001's experiment) to an argparse subparsers object; ``func(args)`` prints
-    the table (or one JSON object with ``--json``) and returns 0; bad values raise ``InputError``."""
-    p = subparsers.add_parser(
-        "gradiometer", help="seed 001: calibrate a two-fluxgate gradiometer by GA under a fluctuating field",
-        description="Simulate seed 001's gradiometer (two tri-axial fluxgates on one rigid body, 24 parameters) "
-                    "in a field fluctuating in time, calibrate it by single-sensor ellipsoid fits and by the "
-                    "paper's three 6-gene GAs, and report the per-axis gradient residual (paper: 1.85 nT).")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--points", type=int, default=DEFAULT_POINTS,
-                   help=f"number of attitudes in the record (default {DEFAULT_POINTS})")
-    p.add_argument("--fluctuation-nT", dest="fluctuation_nT", type=float, default=DEFAULT_FLUCTUATION_NT,
-                   help=f"largest deviation of the ambient field in time, nT (default {DEFAULT_FLUCTUATION_NT:g})")
-    p.add_argument("--noise-nT", dest="noise_nT", type=float, default=DEFAULT_NOISE_NT,
-                   help=f"white noise per axis of each sensor, nT (default {DEFAULT_NOISE_NT})")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=_cmd_gradiometer)
-    return p

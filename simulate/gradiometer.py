@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from magbench import paper
 from magbench.errors import InputError
 
 from .attitude import full_sphere, tumble
@@ -47,25 +48,13 @@ from .field import ConstantField, VaryingField
 DEFAULT_FIELD = ConstantField.from_angles(50_000.0, 50.0, -5.0)
 """Section 4.1: inclination 50 deg, declination -5 deg (east positive); 50 000 nT is ours."""
 
-DEFAULT_NOISE_NT = 1.1
-"""White noise per axis of each sensor, nT (ours; the paper neglects noise and gives no level).  Chosen so
-that the gradient residual after the GA lands at the paper's 1.85 nT on average over seeds: a perfect
-calibration leaves sqrt(2) x 1.1 = 1.56 nT (both sensors' noise), and fitting each row on only 12 noisy
-attitudes (point (3) of section 3) adds about 15 % on the rest of the record (3 effective unknowns per row
-on 12 equations: sqrt(1 + 3/9)).  The paper's headline is therefore mostly a noise floor, not a property of
-the GA; for a Mag-03MS (a few pT/sqrt(Hz)) 1.1 nT stands for the acquisition chain and the environment."""
-
-DEFAULT_FLUCTUATION_NT = 200.0
-"""Largest deviation of the ambient field in time (seed 001, Fig. 2 and Fig. 6: up to 200 nT)."""
-
-DEFAULT_POINTS = 400
-"""Attitudes in a simulated record (ours)."""
-
-DEFAULT_DURATION_S = 600.0
-"""Length of a simulated record, s (ours)."""
-
-MIN_POINTS = 20
-"""Fewest attitudes a record may have (the ellipsoid fits need 9, the GAs 12 distinct ones)."""
+# Seed 001's record settings, defined once in magbench.paper (the command line reads them without
+# importing the simulator)
+DEFAULT_NOISE_NT = paper.GRADIOMETER_NOISE_NT
+DEFAULT_FLUCTUATION_NT = paper.GRADIOMETER_FLUCTUATION_NT
+DEFAULT_POINTS = paper.GRADIOMETER_POINTS
+DEFAULT_DURATION_S = paper.GRADIOMETER_DURATION_S
+MIN_POINTS = paper.GRADIOMETER_MIN_POINTS
 
 ATTITUDES = ("tumble", "sphere")
 """Attitude sequences the simulator offers (see ``simulate_gradiometer``)."""

@@ -6,7 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from magbench.benchmarks.gradiometer import add_gradiometer_command, gradient_rms, run_gradiometer
+from magbench.benchmarks.gradiometer import gradient_rms, run_gradiometer
+from magbench.benchmarks.gradiometer_cli import add_gradiometer_command
 from magbench.calibrators.gradiometer import (RowGA, RowObjective, ellipsoid_calibration, ga_gradient_calibration,
                                               true_calibration)
 from magbench.calibrators.objective import Budget, Evaluator
