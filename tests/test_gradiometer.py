@@ -193,13 +193,20 @@ def test_command_table(capsys):
 
 @pytest.mark.parametrize("argv", [
     ["--points", "-5"], ["--points", "0"], ["--fluctuation-nT", "-1"], ["--noise-nT", "-0.1"],
-    ["--noise-nT", "nan"], ["--seed", "-1"],
+    ["--noise-nT", "nan"],
 ])
 def test_command_refuses_bad_input(argv):
     args = _parser().parse_args(["gradiometer", *argv])
     with pytest.raises(InputError) as exc:
         args.func(args)
     assert "\n" not in str(exc.value) and str(exc.value)
+
+
+def test_command_refuses_a_negative_seed_as_usage(capsys):
+    from magbench.benchmarks.cli import main
+
+    assert main(["gradiometer", "--seed", "-1"]) == 2
+    assert "negative" in capsys.readouterr().err
 
 
 def test_bad_ga_options():
