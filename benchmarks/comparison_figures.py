@@ -1,0 +1,107 @@
+"""Figures of the method comparison (``benchmarks/comparison.py``): runtime ECDFs, anytime curves and
+performance profiles, one panel per scenario, one colour per method (the Okabe-Ito colour-blind-safe
+palette, in a fixed order so that a method keeps its colour across figures)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+OKABE_ITO = ("#0072B2", "#E69F00", "#009E73", "#D55E00", "#CC79A7", "#56B4E9", "#F0E442", "#000000")
+LINESTYLES = ("-", "--", ":", "-.")
+
+
+def style_of(names: list[str]) -> dict:
+    """A (colour, line style) per method name, stable for the same sorted set of names."""
+    return {n: (OKABE_ITO[i % len(OKABE_ITO)], LINESTYLES[(i // len(OKABE_ITO)) % len(LINESTYLES)])
+            for i, n in enumerate(sorted(names))}
+
+
+def _panels(n: int):
+    from matplotlib.figure import Figure
+
+    cols = min(n, 2)
+    rows = int(np.ceil(n / cols))
+    fig = Figure(figsize=(6.2 * cols, 3.9 * rows), layout="constrained")
+    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    return fig, axes
+
+
+def _save(fig, path: Path, fmt: str, dpi: int) -> Path:
+    target = path.with_suffix(f".{fmt}")
+    fig.savefig(target, dpi=dpi)
+    return target
+
+
+def comparison_figures(campaign_dir, curves: pd.DataFrame, anytime: pd.DataFrame, profile: pd.DataFrame,
+                       fmt: str = "png", dpi: int = 150) -> list[Path]:
+    out = Path(campaign_dir) / "figures"
+    out.mkdir(exist_ok=True)
+    names = sorted(set(curves.get("configuration", [])) | set(anytime.get("configuration", []))
+                   | set(profile.get("configuration", [])))
+    styles = style_of(names)
+    written = []
+    if len(curves):
+        written.append(_ecdf_figure(curves, styles, out / "ecdf", fmt, dpi))
+    if len(anytime):
+        written.append(_anytime_figure(anytime, styles, out / "anytime", fmt, dpi))
+    if len(profile):
+        written.append(_profile_figure(profile, styles, out / "profile", fmt, dpi))
+    return written
+
+
+def _ecdf_figure(curves, styles, path, fmt, dpi):
+    scenarios = list(dict.fromkeys(curves["scenario"]))
+    fig, axes = _panels(len(scenarios))
+    for ax, scenario in zip(axes, scenarios):
+        for conf, part in curves[curves["scenario"] == scenario].groupby("configuration", sort=False):
+            colour, ls = styles[conf]
+            ax.step(part["evaluations"], part["fraction"], where="post", color=colour, ls=ls, label=conf)
+        ax.set_xscale("log")
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_xlabel("objective evaluations")
+        ax.set_ylabel("fraction of (run, target) pairs reached")
+        ax.set_title(f"{scenario}: runtime ECDF, RMS targets 10x .. 1.001x optimum", fontsize=10)
+        ax.grid(True, which="major", alpha=0.3)
+        ax.legend(fontsize=7, loc="lower right")
+    return _save(fig, path, fmt, dpi)
+
+
+def _anytime_figure(anytime, styles, path, fmt, dpi):
+    scenarios = list(dict.fromkeys(anytime["scenario"]))
+    fig, axes = _panels(len(scenarios))
+    for ax, scenario in zip(axes, scenarios):
+        for conf, part in anytime[anytime["scenario"] == scenario].groupby("configuration", sort=False):
+            colour, ls = styles[conf]
+            ax.plot(part["evaluations"], part["median"], color=colour, ls=ls, label=f"{conf} (n={part['n'].max()})")
+            ax.fill_between(part["evaluations"], part["q25"], part["q75"], color=colour, alpha=0.15, lw=0)
+        ax.axhline(1.0, color="0.5", lw=1, ls="--")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("objective evaluations")
+        ax.set_ylabel("best RMS so far / optimum")
+        ax.set_title(f"{scenario}: anytime performance (median, inter-quartile band)", fontsize=10)
+        ax.grid(True, which="major", alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right")
+    return _save(fig, path, fmt, dpi)
+
+
+def _profile_figure(profile, styles, path, fmt, dpi):
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6.2, 3.9), layout="constrained")
+    ax = fig.subplots()
+    for conf, part in profile.groupby("configuration", sort=False):
+        colour, ls = styles[conf]
+        ax.step(part["tau"], part["fraction"], where="post", color=colour, ls=ls, label=conf)
+    ax.set_xscale("log")
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_xlabel("tau: ERT (evaluations) to 1.01 x optimum within tau x the best method's")
+    ax.set_ylabel("fraction of scenarios")
+    ax.set_title("Performance profile (Dolan & Moré) across scenarios", fontsize=10)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+    return _save(fig, path, fmt, dpi)
