@@ -134,6 +134,18 @@ class Campaign:
         return tasks, skipped
 
 
+def _with_budget(params: dict) -> dict:
+    """``budget=N`` in a method spec (``ga:budget=5000``, or ``compare --budgets``) is an evaluation budget."""
+    from magbench.calibrators import Budget
+
+    budget = params.get("budget")
+    if isinstance(budget, bool) or not isinstance(budget, int):
+        return params
+    if budget < 1:
+        raise InputError(f"budget must be a positive number of evaluations, got {budget}")
+    return {**params, "budget": Budget(max_evaluations=budget)}
+
+
 def run_task(task: dict) -> dict:
     """One run: simulate the trial's data and validation data, fit, measure.  Never raises."""
     from magbench.benchmarks.metrics import budget_violation, crb_row, run_metrics
@@ -147,7 +159,7 @@ def run_task(task: dict) -> dict:
         scenario = get_scenario(task["scenario"])
         data = scenario.build(task["data_seed"])
         validation = scenario.build(task["validation_seed"])
-        calibrator = make(task["method"], model=task["model"], seed=task["seed"], **task["params"])
+        calibrator = make(task["method"], model=task["model"], seed=task["seed"], **_with_budget(task["params"]))
         result = calibrator.fit(data)
         row.update(run_metrics(result, data, validation))
         row["error"] = budget_violation(result, calibrator.budget)
@@ -421,23 +433,37 @@ def _check_same_campaign(stored: dict, campaign: Campaign, out: Path, source: st
                          "repeat its arguments, or use --force to start over")
 
 
+COMPARISON_FILES = ("ert.csv", "ecdf.csv", "anytime.csv", "profile.csv", "paired_tests.csv", "win_rate.csv")
+"""What ``benchmarks.comparison.write_comparison`` writes in ``comparison/``."""
+
+
 def clear_outputs(out) -> list[Path]:
     """Remove what a campaign writes in ``out`` (tables, manifest, checkpoint, figures, report.html) and
     nothing else: figures/ loses only its .png/.svg files, and goes only if that leaves it empty."""
     out = Path(out)
     removed = []
-    for name in (*TABLE_FILES, CHECKPOINT, CHECKPOINT + ".tmp", "report.html"):
+    for name in (*TABLE_FILES, CHECKPOINT, CHECKPOINT + ".tmp", "report.html", "comparison.md"):
         path = out / name
         if path.is_file() or path.is_symlink():
             path.unlink()
             removed.append(path)
+    comparison = out / "comparison"
+    if comparison.is_dir() and not comparison.is_symlink():
+        for name in COMPARISON_FILES:
+            if (comparison / name).is_file():
+                (comparison / name).unlink()
+                removed.append(comparison / name)
+        try:
+            comparison.rmdir()
+        except OSError:  # something else lives there: not ours to delete
+            pass
     figures = out / "figures"
     if figures.is_symlink():
         figures.unlink()
         removed.append(figures)
     elif figures.is_dir():
         for path in sorted(figures.iterdir()):
-            if path.suffix in (".png", ".svg") and (path.is_file() or path.is_symlink()):
+            if path.suffix in (".png", ".svg", ".pdf") and (path.is_file() or path.is_symlink()):
                 path.unlink()
                 removed.append(path)
         try:

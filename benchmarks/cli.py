@@ -296,6 +296,24 @@ def cmd_demo(args) -> int:
     return EXIT_OK
 
 
+def _at_budgets(specs, budgets, calibrators):
+    """Every iterative configuration once per evaluation budget (``ga budget=1000``, ``ga budget=10000``),
+    so that fixed-budget tables compare like with like; closed-form methods, which have no evaluations to
+    budget, appear once."""
+    from magbench.benchmarks.campaign import MethodSpec
+
+    if any(b < 1 for b in budgets):
+        raise InputError("--budgets must be positive numbers of evaluations")
+    out = []
+    for spec in specs:
+        cls = calibrators.get(spec.name)
+        if cls is None or cls.closed_form or any(k == "budget" for k, _ in spec.params):
+            out.append(spec)
+            continue
+        out += [MethodSpec(spec.name, spec.params + (("budget", int(b)),)) for b in budgets]
+    return tuple(out)
+
+
 def cmd_compare(args) -> int:
     import shlex
 
@@ -322,7 +340,10 @@ def cmd_compare(args) -> int:
                 "over" if (out / CHECKPOINT).exists() else "use --resume to complete its campaign or --force to "
                 "overwrite it")
         raise InputError(f"{out} exists and is not empty; refusing to overwrite it ({hint})")
-    campaign = Campaign(scenarios, tuple(MethodSpec.parse(m) for m in methods), trials=args.trials, seed=args.seed)
+    specs = tuple(MethodSpec.parse(m) for m in methods)
+    if args.budgets:
+        specs = _at_budgets(specs, args.budgets, available())
+    campaign = Campaign(scenarios, specs, trials=args.trials, seed=args.seed)
     campaign.tasks()  # bad methods are refused before anything in --out is touched
     if args.force:
         clear_outputs(out)
@@ -341,6 +362,10 @@ def cmd_compare(args) -> int:
         return stop.exit_status
     attrs = runs.attrs
     figures = not args.no_figures and (not attrs.get("already_complete") or not (out / "report.html").is_file())
+    if not attrs.get("already_complete"):
+        from magbench.benchmarks.comparison import write_comparison
+
+        write_comparison(out, figures=not args.no_figures)  # targets, ERT, ECDF, profiles, paired tests
     if figures:
         from magbench.benchmarks.figures import make_figures
         from magbench.benchmarks.report import write_report
@@ -350,7 +375,7 @@ def cmd_compare(args) -> int:
     failed = int((runs["error"] != "").sum())
     obj = {"out": str(out), "n_runs": len(runs), "n_failed": failed, "complete": True,
            "n_new": int(attrs.get("n_new", len(runs))), "n_resumed": int(attrs.get("n_resumed", 0)),
-           "summary": str(out / "summary.md"),
+           "summary": str(out / "summary.md"), "comparison": str(out / "comparison.md"),
            "report": str(out / "report.html") if (out / "report.html").is_file() and not args.no_figures else None}
     if attrs.get("already_complete"):
         note = (f"\ncampaign in {out} was already complete ({len(runs)} runs, {failed} failed): nothing new to run"
@@ -453,6 +478,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--methods", nargs="+", default=["all"], metavar="NAME[:KEY=VALUE...]",
                    help="calibrators, optionally with hyper-parameters (nlopt:algorithm=GN_ISRES); 'all' = every one")
     p.add_argument("--trials", type=int, default=10)
+    p.add_argument("--budgets", type=_positive_int, nargs="+", metavar="N",
+                   help="run every iterative method at each of these evaluation budgets (fixed-budget comparison); "
+                        "closed-form methods run once")
     p.add_argument("--seed", type=_seed, default=0, help="root seed, a non-negative integer; every run's seed is spawned from it (default 0)")
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--jobs", type=int, default=1, help="local worker processes")

@@ -85,3 +85,24 @@ def test_write_comparison_on_a_campaign(tmp_path):
     ert = pd.read_csv(tmp_path / "comparison" / "ert.csv")
     assert (ert[ert.configuration == "lsq"].success_rate == 1).all()
     assert not math.isnan(ert.ert_evaluations.iloc[0])
+
+
+def test_budgets_expand_iterative_methods_and_force_clears_the_comparison(tmp_path, capsys):
+    from magbench.benchmarks.cli import main
+
+    out = tmp_path / "c"
+    assert main(["compare", "--scenarios", "sphere9", "--methods", "lsq", "ga", "ellipsoid", "--budgets", "100",
+                 "1000", "--trials", "2", "--out", str(out), "--quiet", "--no-figures"]) == 0
+    runs = pd.read_csv(out / "runs.csv", keep_default_na=False)
+    assert set(runs.configuration) == {"ellipsoid", "ga budget=100", "ga budget=1000", "lsq budget=100",
+                                       "lsq budget=1000"}
+    ga = runs[runs.configuration == "ga budget=100"]
+    assert (ga.n_evaluations <= 100).all()
+    assert (out / "comparison" / "ert.csv").is_file()
+    stale = out / "comparison" / "mine.txt"
+    stale.write_text("not the campaign's")
+    assert main(["compare", "--scenarios", "sphere9", "--methods", "lsq", "--trials", "2", "--out", str(out),
+                 "--quiet", "--no-figures", "--force"]) == 0
+    assert stale.is_file()  # --force clears only what the campaign writes
+    assert main(["compare", "--scenarios", "sphere9", "--methods", "lsq", "--budgets", "0", "--trials", "2",
+                 "--out", str(tmp_path / "d")]) == 2
