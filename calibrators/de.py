@@ -8,7 +8,6 @@ is off by default (``polish=True`` turns it on; its evaluations are counted like
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import differential_evolution
 
 from magbench.errors import InputError
 
@@ -51,6 +50,8 @@ class DifferentialEvolution(Calibrator):
     def _solve(self, problem: Problem) -> SolveOutput:
         if self.popsize < 1 or self.generations < 1 or not 0 <= self.recombination <= 1:
             raise InputError("de: popsize >= 1, generations >= 1 and 0 <= recombination <= 1 are required")
+        from scipy.optimize import differential_evolution  # imported on use: the registry stays light
+
         lo, hi = problem.lower, problem.upper
 
         def population_values(x_t: np.ndarray) -> np.ndarray:  # SciPy passes (p, S) when vectorized
