@@ -180,7 +180,13 @@ def run_task(task: dict) -> dict:
 
 
 def run_chunk(tasks: list[dict]) -> list[dict]:
-    return [run_task(t) for t in tasks]
+    """Runs in a worker (or serially) with one BLAS/OpenMP thread: the workers already take one core
+    each, and a multi-threaded BLAS under that load makes single fits 2-5x slower (threadpoolctl, as
+    scikit-learn does).  The limit is lifted again when the chunk ends."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        return [run_task(t) for t in tasks]
 
 
 def task_key(item: dict) -> tuple:

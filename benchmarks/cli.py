@@ -218,6 +218,10 @@ def cmd_calibrate(args) -> int:
     params = _parse_params(args.param)
     if args.algorithm:
         params["algorithm"] = args.algorithm
+    if args.blas_threads:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(limits=args.blas_threads)
     cal = make(args.method, model=args.model, seed=args.seed, **params)  # an unknown method before reading
     data = load_dataset(args)
     result = cal.fit(data)
@@ -453,6 +457,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", default="nine", choices=["angles", "nine"])
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--algorithm", help="NLopt algorithm name (method nlopt)")
+    p.add_argument("--blas-threads", type=_positive_int, metavar="N",
+                   help="limit BLAS/OpenMP to N threads for this fit (default: the library's own; campaigns always "
+                        "use one per worker)")
     p.add_argument("--accept-any", action="store_true",
                    help="keep a calibration that fails its acceptance checks (exit 0, the causes as warnings) "
                         "instead of exit status 3")
