@@ -4,10 +4,12 @@ Run with ``python -m magbench.benchmarks.speed`` (writes results/speed.md and re
 Peers (PyGAD, mealpy) are development-only: ``pip install pygad && pip install --no-deps mealpy opfunu``
 (mealpy's metadata pins numpy<=1.26, which NLopt 2.11 cannot use; it runs on numpy 2).
 """
+import time
+
 import numpy as np
 import pytest
 
-from magbench.calibrators import make
+from magbench.calibrators import Budget, make
 from magbench.calibrators.base import population_box, search_bounds
 from magbench.calibrators.objective import ScalarObjective
 
@@ -27,6 +29,20 @@ def test_aga_paper_configuration(benchmark, lu2014):
     res = benchmark.pedantic(cal.fit, args=(lu2014,), rounds=20, iterations=1, warmup_rounds=1)
     assert res.n_evaluations == POPULATION * GENERATIONS
     benchmark.extra_info.update(evaluations=res.n_evaluations, rms_after_nT=res.rms_after_nT)
+
+
+@pytest.mark.benchmark(group="aga: seed 000 configuration, 80 x 1000 generations, 36 points, angles")
+def test_aga_objective_only(benchmark, lu2014):
+    """The objective alone, as the AGA calls it: 1000 populations of 80 on the same data; the AGA's own
+    bookkeeping is the AGA's time minus this."""
+    obj = ScalarObjective(lu2014.raw_nT, lu2014.f_ref_nT, "angles")
+    pops = np.random.default_rng(0).uniform(-0.1, 0.1, (GENERATIONS, POPULATION, 3))
+
+    def run():
+        for pop in pops:
+            obj.values(pop)
+
+    benchmark.pedantic(run, rounds=20, iterations=1, warmup_rounds=1)
 
 
 @pytest.mark.benchmark(group="ga vs PyGAD: 80 x 1000 generations, sphere9 (300 points, nine)")
@@ -101,3 +117,105 @@ def test_aco_mealpy(benchmark, sphere9):
 
     model, best = benchmark.pedantic(run, rounds=1, iterations=1)
     benchmark.extra_info.update(evaluations=int(model.nfe_counter), rms_after_nT=float(np.sqrt(best.target.fitness)))
+
+
+# -- time to equal quality -----------------------------------------------------------------------------
+# Equal budgets understate the gap when a peer ends far from the optimum (PyGAD ends near 93 nT where
+# ga reaches 1.99 nT): these measure the time each method needs to reach the same quality, a residual
+# within QUALITY_FACTOR of lsq's optimum on the same data, or record that it never does.
+
+QUALITY_FACTOR = 1.01
+
+
+def _target_F(data) -> float:
+    return (QUALITY_FACTOR * make("lsq", model="nine").fit(data).rms_after_nT) ** 2
+
+
+def _ours_to_target(benchmark, data, name, **params):
+    """Our method run exactly as far as the target: the evaluations to it come from the counter's trace
+    of a first run, the timed runs stop there on that evaluation budget."""
+    target = _target_F(data)
+    first = make(name, model="nine", **params).fit(data)
+    hit = [ev for ev, best, _ in first.trace if best <= target]
+    if not hit:
+        benchmark.extra_info.update(reached=False, target_rms_nT=float(np.sqrt(target)))
+        benchmark.pedantic(lambda: None, rounds=1, iterations=1)
+        return
+    cal = make(name, model="nine", budget=Budget(max_evaluations=int(hit[0])), **params)
+    res = benchmark.pedantic(cal.fit, args=(data,), rounds=5, iterations=1, warmup_rounds=1)
+    benchmark.extra_info.update(reached=bool(res.rms_after_nT ** 2 <= target * (1 + 1e-9)),
+                                evaluations=res.n_evaluations, rms_after_nT=res.rms_after_nT,
+                                target_rms_nT=float(np.sqrt(target)))
+
+
+@pytest.mark.benchmark(group="time to equal quality: RMS <= 1.01 x lsq's optimum, sphere9 (nine)")
+def test_quality_ga_magbench(benchmark, sphere9):
+    _ours_to_target(benchmark, sphere9, "ga", population=POPULATION, generations=GENERATIONS)
+
+
+@pytest.mark.benchmark(group="time to equal quality: RMS <= 1.01 x lsq's optimum, sphere9 (nine)")
+def test_quality_aco_magbench(benchmark, sphere9):
+    _ours_to_target(benchmark, sphere9, "aco", archive_size=50, ants=20, iterations=ACO_ITERATIONS)
+
+
+@pytest.mark.benchmark(group="time to equal quality: RMS <= 1.01 x lsq's optimum, sphere9 (nine)")
+def test_quality_pygad(benchmark, sphere9):
+    """PyGAD (vectorized fitness) for up to 10x the generations ga uses; the clock stops at the first
+    generation whose best reaches the target."""
+    pygad = pytest.importorskip("pygad")
+    obj = ScalarObjective(sphere9.raw_nT, sphere9.f_ref_nT, "nine")
+    lo, hi = _box(sphere9)
+    span = hi - lo
+    target = _target_F(sphere9)
+    found = {}
+
+    def fitness(ga, solutions, idx):
+        return -obj.values(lo + np.atleast_2d(solutions) * span, exact=False)
+
+    def on_generation(ga):
+        if "t" not in found and -np.max(ga.last_generation_fitness) <= target:
+            found["t"] = time.perf_counter() - found["t0"]
+            return "stop"
+        return None
+
+    def run():
+        found.clear()
+        found["t0"] = time.perf_counter()
+        ga = pygad.GA(num_generations=10 * GENERATIONS, num_parents_mating=POPULATION // 2, fitness_func=fitness,
+                      fitness_batch_size=POPULATION, sol_per_pop=POPULATION, num_genes=9, init_range_low=0.0,
+                      init_range_high=1.0, gene_space={"low": 0.0, "high": 1.0}, random_seed=0,
+                      suppress_warnings=True, on_generation=on_generation)
+        ga.run()
+        return ga
+
+    ga = benchmark.pedantic(run, rounds=1, iterations=1)
+    best = -ga.best_solution(ga.last_generation_fitness)[1]
+    benchmark.extra_info.update(reached="t" in found, time_to_target_s=found.get("t"),
+                                generations=int(ga.generations_completed), rms_after_nT=float(np.sqrt(best)),
+                                target_rms_nT=float(np.sqrt(target)))
+
+
+@pytest.mark.benchmark(group="time to equal quality: RMS <= 1.01 x lsq's optimum, sphere9 (nine)")
+def test_quality_mealpy(benchmark, sphere9):
+    """mealpy's OriginalACOR with aco's settings; the time to the first epoch whose best reaches the target,
+    summed from mealpy's own per-epoch times."""
+    pytest.importorskip("mealpy")
+    from mealpy import ACOR, FloatVar
+
+    obj = ScalarObjective(sphere9.raw_nT, sphere9.f_ref_nT, "nine")
+    lo, hi = _box(sphere9)
+    target = _target_F(sphere9)
+    problem = {"obj_func": lambda x: float(obj.values(np.asarray(x)[None, :], exact=False)[0]),
+               "bounds": FloatVar(lb=lo.tolist(), ub=hi.tolist()), "minmax": "min", "log_to": None}
+
+    def run():
+        model = ACOR.OriginalACOR(epoch=ACO_ITERATIONS, pop_size=50, sample_count=20, intent_factor=0.1, zeta=0.85)
+        model.solve(problem, seed=0)
+        return model
+
+    model = benchmark.pedantic(run, rounds=1, iterations=1)
+    best = np.asarray(model.history.list_global_best_fit, dtype=float)
+    times = np.cumsum(np.asarray(model.history.list_epoch_time, dtype=float))
+    hit = np.flatnonzero(best <= target)
+    benchmark.extra_info.update(reached=bool(hit.size), time_to_target_s=float(times[hit[0]]) if hit.size else None,
+                                rms_after_nT=float(np.sqrt(best[-1])), target_rms_nT=float(np.sqrt(target)))
