@@ -19,7 +19,9 @@ from .registry import register
 
 @register
 class CMAES(Calibrator):
-    """CMA-ES (Hansen & Ostermeier 2001; pycma) on the shared objective, population per generation."""
+    """CMA-ES (Hansen & Ostermeier 2001; pycma) on the shared objective, population per generation.  Stops
+    on pycma's criteria: ``tolfun`` in nT² of the objective, ``tolx`` in the normalized box (1e-8 of the
+    angle box is 2e-9 rad, far below any Cramér-Rao bound), or ``max_evaluations``."""
 
     name = "cmaes"
     summary = "CMA-ES (pycma), the reference black-box evolution strategy; one objective call per generation"
@@ -27,7 +29,7 @@ class CMAES(Calibrator):
     check_tolerance = {"angle_rad": 2e-4, "scale": 2e-4, "offset_nT": 5.0}
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, population: int = 0,
-                 sigma0: float = 0.3, max_evaluations: int = 20000, tolfun: float = 1e-14, tolx: float = 1e-12,
+                 sigma0: float = 0.3, max_evaluations: int = 20000, tolfun: float = 1e-9, tolx: float = 1e-8,
                  angle_range_rad: float = 0.1, scale_range: float = 0.1, offset_range_nT: float | None = None):
         super().__init__(model=model, seed=seed, budget=budget)
         self.population = population

@@ -17,7 +17,9 @@ from .registry import register
 
 @register
 class DifferentialEvolution(Calibrator):
-    """SciPy's differential evolution (best1bin by default), vectorized over the population."""
+    """SciPy's differential evolution (best1bin by default), vectorized over the population.  It stops when
+    the population's objective values agree to ``tol`` relative (SciPy's criterion; 1e-6 puts the answer
+    within about 1e-6 of the optimum's residual), or after ``generations``."""
 
     name = "de"
     summary = "differential evolution (SciPy, vectorized: one objective call per generation)"
@@ -26,7 +28,7 @@ class DifferentialEvolution(Calibrator):
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, strategy: str = "best1bin",
                  popsize: int = 15, generations: int = 1000, mutation: float = 0.7, recombination: float = 0.9,
-                 tol: float = 1e-12, polish: bool = False, angle_range_rad: float = 0.1, scale_range: float = 0.1,
+                 tol: float = 1e-6, polish: bool = False, angle_range_rad: float = 0.1, scale_range: float = 0.1,
                  offset_range_nT: float | None = None):
         super().__init__(model=model, seed=seed, budget=budget)
         self.strategy = strategy
