@@ -46,10 +46,14 @@ def ellipse2d_heading_error_deg(data) -> float:
     return float(np.degrees(np.sqrt(np.mean(err**2))))
 
 
-def ransac_experiment(n_seeds: int = 30) -> dict:
+PAPER_RANSAC_EPSILON_SIGMA = 1.0
+"""Seed 003's inlier threshold: one standard deviation of the plain fit's residual (the text's setting)."""
+
+
+def ransac_experiment(n_seeds: int = 30, epsilon_sigma: float = PAPER_RANSAC_EPSILON_SIGMA) -> dict:
     """Seed 003's simulation: 200 points, 50,000 nT, 10 % of the points with 500 nT noise (the rest
     1 nT: the paper does not say), full-sphere attitudes; parameter errors of the plain ellipsoid fit
-    against RANSAC."""
+    against RANSAC with the inlier threshold ``epsilon_sigma`` (the paper's 1 sigma by default)."""
     from dataclasses import replace
 
     from magbench.simulate.effects import OutlierEffect
@@ -62,14 +66,16 @@ def ransac_experiment(n_seeds: int = 30) -> dict:
         data = scenario.build(seed)
         t = data.truth.params
         for m in errs:
-            p = make(m, seed=seed).fit(data).params
+            params = {"epsilon_sigma": epsilon_sigma} if m == "ransac" else {}
+            p = make(m, seed=seed, **params).fit(data).params
             errs[m].append([np.max(np.abs(np.subtract(p.offset_nT, t.offset_nT))),
                             np.max(np.abs(np.subtract(p.scale, t.scale))),
                             np.max(np.abs(np.subtract([p.alpha_rad, p.beta_rad, p.gamma_rad],
                                                       [t.alpha_rad, t.beta_rad, t.gamma_rad])))])
     med = {m: np.median(np.array(v), axis=0) for m, v in errs.items()}
     ratio = med["ellipsoid"] / med["ransac"]
-    return {"n_seeds": n_seeds, "median_offset_err_nT": {m: float(v[0]) for m, v in med.items()},
+    return {"n_seeds": n_seeds, "epsilon_sigma": epsilon_sigma,
+            "median_offset_err_nT": {m: float(v[0]) for m, v in med.items()},
             "median_scale_err": {m: float(v[1]) for m, v in med.items()},
             "median_angle_err_rad": {m: float(v[2]) for m, v in med.items()},
             "improvement_offset": float(ratio[0]), "improvement_scale": float(ratio[1]),
@@ -166,13 +172,17 @@ def write_claims(out: Path) -> Path:
         from magbench.benchmarks.gradiometer import run_gradiometer
 
         g = run_gradiometer(seed=0)
+        still = run_gradiometer(seed=0, fluctuation_nT=0.0)
         (out / "gradiometer.json").write_text(json.dumps(g, indent=2, default=float) + "\n")
+        ell_still = "/".join(f"{x:.2f}" for x in still["gradient_rms_nT"]["ellipsoid"])
         rows.append(_row("001 Jin et al. 2024", "Gradient calibration by three 6-gene GAs leaves about 1.85 nT per axis "
                          "under a fluctuating field, where single-sensor ellipsoid fits fail",
-                         _gradiometer_text(g), _gradiometer_verdict(g),
-                         "the 1.85 nT is mostly the noise floor; the ellipsoid fits fail on the gradient through the "
-                         "sensors' relative misalignment, which a single sensor cannot see, more than through the "
-                         "200 nT fluctuation, which cancels in the difference (results/gradiometer.json)"))
+                         _gradiometer_text(g) + f"; in a constant field (no fluctuation) the ellipsoid fits leave "
+                         f"{ell_still} nT", _gradiometer_verdict(g, still),
+                         "the GA's residual is close to the noise floor set by our chosen noise level, and the ellipsoid "
+                         "fits fail about as much in a constant field: their failure is the sensors' relative "
+                         "misalignment, which a single sensor cannot see, not the fluctuation the paper credits "
+                         "(results/gradiometer.json)"))
     except ImportError:
         rows.append(_row("001 Jin et al. 2024", "Gradient calibration leaves about 1.85 nT per axis", "not run",
                          "not", "the gradiometer module is missing"))
@@ -184,19 +194,22 @@ def write_claims(out: Path) -> Path:
                      f"{rga.median():.5f}, worst {rga.max():.5f}, 10 seeds){val}", "reproduced",
                      "in simulation; the paper's own parameter values are not legible in our copy"))
     # seed 003 -----------------------------------------------------------------------------------
-    r = ransac_experiment()
-    (out / "ransac_seed003.json").write_text(json.dumps(r, indent=2) + "\n")
-    verdict = "reproduced" if r["improvement_offset"] >= 10 and r["improvement_angles"] >= 3 else "partly"
-    rows.append(_row("003", "RANSAC improves offset and scale accuracy by about two orders of magnitude and "
-                     "non-orthogonality by one over the plain ellipsoid fit (200 points, 10 % with 500 nT noise)",
-                     f"median errors plain -> RANSAC ({r['n_seeds']} seeds): offsets "
-                     f"{r['median_offset_err_nT']['ellipsoid']:.1f} -> {r['median_offset_err_nT']['ransac']:.2f} nT "
-                     f"(x{r['improvement_offset']:.0f}), scale {r['median_scale_err']['ellipsoid']:.1e} -> "
-                     f"{r['median_scale_err']['ransac']:.1e} (x{r['improvement_scale']:.0f}), angles "
-                     f"{r['median_angle_err_rad']['ellipsoid']:.1e} -> {r['median_angle_err_rad']['ransac']:.1e} rad "
-                     f"(x{r['improvement_angles']:.0f})", verdict,
-                     "noise on the other 90 % and the threshold multiplier are not legible; ours: 1 nT and 0.25 sigma "
-                     "(with 1 sigma the gain is about 8x: a quarter of the outliers pass as inliers)"))
+    paper_setting = ransac_experiment()
+    ours = ransac_experiment(epsilon_sigma=0.25)
+    (out / "ransac_seed003.json").write_text(json.dumps({"paper_setting": paper_setting, "ours_0.25_sigma": ours},
+                                                        indent=2) + "\n")
+    for r, label in ((paper_setting, "the paper's threshold, 1 sigma"), (ours, "our threshold, 0.25 sigma")):
+        rows.append(_row("003" + (" (paper's setting)" if r is paper_setting else " (ours, beside it)"),
+                         "RANSAC improves offset and scale accuracy by about two orders of magnitude and "
+                         "non-orthogonality by one over the plain ellipsoid fit (200 points, 10 % with 500 nT noise)",
+                         f"{label}: median errors plain -> RANSAC ({r['n_seeds']} seeds): offsets "
+                         f"{r['median_offset_err_nT']['ellipsoid']:.1f} -> {r['median_offset_err_nT']['ransac']:.2f} nT "
+                         f"(x{r['improvement_offset']:.0f}), scale {r['median_scale_err']['ellipsoid']:.1e} -> "
+                         f"{r['median_scale_err']['ransac']:.1e} (x{r['improvement_scale']:.0f}), angles "
+                         f"{r['median_angle_err_rad']['ellipsoid']:.1e} -> {r['median_angle_err_rad']['ransac']:.1e} rad "
+                         f"(x{r['improvement_angles']:.0f})", _ransac_verdict(r),
+                         "the verdict follows from the gains: two orders means at least 50x on offsets and scale and "
+                         "one order at least 5x on the angles; the noise on the other 90 % (1 nT) is ours"))
     # seed 004 -----------------------------------------------------------------------------------
     v = vehicle_experiment()
     (out / "vehicle_seed004.json").write_text(json.dumps(v, indent=2) + "\n")
@@ -210,12 +223,10 @@ def write_claims(out: Path) -> Path:
     fmt = lambda x: "-" if x is None else f"{x:.2f}°"  # noqa: E731
     rows.append(_row("004", "Heading error about 1.5° after TTLS against 4.5° for an ellipse fit",
                      f"median RMS heading error: TTLS {fmt(hd['ttls'])}, 2-D ellipse fit {fmt(hd['ellipse2d'])}, "
-                     f"3-D ellipsoid fit {fmt(hd['ellipsoid'])}, lsq {fmt(hd['lsq'])}",
-                     "reproduced" if hd["ttls"] is not None and hd["ttls"] < 2.25 and hd["ellipse2d"] > 2 * hd["ttls"]
-                     else "partly",
-                     "TTLS lands at the paper's 1.5°, but in our simulated van (pitch and roll within 3°, 20 nT noise) "
-                     "the 2-D ellipse fit is not three times worse; the paper's van met steeper slopes (it reads its "
-                     "values off Fig. 3)"))
+                     f"3-D ellipsoid fit {fmt(hd['ellipsoid'])}, lsq {fmt(hd['lsq'])}", _heading_verdict(hd),
+                     "the claim is a threefold advantage of TTLS over the ellipse fit; the verdict follows from our "
+                     "ratio (reproduced at 2x or more with TTLS near 1.5°, not below 1.5x); our van pitches and rolls "
+                     "within 3° with 20 nT noise, the paper's read off its Fig. 3"))
     text = ["# Headline claims of the seed papers and our reproduction", "",
             "Made by `magbench reproduce`. Verdicts: **reproduced** (the claim holds in our reproduction), **partly** "
             "(holds with a qualification), **not** (our reproduction contradicts it).", "",
@@ -233,7 +244,32 @@ def _gradiometer_text(g: dict) -> str:
             f"parameters {fmt(r['truth'])} ({g['noise_nT']} nT per axis, chosen by us: the paper gives none)")
 
 
-def _gradiometer_verdict(g: dict) -> str:
-    r = g["gradient_rms_nT"]
-    return "reproduced" if np.mean(r["ga"]) < 2 * 1.85 and np.mean(r["ga"]) < 0.1 * np.mean(r["ellipsoid"]) \
-        else "partly"
+def _gradiometer_verdict(g: dict, still: dict) -> str:
+    """Reproduced only if the GA's residual matches, the ellipsoid fits fail under the fluctuating field
+    *and* succeed without it (the paper's cause), and the match does not rest on the noise level we chose
+    (the GA well above the noise floor); partly if the numbers match but either of those does not hold."""
+    r, s = g["gradient_rms_nT"], still["gradient_rms_nT"]
+    ga, ell, floor = np.mean(r["ga"]), np.mean(r["ellipsoid"]), np.mean(r["truth"])
+    matches = ga < 2 * 1.85 and ga < 0.1 * ell
+    caused_by_fluctuation = np.mean(s["ellipsoid"]) < 0.5 * ell
+    beyond_noise = ga > 1.5 * floor
+    if not matches:
+        return "not"
+    return "reproduced" if caused_by_fluctuation and beyond_noise else "partly"
+
+
+def _ransac_verdict(r: dict) -> str:
+    gains = (r["improvement_offset"], r["improvement_scale"], r["improvement_angles"])
+    if gains[0] >= 50 and gains[1] >= 50 and gains[2] >= 5:
+        return "reproduced"
+    return "partly" if min(gains) >= 3 else "not"
+
+
+def _heading_verdict(hd: dict) -> str:
+    ttls, ellipse = hd.get("ttls"), hd.get("ellipse2d")
+    if ttls is None or ellipse is None:
+        return "not"
+    ratio = ellipse / ttls
+    if ratio >= 2 and ttls < 2.25:
+        return "reproduced"
+    return "not" if ratio < 1.5 else "partly"
