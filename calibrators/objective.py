@@ -228,6 +228,11 @@ def lm_normal(normal_equations, x: np.ndarray, lower: np.ndarray | None = None, 
     x = np.asarray(x, dtype=float).copy()
     a, g, cost = normal_equations(x)
     calls, damping = 1, 1e-3
+    try:  # already at the optimum: the Gauss-Newton step would lower the sum of squares by almost nothing
+        if float(g @ np.linalg.solve(a, g)) <= max(tol * cost, atol):
+            return x, float(cost), calls
+    except np.linalg.LinAlgError:
+        pass
     for _ in range(max_iter):
         diag = np.maximum(np.diag(a), 1e-300)
         try:
