@@ -212,6 +212,36 @@ def _evaluations_text(result) -> str:
     return f"{result.n_evaluations} evaluations"
 
 
+def _field_value(text: str):
+    """argparse type of calibrate's --field: a number of nT, or 'auto' (estimated from the readings)."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is neither a number of nT nor 'auto'") from None
+
+
+def _save_target(args):
+    """The calibration file --save/--export will write, checked before the fit (None without --save)."""
+    if args.save is None:
+        if args.export is not None:
+            raise InputError("--export picks the format of --save PATH: give --save too")
+        return None
+    from magbench.calibrators.artifacts import export_path
+
+    path = export_path(args.save, args.export or "json")
+    if Path(args.file).exists() and path.exists() and path.resolve() == Path(args.file).resolve():
+        raise InputError(f"--save {path} is the input file: give another name")
+    if path.is_dir():
+        raise InputError(f"{path} is a directory, not a file")
+    if not path.parent.exists():
+        raise InputError(f"directory {path.parent} does not exist")
+    if path.exists() and not args.force:
+        raise InputError(f"{path} exists; refusing to overwrite it (use --force)")
+    return path
+
+
 def cmd_calibrate(args) -> int:
     from magbench.calibrators import make
 
@@ -222,22 +252,45 @@ def cmd_calibrate(args) -> int:
         from threadpoolctl import threadpool_limits
 
         threadpool_limits(limits=args.blas_threads)
+    field_auto = args.field == "auto"
+    if field_auto:
+        args.field = None  # the reference options below then only read the file
     cal = make(args.method, model=args.model, seed=args.seed, **params)  # an unknown method before reading
+    target = _save_target(args)
     data = load_dataset(args)
-    result = cal.fit(data)
+    result = cal.fit(data, field="auto") if field_auto else cal.fit(data)
     obj = result.as_dict()
     ref = result.reference
-    sys.stderr.write(f"magbench: reference {ref['median_nT']:.6g} nT (median) from {ref['source']}\n")
+    if ref.get("estimated"):
+        sys.stderr.write(f"magbench: reference {ref['median_nT']:.6g} nT estimated from the readings (--field auto); "
+                         "the overall gain is relative to it\n")
+    else:
+        sys.stderr.write(f"magbench: reference {ref['median_nT']:.6g} nT (median) from {ref['source']}\n")
     p = result.params
-    lines = [f"{result.method} ({result.model} model), {len(data)} points, {result.status}: {result.message}",
-             f"  alpha  {p.alpha_rad: .6e} rad   beta {p.beta_rad: .6e} rad   gamma {p.gamma_rad: .6e} rad"]
-    if result.model == "nine":
+    lines = [f"{result.method} ({result.model} model), {len(data)} points, {result.status}: {result.message}"]
+    if result.model_choice:
+        lines.append(f"  model auto -> {result.model}: {result.model_choice['reason']}")
+    if result.model in ("angles", "nine"):
+        lines.append(f"  alpha  {p.alpha_rad: .6e} rad   beta {p.beta_rad: .6e} rad   gamma {p.gamma_rad: .6e} rad")
+    if result.model in ("diag", "nine"):
         lines.append("  scale  " + "  ".join(f"{k:.6f}" for k in p.scale)
                      + "    offset " + "  ".join(f"{o:.2f}" for o in p.offset_nT) + " nT")
+    elif result.model == "offset":
+        lines.append("  offset " + "  ".join(f"{o:.2f}" for o in p.offset_nT) + " nT")
+    if result.uncertainty:
+        lines.append(f"  Cramér-Rao std at noise {result.noise_nT:.3g} nT: "
+                     + ", ".join(f"{k} {v:.2g}" for k, v in result.uncertainty.items()))
     lines.append(f"  total-field RMS {result.rms_before_nT:.3f} -> {result.rms_after_nT:.3f} nT; "
                  f"{_evaluations_text(result)}, "
                  f"{result.runtime_s * 1e3:.1f} ms, seed {result.seed}")
     lines += [f"  warning: {w}" for w in result.warnings]
+    saved = None
+    if target is not None and (result.accepted or args.accept_any):
+        from magbench.calibrators.artifacts import export
+
+        saved = export(result.calibration(), target, args.export or "json", force=args.force)
+        lines.append(f"  saved {args.export or 'json'} calibration to {saved}")
+    obj["saved"] = str(saved) if saved else None
     if result.accepted:
         _emit(args, obj, "\n".join(lines))
         return EXIT_OK
@@ -249,8 +302,26 @@ def cmd_calibrate(args) -> int:
     lines += [f"  REJECTED: {r}" for r in result.rejections]
     _emit(args, obj, "\n".join(lines))
     more = f" (+{len(result.rejections) - 1} more)" if len(result.rejections) > 1 else ""
-    sys.stderr.write(f"magbench: calibration rejected: {result.rejections[0]}{more}; --accept-any keeps it\n")
+    unsaved = f"; not saved to {target}" if target is not None else ""
+    sys.stderr.write(f"magbench: calibration rejected: {result.rejections[0]}{more}{unsaved}; --accept-any keeps it\n")
     return EXIT_REJECTED
+
+
+def cmd_apply(args) -> int:
+    from magbench.calibrators.artifacts import apply_to_csv, load_calibration
+
+    cal = load_calibration(args.calibration)
+    if Path(args.out).exists() and Path(args.out).resolve() == Path(args.calibration).resolve():
+        raise InputError(f"--out {args.out} is the calibration file: give another name")
+    info = apply_to_csv(cal, args.file, args.out, units=args.units, force=args.force,
+                        cal_name=Path(args.calibration).name)
+    info.update(calibration=str(args.calibration), method=cal.method, model=cal.model, data_digest=cal.data_digest)
+    text = (f"wrote {info['n_rows']} rows to {info['out']}: {', '.join(info['columns_added'])} added ({info['units']}; "
+            f"{cal.method or cal.origin} {cal.model} calibration from {args.calibration})")
+    if "rms_f_cal_minus_f_ref_nT" in info:
+        text += f"\n  total-field RMS against the file's f_ref: {info['rms_f_cal_minus_f_ref_nT']:.3f} nT"
+    _emit(args, info, text)
+    return EXIT_OK
 
 
 def cmd_demo(args) -> int:
@@ -454,7 +525,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("calibrate", help="calibrate a data file with one method")
     p.add_argument("file", metavar="FILE.csv")
     p.add_argument("--method", required=True)
-    p.add_argument("--model", default="nine", choices=["angles", "nine"])
+    p.add_argument("--model", default="nine", choices=["offset", "diag", "angles", "nine", "auto"],
+                   help="offset (3 offsets), diag (+3 scales), angles (seed 000's 3 angles), nine (angles, scales, "
+                        "offsets), auto (the simplest identifiable model within noise of the best held-out residual; "
+                        "default nine)")
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--algorithm", help="NLopt algorithm name (method nlopt)")
     p.add_argument("--blas-threads", type=_positive_int, metavar="N",
@@ -464,9 +538,32 @@ def build_parser() -> argparse.ArgumentParser:
                    help="keep a calibration that fails its acceptance checks (exit 0, the causes as warnings) "
                         "instead of exit status 3")
     p.add_argument("--param", action="append", metavar="KEY=VALUE", help="a hyper-parameter (repeatable)")
+    p.add_argument("--save", metavar="PATH", help="write the calibration to PATH (the extension of --export is added "
+                   "when PATH has none); an accepted calibration only, unless --accept-any")
+    p.add_argument("--export", choices=["json", "matlab", "ardupilot", "px4"],
+                   help="format of --save: json (magbench's schema, default), matlab (A, b, expmfs: .mat, or .json; "
+                        "corrected = (D - b) * A), ardupilot (COMPASS_* .param), px4 (CAL_MAG0_* .params)")
+    p.add_argument("--force", action="store_true", help="overwrite the --save file")
     p.add_argument("--json", action="store_true")
     _add_reference_options(p)
+    for action in p._actions:  # calibrate's --field also takes 'auto' (magcal's expmfs)
+        if action.dest == "field":
+            action.type, action.metavar = _field_value, "NT|auto"
+            action.help = ("reference magnitude in nT for every row, or 'auto': estimated from the readings (the "
+                           "fitted sphere's or ellipsoid's radius, as magcal's expmfs; the overall gain then stays "
+                           "relative to it)")
     p.set_defaults(func=cmd_calibrate)
+
+    p = sub.add_parser("apply", help="apply a saved calibration to a data file: corrected columns added")
+    p.add_argument("calibration", metavar="CAL", help="a calibration file: magbench json, or magcal's A, b (.mat/.json)")
+    p.add_argument("file", metavar="FILE.csv")
+    p.add_argument("--out", required=True, metavar="OUT.csv",
+                   help="the output: FILE's lines and columns as they are, plus bx_cal, by_cal, bz_cal, f_cal")
+    p.add_argument("--force", action="store_true", help="overwrite OUT.csv")
+    p.add_argument("--units", default="nT", choices=["nT", "uT", "G", "mG"],
+                   help="unit of the file's field columns (default nT); the added columns are in it too")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_apply)
 
     p = sub.add_parser("diagnose", help="where the calibration residual lies and which unmodelled effect causes it")
     p.add_argument("file", metavar="FILE.csv")

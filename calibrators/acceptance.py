@@ -144,26 +144,29 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
     is moved by the tolerance along that direction (both ways), every other parameter refitted, and the
     increase of the sum of squares is compared with ``profile_chi2`` noise variances (a likelihood-ratio
     test).  A rejection when the data hardly tell the two apart."""
-    if objective.model != "nine":
+    names = PARAM_NAMES[objective.model]
+    if "ox_nT" not in names:
         return []
+    p = len(names)
+    io = names.index("ox_nT")  # the offsets are the last three entries of every model that has them
     normal, ratio = least_covered_direction(objective.raw_nT)
     step = limits.tolerance("o_nT", field_nT)
     basis = np.linalg.qr(np.column_stack([normal, np.eye(3)]))[0][:, :3]  # normal first, then two more
-    transform = np.zeros((9, 8))
-    transform[:6, :6] = np.eye(6)
-    transform[6:9, 6:8] = basis[:, 1:3]
+    transform = np.zeros((p, p - 1))
+    transform[:io, :io] = np.eye(io)
+    transform[io:io + 3, io:io + 2] = basis[:, 1:3]
     base = float(np.sum(objective.residuals(x) ** 2))
     increases = []
     for sign in (1.0, -1.0):
-        fixed = x.copy()
-        fixed[6:9] += sign * step * basis[:, 0]
+        fixed = np.array(x, dtype=float)
+        fixed[io:io + 3] += sign * step * basis[:, 0]
 
         def reduced(z, fixed=fixed):
             a, g, cost = objective.normal_equations(fixed + transform @ z)
             return transform.T @ a @ transform, transform.T @ g, cost
 
         with np.errstate(all="ignore"):  # the increase is needed to a small fraction of one noise variance
-            _, cost, _ = lm_normal(reduced, np.zeros(8), tol=1e-10, max_iter=REFERENCE_MAX_ITER,
+            _, cost, _ = lm_normal(reduced, np.zeros(p - 1), tol=1e-10, max_iter=REFERENCE_MAX_ITER,
                                    atol=PROFILE_ATOL * noise_nT ** 2)
         increases.append((cost - base) / noise_nT ** 2)
     worst = min(increases)
@@ -176,11 +179,13 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
 
 
 def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust: bool, closed_form: bool,
-           physical_box: tuple[np.ndarray, np.ndarray], limits: AcceptanceLimits = DEFAULT_LIMITS
-           ) -> tuple[list[str], list[str]]:
+           physical_box: tuple[np.ndarray, np.ndarray], limits: AcceptanceLimits = DEFAULT_LIMITS,
+           info: dict | None = None) -> tuple[list[str], list[str]]:
     """Rejections and warnings for the estimate ``x`` on the data of ``objective``: improvement, physical
     range, outliers (robust screening), fitness against the data's own optimum, and identifiability at
-    the noise that optimum leaves."""
+    the noise that optimum leaves.  ``info``, when given, receives ``noise_nT`` (that noise), ``inliers``
+    (the objective on the points kept) and ``n_outliers``."""
+    info = {} if info is None else info
     rejections: list[str] = []
     warnings: list[str] = []
     field_nT = float(np.median(objective.f_ref_nT))
@@ -199,6 +204,7 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
         else:
             rejections.append(what + ": remove them or use --method ransac")
     n, p = int((~mask).sum()), len(x)
+    info["n_outliers"] = n_out
     if n <= p:
         return rejections + [f"only {n} points are left after the outlier screening for {p} parameters"], warnings
     inliers = objective if not n_out else ScalarObjective(objective.raw_nT[~mask], objective.f_ref_nT[~mask],
@@ -213,6 +219,7 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
         rejections.append(f"the residual {rms_x:.3g} nT is {rms_x / max(rms_ref, floor):.3g} times the optimum these "
                           f"data allow ({rms_ref:.3g} nT): {why}")
     noise = rms_ref * np.sqrt(n / (n - p))
+    info["noise_nT"], info["inliers"] = float(noise), inliers
     rejections += identifiability(inliers, x_ref, noise, field_nT, limits)
     rejections += profile_offset(inliers, x_ref, noise, field_nT, limits)
     return rejections, warnings

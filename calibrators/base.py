@@ -7,9 +7,10 @@ state is kept on the calibrator.
 """
 from __future__ import annotations
 
+import hashlib
 import inspect
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from typing import ClassVar
 
@@ -17,10 +18,10 @@ import numpy as np
 
 from magbench.errors import InputError
 from magbench.simulate.dataset import Dataset
-from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
+from magbench.simulate.sensor import FREE, MODELS, PARAM_NAMES, ErrorParams
 
 from .acceptance import DEFAULT_LIMITS, AcceptanceLimits, assess, reference_problems
-from .fisher import coverage
+from .fisher import coverage, crb_std
 from .objective import Budget, BudgetExhausted, Evaluator, ScalarObjective, identity_vector
 
 
@@ -60,6 +61,12 @@ class CalibrationResult:
     accepted: bool = True  # every acceptance check passed (calibrators/acceptance.py)
     rejections: tuple[str, ...] = ()  # why not, one cause per entry
     reference: dict = field(default_factory=dict)  # the reference magnitude used and its source
+    # Cramér-Rao standard deviation of every estimated parameter at the estimate and the estimated noise
+    uncertainty: dict = field(default_factory=dict)
+    noise_nT: float = float("nan")  # the noise those deviations assume (residual RMS of the data's optimum)
+    model_choice: dict | None = None  # model "auto": the candidates, their held-out RMS and the reason
+    data_digest: str = ""  # sha256 of the readings and reference fitted (calibration files name their data)
+    n_points: int = 0
 
     def __post_init__(self):
         for name in ("x", "solver_x"):
@@ -77,6 +84,16 @@ class CalibrationResult:
     def correct(self, raw_nT: np.ndarray) -> np.ndarray:
         """Apply the estimated correction B = M (raw - o) to readings (n, 3)."""
         return self.params.correct(raw_nT)
+
+    def calibration(self):
+        """This result as a ``Calibration`` (the saved artifact, ``calibrators/artifacts.py``)."""
+        from .artifacts import Calibration
+
+        return Calibration.from_result(self)
+
+    def to_json(self) -> str:
+        """The calibration file's text (schema ``magbench.calibration``; ``artifacts.load_calibration``)."""
+        return self.calibration().to_json()
 
     def as_dict(self) -> dict:
         """The JSON form of CONTRACT section 3 (``magbench calibrate --json``)."""
@@ -106,6 +123,11 @@ class CalibrationResult:
             "accepted": self.accepted,
             "rejections": list(self.rejections),
             "reference": dict(self.reference),
+            "uncertainty": dict(self.uncertainty),
+            "noise_nT": self.noise_nT,
+            "n_points": self.n_points,
+            "data_digest": self.data_digest,
+            **({"model_choice": self.model_choice} if self.model_choice is not None else {}),
             "hyperparameters": {k: _jsonable(v) for k, v in self.hyperparameters.items()},
             **({"extra": {k: _jsonable(v) for k, v in self.extra.items()}} if self.extra else {}),
         }
@@ -196,8 +218,9 @@ class Problem:
         return self._evaluator.best_x
 
     def algebraic_start(self) -> tuple[np.ndarray, float] | None:
-        """The closed-form ellipsoid fit as a start point (``nine`` model) and its F, or None where the
-        readings do not fit an ellipsoid; counted as one evaluation (its objective value is computed)."""
+        """The closed-form fit as a start point and its F, or None where the readings do not fit that shape
+        (``nine``: the ellipsoid; ``diag``: the axis-aligned ellipsoid; ``offset``: the sphere; ``angles``:
+        none); counted as one evaluation (its objective value is computed)."""
         x = self._start() if self._start is not None else None
         if x is None:
             return None
@@ -248,15 +271,17 @@ def search_bounds(model: str, f_ref_nT, angle_range_rad: float, scale_min: float
                   ) -> tuple[np.ndarray, np.ndarray]:
     """The one bounds function: the search box ``(lower, upper)`` every ``_solve`` is handed.
 
-    Angles +-``angle_range_rad`` (seed 000, section 2.2 step 1: 0.1 rad); for ``nine`` also scales in
-    [``scale_min``, ``scale_max``] and offsets +-``offset_range_nT`` (default ``offset_fraction`` times
-    the median reference magnitude).  Each calibrator names its box in ``search_box()``."""
+    Angles +-``angle_range_rad`` (seed 000, section 2.2 step 1: 0.1 rad), scales in [``scale_min``,
+    ``scale_max``] and offsets +-``offset_range_nT`` (default ``offset_fraction`` times the median reference
+    magnitude), for the entries the model estimates.  Each calibrator names its box in ``search_box()``."""
     lo = [-angle_range_rad] * 3
     hi = [angle_range_rad] * 3
-    if model in ("nine",):
+    if model != "angles":
         offset = offset_fraction * float(np.median(f_ref_nT)) if offset_range_nT is None else offset_range_nT
         lo += [scale_min] * 3 + [-offset] * 3
         hi += [scale_max] * 3 + [offset] * 3
+        free = list(FREE[model])
+        lo, hi = [lo[i] for i in free], [hi[i] for i in free]
     return np.array(lo, dtype=float), np.array(hi, dtype=float)
 
 
@@ -292,7 +317,7 @@ class Calibrator:
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
-        if "fit" in cls.__dict__:
+        if "fit" in cls.__dict__ or "_fit_dataset" in cls.__dict__:
             raise TypeError(f"{cls.__name__} overrides fit(): Calibrator.fit is the one entry point (it validates "
                             "the data, counts every evaluation and checks the answer); implement _solve instead")
 
@@ -368,7 +393,7 @@ class Calibrator:
         """Refuse data this calibrator cannot use (``InputError``); return warnings."""
         model = self.model
         if model not in MODELS:
-            raise InputError(f"unknown model {model!r}: use one of {', '.join(MODELS)}")
+            raise InputError(f"unknown model {model!r}: use one of {', '.join(MODELS)} or auto")
         if model not in self.supported_models:
             raise InputError(f"{self.name} estimates the {'/'.join(self.supported_models)} model, "
                              f"not {model!r}; use --model {self.supported_models[0]}")
@@ -400,9 +425,26 @@ class Calibrator:
             warnings.append(f"the reference magnitude varies by {100 * spread:.1f} % over the record")
         return warnings
 
-    def fit(self, dataset: Dataset) -> CalibrationResult:
-        """Calibrate on ``dataset``; the data are read, never changed.  The one entry point: subclasses
-        implement ``_solve`` and cannot override ``fit``."""
+    def fit(self, data, *, f_ref_nT=None, field=None, units: str = "nT") -> CalibrationResult:
+        """Calibrate on ``data``; the data are read, never changed.  The one entry point: subclasses
+        implement ``_solve`` and cannot override ``fit``.
+
+        ``data``: a ``Dataset``, an (N, 3) array of readings or a pandas DataFrame with ``bx, by, bz``
+        columns (``units`` applies to those two; default nT).  The reference magnitude: ``f_ref_nT=`` (a
+        scalar or one value per row), ``field=`` (a number of nT, or ``"auto"``: estimated from the readings,
+        MATLAB magcal's ``expmfs``; the overall gain then stays relative, see ``calibrators/inputs.py``),
+        else the data's own (a Dataset's ``f_ref_nT``, a DataFrame's ``f_ref`` column).  With the model
+        ``auto`` the candidate models are compared first (``calibrators/modelselect.py``)."""
+        from .inputs import as_dataset
+
+        dataset = as_dataset(data, f_ref_nT=f_ref_nT, field=field, units=units, model=self.model)
+        if self.model == "auto":
+            from .modelselect import fit_auto
+
+            return fit_auto(self, dataset)
+        return self._fit_dataset(dataset)
+
+    def _fit_dataset(self, dataset: Dataset) -> CalibrationResult:
         warnings = self.validate(dataset)
         model = self.model
         objective = ScalarObjective(dataset.raw_nT, dataset.f_ref_nT, model)
@@ -410,7 +452,11 @@ class Calibrator:
         lower, upper = search_bounds(model, dataset.f_ref_nT, **self.search_box())
         x0 = identity_vector(model)
         rng = np.random.default_rng(self.seed)
-        start = partial(_ellipsoid_start, dataset.raw_nT, dataset.f_ref_nT) if model == "nine" else None
+        start = None
+        if model == "nine":
+            start = partial(_ellipsoid_start, dataset.raw_nT, dataset.f_ref_nT)
+        elif model != "angles":
+            start = partial(_algebraic_start, dataset.raw_nT, dataset.f_ref_nT, model)
         if self.closed_form:
             problem = ReadingsProblem(evaluator, model, x0, lower, upper, rng, self.seed, dataset.raw_nT,
                                       dataset.f_ref_nT, start)
@@ -438,8 +484,11 @@ class Calibrator:
             x, f_x, success, status = x0.copy(), f_start, False, "worse_than_start"
         warnings += self._solution_warnings(objective, x)
         physical = search_bounds(model, dataset.f_ref_nT, **PHYSICAL_BOX)
+        info: dict = {}
         rejections, notes = assess(objective, x, improved=status != "worse_than_start", robust=self.robust,
-                                   closed_form=self.closed_form, physical_box=physical, limits=self.acceptance)
+                                   closed_form=self.closed_form, physical_box=physical, limits=self.acceptance,
+                                   info=info)
+        uncertainty, noise = _uncertainty(info.get("inliers", objective), x, info.get("noise_nT"))
         if not self.closed_form:
             rejections += _at_bounds(x, lower, upper, model)
         warnings += notes
@@ -453,12 +502,14 @@ class Calibrator:
             evaluation_mode="closed-form" if self.closed_form else "counted",
             solver_x=solver_x, solver_rms_nT=float(np.sqrt(f_solver)) if np.isfinite(f_solver) else float("nan"),
             n_overrun_calls=evaluator.n_overrun_calls, accepted=not rejections, rejections=tuple(rejections),
-            reference=_reference_of(dataset))
+            reference=_reference_of(dataset), uncertainty=uncertainty, noise_nT=noise,
+            data_digest=data_digest(dataset.raw_nT, dataset.f_ref_nT), n_points=len(dataset))
 
     def _solution_warnings(self, objective: ScalarObjective, x: np.ndarray) -> list[str]:
-        if self.model == "nine":
-            x_k = x[3:6]
-            if np.any(x_k <= 0):
+        names = PARAM_NAMES[self.model]
+        if "kx" in names:
+            i = names.index("kx")
+            if np.any(x[i:i + 3] <= 0):
                 return ["a scale factor is not positive: the estimate is not physical"]
         return []
 
@@ -497,10 +548,45 @@ def _at_bounds(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, model: str) 
 
 
 def _reference_of(dataset: Dataset) -> dict:
-    """The reference magnitude used and where it came from (CONTRACT section 3, ``reference``)."""
+    """The reference magnitude used and where it came from (CONTRACT section 3, ``reference``); with
+    ``--field auto`` also ``estimated: true`` and what stays relative (``relative``)."""
     f = np.asarray(dataset.f_ref_nT, dtype=float)
-    return {"median_nT": float(np.median(f)), "min_nT": float(f.min()), "max_nT": float(f.max()),
-            "source": dataset.meta.get("reference_source", "dataset f_ref_nT")}
+    out = {"median_nT": float(np.median(f)), "min_nT": float(f.min()), "max_nT": float(f.max()),
+           "source": dataset.meta.get("reference_source", "dataset f_ref_nT"),
+           "estimated": "reference_estimated" in dataset.meta}
+    if out["estimated"]:
+        out["relative"] = dataset.meta["reference_estimated"]
+        if dataset.meta.get("reference_ignored"):
+            out["ignored"] = dataset.meta["reference_ignored"]
+    return out
+
+
+def data_digest(raw_nT: np.ndarray, f_ref_nT: np.ndarray | None) -> str:
+    """sha256 of the readings and the reference as little-endian float64 (C order), prefixed ``sha256:``:
+    the same numbers give the same digest, whatever file or array they came from."""
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(raw_nT, dtype="<f8").tobytes())
+    if f_ref_nT is not None:
+        h.update(np.ascontiguousarray(f_ref_nT, dtype="<f8").tobytes())
+    return "sha256:" + h.hexdigest()
+
+
+def _uncertainty(objective: ScalarObjective, x: np.ndarray, noise_nT: float | None) -> tuple[dict, float]:
+    """Cramér-Rao standard deviation of every estimated parameter at ``x`` and the estimated noise (the
+    residual RMS of the data's own optimum, degrees of freedom corrected; the estimate's own residual when
+    the acceptance checks did not get that far), keyed by parameter name."""
+    names = PARAM_NAMES[objective.model]
+    if noise_nT is None or not np.isfinite(noise_nT):
+        n, p = objective.raw_nT.shape[0], len(names)
+        r = objective.residuals(x)
+        noise_nT = float(np.sqrt(np.sum(r * r) / max(n - p, 1)))
+    field = float(np.median(objective.f_ref_nT))
+    try:
+        with np.errstate(all="ignore"):
+            std = crb_std(objective, x, max(noise_nT, 1e-9 * field))
+    except (np.linalg.LinAlgError, ValueError):
+        std = np.full(len(names), np.nan)
+    return {name: float(v) for name, v in zip(names, std)}, float(noise_nT)
 
 
 def _solver_point(x, p: int) -> tuple[np.ndarray, str]:
@@ -512,6 +598,13 @@ def _solver_point(x, p: int) -> tuple[np.ndarray, str]:
     if arr.shape != (p,):
         return np.full(p, np.nan), f"returned a vector of shape {arr.shape}, not ({p},)"
     return arr, ""
+
+
+def _algebraic_start(raw_nT: np.ndarray, f_ref_nT: np.ndarray, model: str) -> np.ndarray | None:
+    """The closed-form start of the ``offset`` (sphere) and ``diag`` (axis-aligned ellipsoid) models."""
+    from .inputs import algebraic_vector
+
+    return algebraic_vector(raw_nT, f_ref_nT, model)
 
 
 def _ellipsoid_start(raw_nT: np.ndarray, f_ref_nT: np.ndarray) -> np.ndarray | None:

@@ -50,6 +50,7 @@ class AdaptiveGA(Calibrator):
     name = "aga"
     summary = "seed 000's adaptive binary GA (Pc, Pm of eq. 4-5, roulette, 10 bits/parameter)"
     stochastic = True
+    supported_models = ("angles", "nine")  # the paper's models (seed 000's 3 angles; seeds 002-003's nine)
     # As specified the AGA converges prematurely (results/aga_quality.md): on the battery's low-noise
     # sphere it misses the angles by up to ~7 grid steps, and with 9 parameters it only roughly
     # halves the residual.  The tolerances say so; aga-lm is the variant that recovers them.

@@ -45,8 +45,9 @@ class LeastSquares(Calibrator):
     """Least squares on the scalar residuals, analytic Jacobian: trust-region reflective inside the
     physical box (``bounded``, default) or plain Levenberg-Marquardt.
 
-    ``init``: ``identity`` starts from no correction; ``ellipsoid`` from the algebraic ellipsoid fit
-    (``nine`` only); ``auto`` uses the ellipsoid start when it fits and is better than the identity.
+    ``init``: ``identity`` starts from no correction; ``ellipsoid`` from the algebraic fit (the ellipsoid
+    for ``nine``, the axis-aligned ellipsoid for ``diag``, the sphere for ``offset``; none for ``angles``);
+    ``auto`` uses the algebraic start when it fits and is better than the identity.
     """
 
     name = "lsq"
@@ -63,7 +64,7 @@ class LeastSquares(Calibrator):
     def _start(self, problem: Problem) -> np.ndarray:
         if self.init not in ("auto", "identity", "ellipsoid"):
             raise InputError(f"lsq: init must be auto, identity or ellipsoid, not {self.init!r}")
-        if self.init == "identity" or problem.model != "nine":
+        if self.init == "identity" or problem.model == "angles":
             return problem.x0
         start = problem.algebraic_start()  # the framework's ellipsoid fit, counted
         if start is None:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from magbench.simulate.sensor import PARAM_NAMES, ErrorParams
+from magbench.simulate.sensor import FREE, PARAM_NAMES, ErrorParams, embed
 
 
 
@@ -26,12 +26,20 @@ def identity_vector(model: str) -> np.ndarray:
     return ErrorParams().to_vector(model)
 
 
+def base_model(model: str) -> str:
+    """The form a model is computed in: ``angles`` (no scale, no offset: the 6-term quadric) or ``nine``
+    (``offset`` and ``diag`` are the nine-parameter model with entries held fixed)."""
+    return "angles" if model == "angles" else "nine"
+
+
 def correction_matrices(x: np.ndarray, model: str) -> tuple[np.ndarray, np.ndarray]:
     """M = P(alpha, beta, gamma) K^-1 and offset o for each row of ``x`` (shape (m, p)).
 
     Returns M of shape (m, 3, 3) and o of shape (m, 3).
     """
     x = np.atleast_2d(np.asarray(x, dtype=float))
+    if model in ("offset", "diag"):
+        x, model = embed(x, model), "nine"
     m = x.shape[0]
     a, b, g = x[:, 0], x[:, 1], x[:, 2]
     if model == "nine":
@@ -60,6 +68,8 @@ def quadric_coefficients(x: np.ndarray, model: str) -> np.ndarray:
     """
     if not (isinstance(x, np.ndarray) and x.ndim == 2 and x.dtype == np.float64):
         x = np.atleast_2d(np.asarray(x, dtype=float))
+    if model in ("offset", "diag"):
+        x, model = embed(x, model), "nine"
     xt = x.T
     angles = xt[:3].copy()  # contiguous: the trigonometric ufuncs run faster on it
     cos, sin = np.cos(angles), np.sin(angles)
@@ -89,7 +99,12 @@ _W_INDEX = np.array([0, 3, 4, 3, 1, 5, 4, 5, 2])  # W as a 3x3 from the rows w00
 
 
 class ScalarObjective:
-    """Scalar residuals ``r_i = |M (raw_i - o)| - F_i`` and their mean square (seed 000, eq. 3)."""
+    """Scalar residuals ``r_i = |M (raw_i - o)| - F_i`` and their mean square (seed 000, eq. 3).
+
+    Every model is computed as ``angles`` or ``nine`` (``base_model``): the ``offset`` and ``diag``
+    vectors are embedded into the nine-vector (``sensor.embed``) and their Jacobian is the nine-parameter
+    Jacobian's columns of the free entries, so residuals, Jacobian, normal equations and population values
+    have one implementation."""
 
     def __init__(self, raw_nT: np.ndarray, f_ref_nT: np.ndarray, model: str):
         if model not in PARAM_NAMES:
@@ -97,6 +112,8 @@ class ScalarObjective:
         self.raw_nT = np.asarray(raw_nT, dtype=float)
         self.f_ref_nT = np.broadcast_to(np.asarray(f_ref_nT, dtype=float), (self.raw_nT.shape[0],))
         self.model = model
+        self.base = base_model(model)
+        self._free = None if model == self.base else list(FREE[model])  # Jacobian columns kept
         self.n_params = n_params(model)
         self._raw_t = np.ascontiguousarray(self.raw_nT.T)  # (3, n): one contiguous row per axis
         self._design_cache: np.ndarray | None = None  # built on the first population call
@@ -108,7 +125,7 @@ class ScalarObjective:
         if self._design_cache is None:
             x, y, z = self.raw_nT.T
             cols = [x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z]
-            if self.model == "nine":
+            if self.base == "nine":
                 cols += [x, y, z, np.ones_like(x)]
             self._design_cache = np.ascontiguousarray(np.array(cols))
             self._design_mean = self._design_cache.mean(axis=1)
@@ -152,16 +169,18 @@ class ScalarObjective:
         products are written out (a (m, 3) x (3, 3) BLAS call is slow for long m).
         """
         x = np.asarray(x, dtype=float)
-        mat, o = correction_matrices(x[None, :], self.model)
+        if self._free is not None:
+            x = embed(x, self.model)
+        mat, o = correction_matrices(x[None, :], self.base)
         mat, o = mat[0], o[0]
         d = self._raw_t[:, rows] - o[:, None]  # (3, m)
         c = _lower_times(mat, d)
         norm = np.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])
         u = c / norm
         a, b, g = x[:3]
-        ik = 1.0 / x[3:6] if self.model == "nine" else np.ones(3)
+        ik = 1.0 / x[3:6] if self.base == "nine" else np.ones(3)
         ca, sa, cb, sb, cg, sg = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(g), np.sin(g)
-        jt = np.empty((self.n_params, d.shape[1]))
+        jt = np.empty((len(x), d.shape[1]))
         jt[0] = (u[0] * (-sa * cg) + u[2] * (ca * cg)) * (ik[0] * d[0])
         jt[1] = (u[1] * (-sb) + u[2] * cb) * (ik[1] * d[1])
         jt[2] = (u[0] * (-ca * sg) + u[1] * cg + u[2] * (-sa * sg)) * (ik[0] * d[0])
@@ -169,9 +188,11 @@ class ScalarObjective:
         mtu[0] = mat[0, 0] * u[0] + mat[1, 0] * u[1] + mat[2, 0] * u[2]
         mtu[1] = mat[1, 1] * u[1] + mat[2, 1] * u[2]
         mtu[2] = mat[2, 2] * u[2]
-        if self.model == "nine":
+        if self.base == "nine":
             jt[3:6] = -mtu * d * ik[:, None]
             jt[6:9] = -mtu
+        if self._free is not None:
+            jt = jt[self._free]
         return norm - self.f_ref_nT[rows], jt, mtu[0] * mtu[0] + mtu[1] * mtu[1] + mtu[2] * mtu[2]
 
     def _blocks(self):

@@ -15,13 +15,41 @@ from typing import Literal
 
 import numpy as np
 
-MODELS = ("angles", "nine")
-"""Model names: ``angles`` (alpha, beta, gamma; K = I, o = 0) and ``nine`` (+ scale and offset)."""
+MODELS = ("offset", "diag", "angles", "nine")
+"""Model names, simplest first: ``offset`` (ox, oy, oz; P = I, K = I: MATLAB magcal's ``eye``), ``diag``
+(scales and offsets; P = I: magcal's ``diag``), ``angles`` (alpha, beta, gamma; K = I, o = 0: seed 000's
+3-parameter model) and ``nine`` (angles + scales + offsets).  Every model is the nine-parameter vector
+with some entries held at their neutral values (angles 0, scales 1, offsets 0): ``FREE[model]`` lists the
+free entries, and ``embed``/``ErrorParams.to_vector`` map between a model's vector and the nine-vector."""
 
-PARAM_NAMES = {
-    "angles": ("alpha_rad", "beta_rad", "gamma_rad"),
-    "nine": ("alpha_rad", "beta_rad", "gamma_rad", "kx", "ky", "kz", "ox_nT", "oy_nT", "oz_nT"),
+NINE_NAMES = ("alpha_rad", "beta_rad", "gamma_rad", "kx", "ky", "kz", "ox_nT", "oy_nT", "oz_nT")
+
+FREE = {
+    "offset": (6, 7, 8),
+    "diag": (3, 4, 5, 6, 7, 8),
+    "angles": (0, 1, 2),
+    "nine": tuple(range(9)),
 }
+"""Indices of each model's free parameters in the nine-vector (the others are held at NEUTRAL)."""
+
+NEUTRAL = (0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0)
+"""The nine-vector of no correction: the values the fixed entries of a model are held at."""
+
+PARAM_NAMES = {model: tuple(NINE_NAMES[i] for i in free) for model, free in FREE.items()}
+
+
+def embed(x, model: str) -> "np.ndarray":
+    """A model's parameter vector(s) (p,) or (m, p) as nine-vector(s) (9,) or (m, 9): the linear embedding
+    that holds the entries the model does not estimate at their neutral values."""
+    if model not in FREE:
+        raise ValueError(f"unknown model {model!r}; expected one of {MODELS}")
+    x = np.asarray(x, dtype=float)
+    if model == "nine":
+        return x
+    out = np.empty(x.shape[:-1] + (9,))
+    out[...] = NEUTRAL
+    out[..., list(FREE[model])] = x
+    return out
 
 
 def paper_matrix(alpha, beta, gamma) -> np.ndarray:
@@ -83,21 +111,16 @@ class ErrorParams:
 
     def to_vector(self, model: str = "nine") -> np.ndarray:
         """Parameter vector in the order of ``PARAM_NAMES[model]``."""
-        angles = [self.alpha_rad, self.beta_rad, self.gamma_rad]
-        if model == "angles":
-            return np.array(angles)
-        if model == "nine":
-            return np.array(angles + list(self.scale) + list(self.offset_nT))
-        raise ValueError(f"unknown model {model!r}; expected one of {MODELS}")
+        if model not in FREE:
+            raise ValueError(f"unknown model {model!r}; expected one of {MODELS}")
+        nine = np.array([self.alpha_rad, self.beta_rad, self.gamma_rad, *self.scale, *self.offset_nT])
+        return nine[list(FREE[model])]
 
     @classmethod
     def from_vector(cls, x, model: str = "nine") -> "ErrorParams":
-        x = np.asarray(x, dtype=float)
-        if model == "angles":
-            return cls(x[0], x[1], x[2])
-        if model == "nine":
-            return cls(x[0], x[1], x[2], tuple(x[3:6]), tuple(x[6:9]))
-        raise ValueError(f"unknown model {model!r}; expected one of {MODELS}")
+        """The parameters of a model's vector; the entries the model does not estimate are neutral."""
+        x = embed(np.asarray(x, dtype=float), model)
+        return cls(x[0], x[1], x[2], tuple(x[3:6]), tuple(x[6:9]))
 
     @classmethod
     def from_correction(cls, c: np.ndarray, offset_nT=(0.0, 0.0, 0.0)) -> "ErrorParams":
@@ -117,6 +140,12 @@ class ErrorParams:
         gamma = np.arcsin(np.clip(m[1, 0] * kx, -1.0, 1.0))
         alpha = np.arctan2(m[2, 0], m[0, 0])
         return cls(alpha, beta, gamma, (kx, ky, kz), tuple(np.asarray(offset_nT, dtype=float)))
+
+    def fits_model(self, model: str, atol: float = 0.0) -> bool:
+        """Whether the entries ``model`` holds fixed are at their neutral values (within ``atol``)."""
+        nine = self.to_vector("nine")
+        fixed = [i for i in range(9) if i not in FREE[model]]
+        return bool(np.all(np.abs(nine[fixed] - np.asarray(NEUTRAL)[fixed]) <= atol))
 
     def as_dict(self) -> dict:
         return {

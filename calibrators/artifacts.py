@@ -1,0 +1,477 @@
+"""Calibrations as files: the ``magbench.calibration`` JSON schema, loading, and exports to MATLAB's
+``magcal`` convention, ArduPilot and PX4.
+
+Python::
+
+    result = make("lsq", model="nine").fit(data)
+    text = result.to_json()                      # the schema below, as text
+    cal = Calibration.from_json(text)            # or load_calibration("cal.json"), also reads magcal files
+    corrected_nT = cal.correct(raw_nT)           # B = M (raw - o)
+    export(cal, "cal", "ardupilot")             # -> cal.param (see the formats below)
+
+``magbench calibrate FILE --save CAL [--export json|matlab|ardupilot|px4]`` writes them;
+``magbench apply CAL FILE.csv --out OUT.csv`` applies a saved calibration (json, or magcal json/mat).
+
+The schema (``schema: "magbench.calibration"``, ``schema_version: 1``)
+------------------------------------------------------------------------
+``model``, ``method``, ``magbench_version``; ``parameters``: every one of the nine parameters of CONTRACT
+section 1 as ``{"value", "std", "fixed"}`` (``std`` the Cramér-Rao standard deviation at the estimate and
+the estimated noise ``noise_nT``; ``fixed`` for the entries the model holds at 0 or 1, with ``std`` null);
+``M`` (3x3, row-major, lower triangular) and ``o_nT`` (3) with ``correction: "B = M (raw - o)"`` for column
+vectors in nT; ``reference`` (the magnitude used, its source, and ``estimated``/``relative`` with
+``--field auto``); ``data`` (``digest``: sha256 of the readings and reference as little-endian float64,
+``n_points``); ``rms_before_nT``, ``rms_after_nT``, ``accepted``, ``rejections``, ``warnings``, and
+``model_choice`` when the model was ``auto``.  A reader refuses another schema name, a newer version, a
+model whose fixed entries are not neutral, and an ``M`` that disagrees with the parameters.
+
+The exports: formulas, units and signs
+--------------------------------------
+Our correction, for a reading ``raw`` (column vector, nT): ``B = M (raw - o)``, M lower triangular
+(CONTRACT section 1).
+
+* ``json``: the schema above; ``B`` exactly (vector and magnitude).
+* ``matlab`` (``.mat`` through ``scipy.io.savemat``, or ``.json``): ``A`` (3x3), ``b`` (1x3), ``expmfs``
+  (the reference magnitude, nT) as returned by MATLAB's ``[A, b, expmfs] = magcal(D)``, applied as magcal
+  documents it to row vectors: ``C = (D - b) * A``.  Hence ``A = M^T`` and ``b = o``, in nT (D in nT);
+  ``C`` equals ``B`` as a vector.  A magcal file's own ``A`` (symmetric) is read as given.
+* ``ardupilot`` (``.param``, ``NAME,VALUE`` lines as Mission Planner and MAVProxy load them): ArduPilot
+  applies, in ``AP_Compass_Backend::correct_field`` (``libraries/AP_Compass/AP_Compass_Backend.cpp``), with
+  the field in milligauss::
+
+      mag += offsets;                        // COMPASS_OFS_X/Y/Z (mGauss), ADDED
+      mag *= scale_factor;                   // COMPASS_SCALE (applied when within its sanity range)
+      mag = S * mag;                         // S = [[DIA_X, ODI_X, ODI_Y], [ODI_X, DIA_Y, ODI_Z],
+                                             //      [ODI_Y, ODI_Z, DIA_Z]]  (symmetric)
+
+  i.e. ``corrected_mG = S (COMPASS_SCALE (raw_mG + COMPASS_OFS))``.  Exported: ``COMPASS_OFS = -o / 100``
+  (1 mG = 100 nT; the sign flips because ArduPilot adds its offsets), ``COMPASS_SCALE = 1``, and S the
+  symmetric positive-definite factor ``S = sqrtm(M^T M)``.  ArduPilot applies it in the board frame, after
+  ``COMPASS_ORIENT``/``AHRS_ORIENTATION``: the readings calibrated must be in that frame (for a sensor-frame
+  calibration, orientation none).  Motor compensation (``COMPASS_MOT``) is not part of it.
+* ``px4`` (``.params``, QGroundControl's tab-separated ``vehicle component name value type`` lines):
+  PX4 applies, in ``calibration::Magnetometer::Correct`` (``src/lib/sensor_calibration/Magnetometer.hpp``,
+  the matrix built in ``Magnetometer::ParametersUpdate``, ``Magnetometer.cpp``), with the field in gauss::
+
+      corrected = R * (S * ((data + power * CAL_MAG0_COMP) - CAL_MAG0_OFF))
+
+  with ``S = [[XSCALE, XODIAG, YODIAG], [XODIAG, YSCALE, ZODIAG], [YODIAG, ZODIAG, ZSCALE]]`` (symmetric)
+  and R the sensor rotation (``CAL_MAG0_ROT``/board rotation; identity for readings in the sensor frame).
+  Exported: ``CAL_MAG0_XOFF/YOFF/ZOFF = o / 1e5`` (1 G = 1e5 nT; SUBTRACTED, same sign as ours), the
+  scales and off-diagonals from the same ``S = sqrtm(M^T M)``.  ``CAL_MAG0_ID`` (the device id) is not known
+  here: set it on the vehicle, or the calibration slot is not matched to the sensor.
+
+ArduPilot and PX4 take a SYMMETRIC soft-iron matrix.  Scalar data fix M only up to a rotation (M = R S for
+some rotation R), and ``|S d| = |M d|`` for every d: the exported S gives the same corrected *magnitude*;
+the rotation that scalar data cannot see is dropped (as the canonical form of CONTRACT section 1 drops
+it), so the corrected *vector* differs from ours by that rotation.  The round trips are tested in
+``tests/test_artifacts.py``: each exported file, applied with that system's formula above, gives our
+corrected magnitude (and for json and matlab our vector) within 0.01 nT.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from magbench.errors import InputError
+from magbench.simulate.sensor import FREE, MODELS, NEUTRAL, NINE_NAMES, ErrorParams
+
+SCHEMA = "magbench.calibration"
+SCHEMA_VERSION = 1
+FORMATS = ("json", "matlab", "ardupilot", "px4")
+EXTENSIONS = {"json": ".json", "matlab": ".mat", "ardupilot": ".param", "px4": ".params"}
+NT_PER_MILLIGAUSS = 100.0
+NT_PER_GAUSS = 1e5
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """A saved calibration: the correction ``B = matrix (raw - offset_nT)`` and what it rests on.
+
+    ``matrix`` is M as stored (lower triangular for magbench's own files; a magcal file's ``A^T`` as given);
+    ``params`` its canonical nine parameters (CONTRACT section 1)."""
+
+    model: str
+    matrix: np.ndarray
+    offset_nT: tuple
+    params: ErrorParams
+    uncertainty: dict = field(default_factory=dict)
+    noise_nT: float = float("nan")
+    reference: dict = field(default_factory=dict)
+    data_digest: str = ""
+    n_points: int = 0
+    method: str = ""
+    accepted: bool = True
+    rejections: tuple = ()
+    warnings: tuple = ()
+    rms_before_nT: float = float("nan")
+    rms_after_nT: float = float("nan")
+    model_choice: dict | None = None
+    magbench_version: str = ""
+    origin: str = "magbench"  # or "matlab" (a magcal A, b read from a file)
+
+    def __post_init__(self):
+        m = np.array(self.matrix, dtype=float)
+        if m.shape != (3, 3) or not np.all(np.isfinite(m)):
+            raise InputError("the calibration matrix must be a finite 3x3 matrix")
+        m.setflags(write=False)
+        object.__setattr__(self, "matrix", m)
+        o = tuple(float(v) for v in self.offset_nT)
+        if len(o) != 3 or not all(math.isfinite(v) for v in o):
+            raise InputError("the calibration offset must be 3 finite numbers (nT)")
+        object.__setattr__(self, "offset_nT", o)
+        object.__setattr__(self, "rejections", tuple(self.rejections))
+        object.__setattr__(self, "warnings", tuple(self.warnings))
+
+    # -- applying ------------------------------------------------------------------------------------
+    def correct(self, raw_nT: np.ndarray) -> np.ndarray:
+        """B = M (raw - o) for readings (n, 3) in nT."""
+        raw = np.asarray(raw_nT, dtype=float)
+        return (raw - np.asarray(self.offset_nT)) @ self.matrix.T
+
+    @property
+    def field_nT(self) -> float:
+        """The magnitude the corrected field is scaled to (the reference's median; magcal's expmfs)."""
+        return float(self.reference.get("median_nT", float("nan")))
+
+    def symmetric_matrix(self) -> np.ndarray:
+        """S = sqrtm(M^T M): the symmetric positive-definite soft-iron matrix with |S d| = |M d| (the
+        rotation scalar data cannot see dropped), for ArduPilot and PX4."""
+        w = self.matrix.T @ self.matrix
+        values, vectors = np.linalg.eigh((w + w.T) / 2)
+        return (vectors * np.sqrt(np.maximum(values, 0.0))) @ vectors.T
+
+    # -- building --------------------------------------------------------------------------------------
+    @classmethod
+    def from_result(cls, result) -> "Calibration":
+        from magbench import __version__
+
+        return cls(model=result.model, matrix=result.params.matrix, offset_nT=result.params.offset_nT,
+                   params=result.params, uncertainty=dict(result.uncertainty), noise_nT=float(result.noise_nT),
+                   reference=dict(result.reference), data_digest=result.data_digest, n_points=int(result.n_points),
+                   method=result.method, accepted=bool(result.accepted), rejections=tuple(result.rejections),
+                   warnings=tuple(result.warnings), rms_before_nT=float(result.rms_before_nT),
+                   rms_after_nT=float(result.rms_after_nT), model_choice=result.model_choice,
+                   magbench_version=__version__)
+
+    # -- the schema ----------------------------------------------------------------------------------
+    def as_dict(self) -> dict:
+        nine = self.params.to_vector("nine")
+        free = FREE.get(self.model, tuple(range(9)))
+        parameters = {}
+        for i, name in enumerate(NINE_NAMES):
+            fixed = i not in free
+            std = None if fixed else _finite_or_none(self.uncertainty.get(name))
+            parameters[name] = {"value": float(nine[i]), "std": std, "fixed": fixed}
+        return {
+            "schema": SCHEMA,
+            "schema_version": SCHEMA_VERSION,
+            "magbench_version": self.magbench_version,
+            "method": self.method,
+            "model": self.model,
+            "origin": self.origin,
+            "parameters": parameters,
+            "M": self.matrix.tolist(),
+            "o_nT": list(self.offset_nT),
+            "correction": "B = M (raw - o); raw, o and B in nT, column vectors (CONTRACT section 1)",
+            "noise_nT": _finite_or_none(self.noise_nT),
+            "reference": _jsonable(self.reference),
+            "data": {"digest": self.data_digest, "n_points": self.n_points},
+            "rms_before_nT": _finite_or_none(self.rms_before_nT),
+            "rms_after_nT": _finite_or_none(self.rms_after_nT),
+            "accepted": self.accepted,
+            "rejections": list(self.rejections),
+            "warnings": list(self.warnings),
+            **({"model_choice": _jsonable(self.model_choice)} if self.model_choice is not None else {}),
+        }
+
+    def to_json(self) -> str:
+        return json.dumps(self.as_dict(), indent=2, allow_nan=False) + "\n"
+
+    @classmethod
+    def from_dict(cls, d: dict, where: str = "calibration") -> "Calibration":
+        if not isinstance(d, dict):
+            raise InputError(f"{where}: not a calibration (a JSON object is expected)")
+        if "schema" not in d and "A" in d and "b" in d:
+            return _from_magcal(d, where)
+        if d.get("schema") != SCHEMA:
+            raise InputError(f"{where}: not a magbench calibration (schema {d.get('schema')!r}, expected {SCHEMA!r})")
+        version = d.get("schema_version")
+        if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+            raise InputError(f"{where}: schema_version {version!r} is not a version number")
+        if version > SCHEMA_VERSION:
+            raise InputError(f"{where}: schema version {version} is newer than this magbench reads "
+                             f"({SCHEMA_VERSION}): upgrade magbench")
+        model = d.get("model")
+        if model not in MODELS:
+            raise InputError(f"{where}: unknown model {model!r} (expected one of {', '.join(MODELS)})")
+        try:
+            p = d["parameters"]
+            nine = np.array([float(p[name]["value"]) for name in NINE_NAMES])
+            matrix = np.array(d["M"], dtype=float)
+            offset = np.array(d["o_nT"], dtype=float)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"{where}: missing or malformed entry {exc}") from None
+        if not np.all(np.isfinite(nine)) or matrix.shape != (3, 3) or offset.shape != (3,) \
+                or not np.all(np.isfinite(matrix)) or not np.all(np.isfinite(offset)):
+            raise InputError(f"{where}: the parameters, M (3x3) and o_nT (3) must be finite numbers")
+        params = ErrorParams.from_vector(nine, "nine")
+        fixed = [NINE_NAMES[i] for i in range(9) if i not in FREE[model] and nine[i] != NEUTRAL[i]]
+        if fixed:
+            raise InputError(f"{where}: model mismatch: the {model} model holds {', '.join(fixed)} fixed, "
+                             "but the file gives them other values")
+        if not (np.allclose(matrix, params.matrix, rtol=1e-9, atol=1e-12)
+                and np.allclose(offset, params.offset_nT, rtol=1e-12, atol=1e-9)):
+            raise InputError(f"{where}: model mismatch: M and o_nT disagree with the parameters")
+        uncertainty = {k: v["std"] for k, v in p.items() if isinstance(v, dict) and v.get("std") is not None}
+        data = d.get("data") or {}
+        return cls(model=model, matrix=matrix, offset_nT=tuple(offset), params=params, uncertainty=uncertainty,
+                   noise_nT=_float(d.get("noise_nT")), reference=dict(d.get("reference") or {}),
+                   data_digest=str(data.get("digest", "")), n_points=int(data.get("n_points", 0) or 0),
+                   method=str(d.get("method", "")), accepted=bool(d.get("accepted", True)),
+                   rejections=tuple(d.get("rejections") or ()), warnings=tuple(d.get("warnings") or ()),
+                   rms_before_nT=_float(d.get("rms_before_nT")), rms_after_nT=_float(d.get("rms_after_nT")),
+                   model_choice=d.get("model_choice"), magbench_version=str(d.get("magbench_version", "")),
+                   origin=str(d.get("origin", "magbench")))
+
+    @classmethod
+    def from_json(cls, text: str, where: str = "calibration") -> "Calibration":
+        try:
+            d = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise InputError(f"{where} is not JSON ({exc.msg} at line {exc.lineno})") from None
+        return cls.from_dict(d, where)
+
+    # -- exports -------------------------------------------------------------------------------------
+    def magcal(self) -> dict:
+        """``A`` (3x3), ``b`` (3), ``expmfs``: ``C = (D - b) * A`` for row vectors D in nT (MATLAB magcal)."""
+        return {"A": self.matrix.T.copy(), "b": np.array(self.offset_nT), "expmfs": self.field_nT}
+
+    def ardupilot(self) -> dict:
+        """ArduPilot's COMPASS_* parameters (see the module docstring for the formula)."""
+        s = self.symmetric_matrix()
+        o_mg = np.array(self.offset_nT) / NT_PER_MILLIGAUSS
+        return {"COMPASS_OFS_X": -o_mg[0], "COMPASS_OFS_Y": -o_mg[1], "COMPASS_OFS_Z": -o_mg[2],
+                "COMPASS_DIA_X": s[0, 0], "COMPASS_DIA_Y": s[1, 1], "COMPASS_DIA_Z": s[2, 2],
+                "COMPASS_ODI_X": s[0, 1], "COMPASS_ODI_Y": s[0, 2], "COMPASS_ODI_Z": s[1, 2],
+                "COMPASS_SCALE": 1.0}
+
+    def px4(self, instance: int = 0) -> dict:
+        """PX4's CAL_MAGn_* parameters (see the module docstring for the formula)."""
+        s = self.symmetric_matrix()
+        o_g = np.array(self.offset_nT) / NT_PER_GAUSS
+        p = f"CAL_MAG{instance}_"
+        return {p + "XOFF": o_g[0], p + "YOFF": o_g[1], p + "ZOFF": o_g[2],
+                p + "XSCALE": s[0, 0], p + "YSCALE": s[1, 1], p + "ZSCALE": s[2, 2],
+                p + "XODIAG": s[0, 1], p + "YODIAG": s[0, 2], p + "ZODIAG": s[1, 2]}
+
+
+def _float(v) -> float:
+    try:
+        return float(v) if v is not None else float("nan")
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def _finite_or_none(v):
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def _jsonable(v):
+    if isinstance(v, dict):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return _jsonable(v.tolist())
+    if isinstance(v, (np.floating, np.integer, np.bool_)):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
+def _from_magcal(d: dict, where: str, field_nT=None) -> Calibration:
+    """A calibration from MATLAB magcal's ``A``, ``b`` (and ``expmfs``): M = A^T, o = b."""
+    try:
+        a = np.array(d["A"], dtype=float).reshape(3, 3)
+        b = np.array(d["b"], dtype=float).reshape(3)
+    except (KeyError, TypeError, ValueError):
+        raise InputError(f"{where}: a magcal calibration needs A (3x3) and b (3) numbers") from None
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        raise InputError(f"{where}: A and b must be finite")
+    if not np.linalg.det(a) > 0 and not np.linalg.det(a) < 0:
+        raise InputError(f"{where}: A is singular")
+    expmfs = d.get("expmfs", field_nT)
+    try:
+        expmfs = float(np.asarray(expmfs, dtype=float).reshape(-1)[0]) if expmfs is not None else None
+    except (TypeError, ValueError, IndexError):
+        expmfs = None
+    m = a.T
+    try:
+        params = ErrorParams.from_correction(m, b)
+    except np.linalg.LinAlgError:
+        raise InputError(f"{where}: A^T A is not positive definite") from None
+    reference = {"median_nT": expmfs, "source": "magcal expmfs"} if expmfs is not None else {}
+    return Calibration(model="nine", matrix=m, offset_nT=tuple(b), params=params, reference=reference,
+                       method="magcal", origin="matlab")
+
+
+def load_calibration(path) -> Calibration:
+    """Read a calibration file: magbench's schema (``.json``) or MATLAB magcal's ``A``/``b`` (``.mat`` or
+    ``.json``).  Refuses (``InputError``, one line) what is neither, another schema or a newer version."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path} is a directory, not a calibration file")
+    if not path.exists():
+        raise InputError(f"no such calibration file: {path}")
+    if path.suffix.lower() == ".mat":
+        from scipy.io import loadmat
+
+        try:
+            d = loadmat(str(path))
+        except Exception as exc:  # scipy raises several kinds for a broken file
+            raise InputError(f"{path} is not a readable .mat file ({type(exc).__name__})") from None
+        return _from_magcal({k: v for k, v in d.items() if not k.startswith("__")}, str(path))
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise InputError(f"{path} is not a calibration file (not UTF-8 text; .mat files need the .mat extension)") from None
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+    return Calibration.from_json(text, str(path))
+
+
+def export_path(path, fmt: str) -> Path:
+    """PATH with the format's extension added when it has none (json .json, matlab .mat, ardupilot .param,
+    px4 .params)."""
+    if fmt not in FORMATS:
+        raise InputError(f"unknown export format {fmt!r}: use one of {', '.join(FORMATS)}")
+    path = Path(path)
+    return path if path.suffix else path.with_name(path.name + EXTENSIONS[fmt])
+
+
+def export_text(cal: Calibration, fmt: str, path: Path) -> str | None:
+    """The file's text for the text formats (None for a .mat file)."""
+    if fmt == "json":
+        return cal.to_json()
+    if fmt == "matlab":
+        if path.suffix.lower() == ".mat":
+            return None
+        mc = cal.magcal()
+        return json.dumps({"A": mc["A"].tolist(), "b": mc["b"].tolist(), "expmfs": _finite_or_none(mc["expmfs"]),
+                           "convention": "C = (D - b) * A for row vectors D (MATLAB magcal); D, b, C in nT",
+                           "source": f"magbench {cal.magbench_version} {cal.method} ({cal.model} model)",
+                           "data_digest": cal.data_digest}, indent=2) + "\n"
+    head = [f"magbench {cal.magbench_version} calibration ({cal.method}, {cal.model} model, data {cal.data_digest})"]
+    if fmt == "ardupilot":
+        lines = ["# " + head[0],
+                 "# ArduPilot AP_Compass_Backend::correct_field: corrected_mG = S * (COMPASS_SCALE * (raw_mG + COMPASS_OFS)),",
+                 "# S = [[DIA_X, ODI_X, ODI_Y], [ODI_X, DIA_Y, ODI_Z], [ODI_Y, ODI_Z, DIA_Z]]; offsets in milligauss, added.",
+                 "# S = sqrtm(M^T M): same corrected magnitude; the rotation scalar data cannot see is dropped."]
+        lines += [f"{k},{v:.10g}" for k, v in cal.ardupilot().items()]
+        return "\n".join(lines) + "\n"
+    lines = ["# " + head[0],
+             "# PX4 calibration::Magnetometer::Correct: corrected = R * (S * (data_G - CAL_MAG0_OFF)),",
+             "# S = [[XSCALE, XODIAG, YODIAG], [XODIAG, YSCALE, ZODIAG], [YODIAG, ZODIAG, ZSCALE]]; offsets in gauss, subtracted.",
+             "# S = sqrtm(M^T M): same corrected magnitude; the rotation scalar data cannot see is dropped.",
+             "# CAL_MAG0_ID (the device id) must be set on the vehicle.",
+             "# Vehicle-Id Component-Id Name Value Type"]
+    lines += [f"1\t1\t{k}\t{v:.10g}\t9" for k, v in cal.px4().items()]  # 9: MAV_PARAM_TYPE_REAL32
+    return "\n".join(lines) + "\n"
+
+
+def export(cal: Calibration, path, fmt: str = "json", force: bool = False) -> Path:
+    """Write ``cal`` to PATH (extension added when it has none) in ``fmt``; refuses to overwrite an
+    existing file unless ``force``.  Returns the path written."""
+    path = export_path(path, fmt)
+    if path.is_dir():
+        raise InputError(f"{path} is a directory, not a file")
+    if not path.parent.exists():
+        raise InputError(f"directory {path.parent} does not exist")
+    if path.exists() and not force:
+        raise InputError(f"{path} exists; refusing to overwrite it (use --force)")
+    text = export_text(cal, fmt, path)
+    if text is None:
+        from scipy.io import savemat
+
+        mc = cal.magcal()
+        savemat(str(path), {"A": mc["A"], "b": mc["b"][None, :],
+                            "expmfs": np.nan if mc["expmfs"] is None else mc["expmfs"]})
+    else:
+        path.write_text(text, encoding="utf-8")
+    return path
+
+
+CAL_COLUMNS = ("bx_cal", "by_cal", "bz_cal", "f_cal")
+"""Columns ``apply`` adds: the corrected field and its magnitude, in the unit of the input's field columns."""
+
+
+def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = False, cal_name: str = "") -> dict:
+    """Write ``out``: the data file ``src`` with the corrected field ``bx_cal, by_cal, bz_cal`` and its
+    magnitude ``f_cal`` added as the last columns (in ``units``, the unit of the file's field columns);
+    every other line and column of ``src`` is copied byte for byte, its ``#`` metadata lines too, with
+    two lines added after them (``# calibration:`` and ``# cal_units:``).  Refuses (``InputError``) an
+    ``out`` that is ``src`` or exists (unless ``force``), a file that already has those columns, and
+    readings whose magnitude does not fit the calibration's reference (wrong ``units``)."""
+    from magbench.simulate.dataset import UNIT_FACTORS_NT, _file_head, _header, read_csv
+
+    src, out = Path(src), Path(out)
+    if out.exists() and src.exists() and (out.resolve() == src.resolve() or out.samefile(src)):
+        raise InputError(f"--out {out} is the input file: give another name (the input is never changed)")
+    if out.resolve() == src.resolve():
+        raise InputError(f"--out {out} is the input file: give another name (the input is never changed)")
+    if out.is_dir():
+        raise InputError(f"{out} is a directory, not a file")
+    if not out.parent.exists():
+        raise InputError(f"directory {out.parent} does not exist")
+    if out.exists() and not force:
+        raise InputError(f"{out} exists; refusing to overwrite it (use --force)")
+    field = cal.field_nT if math.isfinite(cal.field_nT) and cal.field_nT > 0 else None
+    data = read_csv(src, units=units, require_vector=True, expected_field_nT=field)
+    _, skipped, header_line = _file_head(src)
+    sep, names = _header(src, header_line)
+    clash = [c for c in CAL_COLUMNS if c in names]
+    if clash:
+        raise InputError(f"{src} already has column(s) {', '.join(clash)}: it was calibrated already "
+                         "(apply the calibration to the raw file)")
+    factor = UNIT_FACTORS_NT[units]
+    corrected = cal.correct(data.raw_nT)
+    values = np.column_stack([corrected, np.linalg.norm(corrected, axis=1)]) / factor
+    with src.open("r", encoding="utf-8-sig", newline="") as handle:
+        lines = handle.read().splitlines(keepends=True)
+    head, body = lines[:skipped], lines[skipped:]
+    header, rows = body[0], body[1:]
+    eol = header[len(header.rstrip("\r\n")):] or "\n"
+    digits = ".4f" if units == "nT" else ".10g"
+    written, k = [], 0
+    for line in rows:
+        text = line.rstrip("\r\n")
+        if not text.strip():
+            written.append(line)
+            continue
+        if k >= len(values):
+            raise InputError(f"{src}: more data lines than rows read ({len(values)}): quoted line breaks are not supported")
+        ending = line[len(text):] or eol
+        written.append(text + sep + sep.join(format(v, digits) for v in values[k]) + ending)
+        k += 1
+    if k != len(values):
+        raise InputError(f"{src}: {k} data lines but {len(values)} rows read: quoted line breaks are not supported")
+    note = [f"# calibration: {cal_name or 'calibration'} ({cal.method or cal.origin}, {cal.model} model, "
+            f"data {cal.data_digest or 'unknown'}){eol}", f"# cal_units: {units}{eol}"]
+    if head and not head[-1].endswith(("\n", "\r")):
+        head[-1] += eol
+    text = "".join(head + note + [header.rstrip("\r\n") + sep + sep.join(CAL_COLUMNS) + eol] + written)
+    out.write_text(text, encoding="utf-8", newline="")
+    f_cal_nT = values[:, 3] * factor
+    info = {"out": str(out), "n_rows": int(len(values)), "columns_added": list(CAL_COLUMNS), "units": units}
+    if data.f_ref_nT is not None:
+        info["rms_f_cal_minus_f_ref_nT"] = float(np.sqrt(np.mean((f_cal_nT - data.f_ref_nT) ** 2)))
+    return info

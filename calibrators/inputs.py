@@ -1,0 +1,223 @@
+"""What ``Calibrator.fit`` accepts, and the field magnitude when no reference is given.
+
+``fit`` takes a ``Dataset``, an (N, 3) array of readings in nT, or a pandas ``DataFrame`` with columns
+``bx, by, bz`` (any letter case; optional ``f_ref``, ``t``, ``temp``, ``heading_deg``), with the reference
+as the keyword ``f_ref_nT=`` (a scalar or one value per row) or ``field="auto"``.
+
+``field="auto"`` (``magbench calibrate --field auto``) is MATLAB ``magcal``'s ``expmfs``: with no
+reference, the field magnitude is estimated from the readings themselves as the radius of the fitted
+sphere (``offset`` model) or the geometric mean of the fitted ellipsoid's semi-axes (``diag``: an
+axis-aligned ellipsoid; ``nine``: the Li-Griffiths ellipsoid; the radius of the sphere of equal volume,
+so that the correction preserves volume, ``det M = 1``), and the calibration is made relative to it.
+What then stays relative: the overall gain (the absolute scale of the corrected field, in nT) is only as
+good as that estimate, not traceable to a magnetometer or a field model; the shape (angles, the ratios of
+the scales, the offsets) is determined as with a reference.  For the ``angles`` model (no scale, no
+offset) the magnitude is the mean corrected magnitude, refined together with the angles.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from magbench.errors import InputError
+from magbench.simulate.dataset import UNIT_FACTORS_NT, Dataset
+
+FIELD_AUTO_NOTE = ("field magnitude estimated from the readings (--field auto, as magcal's expmfs): the overall "
+                   "gain (absolute scale of the corrected field) is relative to this estimate, not to a reference; "
+                   "angles, scale ratios and offsets are determined as with a reference")
+
+
+def as_dataset(data, f_ref_nT=None, field=None, units: str = "nT", model: str = "nine") -> Dataset:
+    """``data`` (a Dataset, an (N, 3) array or a DataFrame) as a Dataset, with the reference given by
+    ``f_ref_nT`` (scalar or per row), ``field`` (a number of nT, or ``"auto"``), else the data's own."""
+    if units not in UNIT_FACTORS_NT:
+        raise InputError(f"unknown unit {units!r}: use one of nT, uT, mG, G")
+    factor = UNIT_FACTORS_NT[units]
+    if isinstance(data, Dataset):
+        dataset = data
+        if units != "nT":
+            raise InputError("units= applies to arrays and DataFrames; a Dataset is in nT already")
+    elif _is_dataframe(data):
+        dataset = _from_frame(data, factor)
+    elif isinstance(data, (np.ndarray, list, tuple)):
+        try:
+            raw = np.asarray(data, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError("readings must be numbers: an (N, 3) array of bx, by, bz") from None
+        if raw.ndim != 2 or raw.shape[1] != 3:
+            raise InputError(f"readings must be an (N, 3) array of bx, by, bz, not of shape {raw.shape}")
+        dataset = Dataset(raw * factor, meta={"source": "array"})
+    else:
+        raise InputError(f"fit takes a Dataset, an (N, 3) array or a DataFrame with bx, by, bz columns, "
+                         f"not {type(data).__name__}")
+    given = [name for name, v in (("f_ref_nT", f_ref_nT), ("field", field)) if v is not None]
+    if len(given) > 1:
+        raise InputError("give the reference once: f_ref_nT= or field=, not both")
+    if isinstance(field, str):
+        if field != "auto":
+            raise InputError(f"field must be a number of nT or 'auto', not {field!r}")
+        return with_estimated_field(dataset, model)
+    ref = f_ref_nT if f_ref_nT is not None else field
+    if ref is not None:
+        try:
+            arr = np.asarray(ref, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError("the reference must be a number of nT or one number per row") from None
+        if arr.ndim > 1 or (arr.ndim == 1 and arr.shape[0] != len(dataset)):
+            raise InputError(f"the reference has shape {arr.shape}; give a scalar or {len(dataset)} values")
+        source = "f_ref_nT= (keyword)" if f_ref_nT is not None else f"field={float(np.median(arr)):g} (keyword)"
+        dataset = dataset.with_reference(np.broadcast_to(arr, (len(dataset),)).copy())
+        dataset = Dataset(dataset.raw_nT, dataset.f_ref_nT, dataset.t_s, dataset.temp_C, dataset.heading_deg,
+                          dataset.truth, {**dataset.meta, "reference_source": source})
+    return dataset
+
+
+def _is_dataframe(data) -> bool:
+    return type(data).__name__ == "DataFrame" and hasattr(data, "columns")
+
+
+def _from_frame(frame, factor: float) -> Dataset:
+    cols = {str(c).strip().lower(): c for c in frame.columns}
+    missing = [c for c in ("bx", "by", "bz") if c not in cols]
+    if missing:
+        raise InputError(f"the DataFrame lacks column(s) {', '.join(missing)} (it has {', '.join(map(str, frame.columns))})")
+
+    def col(name):
+        if name not in cols:
+            return None
+        try:
+            return frame[cols[name]].to_numpy(dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(f"DataFrame column {name} is not numeric") from None
+
+    raw = np.column_stack([col(c) for c in ("bx", "by", "bz")]) * factor
+    f_ref = col("f_ref")
+    meta = {"source": "DataFrame"}
+    if f_ref is not None:
+        meta["reference_source"] = "the DataFrame's f_ref column"
+    return Dataset(raw, f_ref_nT=None if f_ref is None else f_ref * factor, t_s=col("t"), temp_C=col("temp"),
+                   heading_deg=col("heading_deg"), meta=meta)
+
+
+# ------------------------------------------------------------------------------- algebraic fits
+def _normalized(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    mu = raw.mean(axis=0)
+    s = float(np.mean(np.linalg.norm(raw - mu, axis=1)))
+    if not s > 0:
+        raise InputError("all readings are identical: the field magnitude cannot be estimated")
+    return (raw - mu) / s, mu, s
+
+
+def sphere_fit(raw_nT: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre and radius of the least-squares sphere ``|r - c|² = R²`` (linear in c and R² - |c|²)."""
+    raw = np.asarray(raw_nT, dtype=float)
+    if raw.shape[0] < 4:
+        raise InputError(f"a sphere fit needs at least 4 points, got {raw.shape[0]}")
+    x, mu, s = _normalized(raw)
+    design = np.column_stack([2 * x, np.ones(len(x))])
+    sol, *_ = np.linalg.lstsq(design, np.sum(x * x, axis=1), rcond=None)
+    c, k = sol[:3], sol[3]
+    r2 = k + c @ c
+    if not r2 > 0:
+        raise InputError("the readings fit no sphere")
+    return mu + s * c, float(s * np.sqrt(r2))
+
+
+def axis_ellipsoid_fit(raw_nT: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and semi-axes of the least-squares axis-aligned ellipsoid
+    ``a x² + b y² + c z² + d x + e y + f z = 1`` (linear), for the ``diag`` model."""
+    raw = np.asarray(raw_nT, dtype=float)
+    if raw.shape[0] < 7:
+        raise InputError(f"an axis-aligned ellipsoid fit needs at least 7 points, got {raw.shape[0]}")
+    x, mu, s = _normalized(raw)
+    design = np.column_stack([x * x, x])
+    sol, *_ = np.linalg.lstsq(design, np.ones(len(x)), rcond=None)
+    quad, lin = sol[:3], sol[3:]
+    if np.any(quad <= 0):
+        raise InputError("the readings fit no axis-aligned ellipsoid (they cover too few directions)")
+    centre = -lin / (2 * quad)
+    g = 1.0 + np.sum(quad * centre * centre)
+    if not g > 0:
+        raise InputError("the readings fit no axis-aligned ellipsoid")
+    return mu + s * centre, s * np.sqrt(g / quad)
+
+
+def algebraic_vector(raw_nT: np.ndarray, f_ref_nT, model: str) -> np.ndarray | None:
+    """A closed-form start for ``model`` scaled to the median reference, or None where the readings fit
+    no such shape: the ellipsoid fit (``nine``), the axis-aligned ellipsoid (``diag``: k_i = r_i / F),
+    the sphere (``offset``: its centre); ``angles`` has none."""
+    f = float(np.median(f_ref_nT))
+    try:
+        if model == "nine":
+            from .ellipsoid import ellipsoid_params
+
+            return ellipsoid_params(raw_nT, f_ref_nT).to_vector("nine")
+        if model == "diag":
+            centre, radii = axis_ellipsoid_fit(raw_nT)
+            return np.concatenate([radii / f, centre])
+        if model == "offset":
+            return sphere_fit(raw_nT)[0]
+    except (InputError, np.linalg.LinAlgError):
+        return None
+    return None
+
+
+def estimate_field(raw_nT: np.ndarray, model: str) -> tuple[float, str]:
+    """The field magnitude of readings without a reference (magcal's ``expmfs``) and how it was found."""
+    raw = np.asarray(raw_nT, dtype=float)
+    if raw.ndim != 2 or raw.shape[1] != 3 or raw.shape[0] < 4 or not np.all(np.isfinite(raw)):
+        raise InputError("--field auto needs at least 4 finite readings bx, by, bz")
+    if model == "angles":
+        return _angles_field(raw), "mean corrected magnitude, refined with the angles (angles model)"
+    tries = {"nine": ("ellipsoid", "axis", "sphere"), "diag": ("axis", "sphere")}.get(model, ("sphere",))
+    for kind in tries:
+        try:
+            if kind == "ellipsoid":
+                from .ellipsoid import fit_ellipsoid
+
+                shape, _ = fit_ellipsoid(raw)
+                det = float(np.linalg.det(shape))
+                if det > 0:
+                    return det ** (-1.0 / 6.0), "radius of the sphere of the fitted ellipsoid's volume"
+            elif kind == "axis":
+                _, radii = axis_ellipsoid_fit(raw)
+                return float(np.prod(radii) ** (1.0 / 3.0)), ("radius of the sphere of the fitted axis-aligned "
+                                                               "ellipsoid's volume")
+            else:
+                return sphere_fit(raw)[1], "radius of the fitted sphere"
+        except (InputError, np.linalg.LinAlgError):
+            continue
+    raise InputError("--field auto: the readings fit no sphere or ellipsoid (they cover too few directions); "
+                     "give a reference (--field NT or --igrf)")
+
+
+def _angles_field(raw: np.ndarray) -> float:
+    """Least squares over (angles, F): F is the mean corrected magnitude for given angles, the angles the
+    least-squares fit for given F; alternated until F settles."""
+    from .objective import ScalarObjective, lm_normal
+
+    f = float(np.mean(np.linalg.norm(raw, axis=1)))
+    x = np.zeros(3)
+    for _ in range(10):
+        obj = ScalarObjective(raw, f, "angles")
+        with np.errstate(all="ignore"):
+            x, _, _ = lm_normal(obj.normal_equations, x, -0.5 * np.ones(3), 0.5 * np.ones(3), tol=1e-12, max_iter=50)
+        new = float(np.mean(obj.residuals(x) + f))
+        done = abs(new - f) <= 1e-9 * f
+        f = new
+        if done:
+            break
+    return f
+
+
+def with_estimated_field(dataset: Dataset, model: str) -> Dataset:
+    """The dataset with its reference replaced by the magnitude estimated from its readings."""
+    f, how = estimate_field(dataset.raw_nT, "nine" if model == "auto" else model)
+    if not (np.isfinite(f) and f > 0):
+        raise InputError("--field auto: the estimated field magnitude is not a positive number")
+    had = dataset.meta.get("reference_source") if dataset.f_ref_nT is not None else None
+    meta = {**dataset.meta, "reference_source": f"estimated from the readings: {how} (--field auto)",
+            "reference_estimated": FIELD_AUTO_NOTE}
+    if had:
+        meta["reference_ignored"] = had
+    return Dataset(dataset.raw_nT, np.full(len(dataset), f), dataset.t_s, dataset.temp_C, dataset.heading_deg,
+                   dataset.truth, meta)

@@ -1,0 +1,154 @@
+"""Model ``auto``: the simplest model the data need (MATLAB magcal's ``auto``, by held-out residual).
+
+Every candidate model the calibrator supports (``offset``, ``angles``, ``diag``, ``nine``) is fitted by
+least squares (``lsq``) on the whole record and judged on two things:
+
+- **identifiability**: that full fit's acceptance checks (Cramér-Rao deviation of every parameter within
+  its tolerance, the offset's profile likelihood, the physical range).  A model the data do not determine
+  (``nine`` on a level turntable, say) is not eligible;
+- **held-out residual**: k-fold cross-validation (``folds``, 5; points shuffled with the seed): each fold's
+  residuals come from the model fitted on the other folds, so a model gains only by what generalises.
+
+The best is the eligible model of least held-out mean square.  The choice is the *simplest* eligible model
+(fewest parameters; among equals, the lower held-out residual) that is within noise of the best: its
+held-out squared residuals, paired point by point with the best model's, exceed them on average by no
+more than ``Z_WITHIN_NOISE`` standard errors of that mean difference (a paired test), or by less than
+``REL_WITHIN_NOISE`` of the best's mean square.  The calibrator then fits the chosen model; the result's
+``model_choice`` lists the candidates (held-out RMS, eligibility, rejections) and says why.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from magbench.errors import InputError
+from magbench.simulate.dataset import Dataset
+from magbench.simulate.sensor import MODELS, PARAM_NAMES
+
+from .objective import ScalarObjective, lm_normal
+
+FOLDS = 5
+Z_WITHIN_NOISE = 2.0
+"""A simpler model is 'within noise' of the best when its held-out squared residuals exceed the best's by
+less than this many standard errors of the paired mean difference."""
+REL_WITHIN_NOISE = 1e-3
+"""... or by less than this fraction of the best's held-out mean square."""
+IDENTIFIABILITY_WORDS = ("not determined", "outside the physical range", "ended on the search bound")
+
+
+def _refit(raw: np.ndarray, f_ref: np.ndarray, model: str, x_start: np.ndarray, box) -> np.ndarray:
+    obj = ScalarObjective(raw, f_ref, model)
+    lo, hi = box
+    start = np.clip(x_start, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
+    with np.errstate(all="ignore"):
+        x, _, _ = lm_normal(obj.normal_equations, start, lo, hi, tol=1e-12, max_iter=100)
+    return x
+
+
+def held_out_residuals(dataset: Dataset, model: str, x_full: np.ndarray, folds: int = FOLDS,
+                       seed: int | None = 0) -> np.ndarray:
+    """Residual of every point under the model fitted without its fold (k-fold, shuffled by ``seed``)."""
+    from .base import PHYSICAL_BOX, search_bounds
+
+    n = len(dataset)
+    order = np.random.default_rng(seed).permutation(n)
+    out = np.empty(n)
+    box = search_bounds(model, dataset.f_ref_nT, **PHYSICAL_BOX)
+    for k in range(folds):
+        test = order[k::folds]
+        train = np.setdiff1d(order, test, assume_unique=True)
+        x = _refit(dataset.raw_nT[train], dataset.f_ref_nT[train], model, x_full, box)
+        out[test] = ScalarObjective(dataset.raw_nT[test], dataset.f_ref_nT[test], model).residuals(x)
+    return out
+
+
+def choose_model(dataset: Dataset, candidates=None, folds: int = FOLDS, seed: int | None = 0) -> tuple[str, dict, dict]:
+    """Fit every candidate with lsq, cross-validate, choose.  Returns the chosen model, the record of the
+    choice (``model_choice``) and the lsq results by model."""
+    from .lsq import LeastSquares
+
+    candidates = [m for m in MODELS if m in (candidates or MODELS)]
+    rows, results, sq = [], {}, {}
+    for model in candidates:
+        row = {"model": model, "n_params": len(PARAM_NAMES[model])}
+        try:
+            res = LeastSquares(model=model, seed=seed).fit(dataset)
+        except InputError as exc:
+            row.update(eligible=False, rms_heldout_nT=None, rms_fit_nT=None, rejections=[str(exc)])
+            rows.append(row)
+            continue
+        results[model] = res
+        unidentified = [r for r in res.rejections if any(w in r for w in IDENTIFIABILITY_WORDS)]
+        e = held_out_residuals(dataset, model, res.x, folds=min(folds, len(dataset)), seed=seed)
+        sq[model] = e * e
+        row.update(eligible=not unidentified, rms_heldout_nT=float(np.sqrt(np.mean(e * e))),
+                   rms_fit_nT=res.rms_after_nT, rejections=list(res.rejections))
+        rows.append(row)
+    eligible = [r for r in rows if r["eligible"]]
+    if not eligible:
+        why = "; ".join(f"{r['model']}: {r['rejections'][0] if r['rejections'] else 'no fit'}" for r in rows)
+        raise InputError(f"model auto: no candidate model is determined by these data ({why})")
+    best = min(eligible, key=lambda r: r["rms_heldout_nT"])
+    for r in rows:
+        if r["model"] not in sq:
+            continue
+        d = sq[r["model"]] - sq[best["model"]]
+        se = float(np.std(d, ddof=1) / np.sqrt(len(d))) if len(d) > 1 else 0.0
+        excess = float(np.mean(d))
+        r["excess_ms_nT2"] = excess
+        r["excess_se_nT2"] = se
+        r["within_noise"] = bool(excess <= Z_WITHIN_NOISE * se or excess <= REL_WITHIN_NOISE * float(np.mean(sq[best["model"]])))
+    ordered = sorted(eligible, key=lambda r: (r["n_params"], r["rms_heldout_nT"]))
+    chosen = next(r for r in ordered if r["within_noise"])
+    reason = _reason(chosen, best, rows, folds)
+    record = {"requested": "auto", "chosen": chosen["model"], "reason": reason, "folds": folds,
+              "criterion": (f"simplest identifiable model whose {folds}-fold held-out mean square is within "
+                            f"{Z_WITHIN_NOISE:g} paired standard errors of the best"),
+              "candidates": rows}
+    return chosen["model"], record, results
+
+
+def _reason(chosen: dict, best: dict, rows: list[dict], folds: int) -> str:
+    parts = [f"{chosen['model']} ({chosen['n_params']} parameters) has a held-out RMS of "
+             f"{chosen['rms_heldout_nT']:.4g} nT"]
+    if chosen is best:
+        parts[0] += ", the lowest of the identifiable models"
+    else:
+        parts[0] += (f", within noise of the best ({best['model']}, {best['rms_heldout_nT']:.4g} nT: mean squared "
+                     f"difference {chosen['excess_ms_nT2']:.3g} +- {chosen['excess_se_nT2']:.3g} nT²)")
+    for r in rows:
+        if r is chosen:
+            continue
+        cause = r["rejections"][0] if r["rejections"] else "not identifiable"
+        if r.get("rms_heldout_nT") is None:
+            parts.append(f"{r['model']} was refused ({cause})")
+        elif r["n_params"] > chosen["n_params"] and r["rms_heldout_nT"] >= best["rms_heldout_nT"]:
+            parts.append(f"{r['model']} adds parameters without a gain ({r['rms_heldout_nT']:.4g} nT held out)")
+        elif not r["within_noise"] and r["rms_heldout_nT"] > best["rms_heldout_nT"]:
+            parts.append(f"{r['model']} is significantly worse ({r['rms_heldout_nT']:.4g} nT held out)")
+        elif not r["eligible"]:
+            better = " although it fits better" if r["rms_heldout_nT"] < chosen["rms_heldout_nT"] and not r["within_noise"] else ""
+            parts.append(f"{r['model']} ({r['rms_heldout_nT']:.4g} nT held out) is not determined by these data{better} "
+                         f"({cause})")
+        elif r["n_params"] > chosen["n_params"]:
+            parts.append(f"{r['model']} adds parameters without a significant gain ({r['rms_heldout_nT']:.4g} nT "
+                         "held out)")
+        else:
+            parts.append(f"{r['model']} is as simple and within noise, with a higher held-out RMS "
+                         f"({r['rms_heldout_nT']:.4g} nT)")
+    return "; ".join(parts) + f" ({folds}-fold cross-validation)"
+
+
+def fit_auto(calibrator, dataset: Dataset):
+    """``calibrator.fit`` with ``model="auto"``: choose among the models it supports, then fit that one."""
+    candidates = [m for m in MODELS if m in type(calibrator).supported_models]
+    if not candidates:
+        raise InputError(f"{calibrator.name} supports no model that auto can choose from")
+    model, record, results = choose_model(dataset, candidates, seed=calibrator.seed)
+    chosen = calibrator.set_params(model=model)
+    if type(calibrator).name == "lsq" and model in results and results[model].hyperparameters == chosen.get_params():
+        result = results[model]
+    else:
+        result = chosen._fit_dataset(dataset)
+    return replace(result, model_choice=record)
