@@ -167,7 +167,10 @@ def cmd_list(args) -> int:
         lines += ["plug-ins that did not load:"] + [f"  {b['name']:<10} {_printable(b['reason'])}" for b in broken]
     lines += ["models:"] + [f"  {m['name']:<10} {', '.join(m['parameters'])}" for m in obj["models"]]
     lines += ["scenarios:"] + [f"  {s['name']:<13} ({s['model']}) {s['description']}" for s in scen]
-    lines += ["effects:"] + [f"  {e['name']:<13} {e['description']}" for e in effects]
+    lines += ["effects:"] + [f"  {e['name']:<13} [needs {', '.join(e['needs']) or 'bx, by, bz, a reference'}"
+                             f"{'; optional ' + ', '.join(e['optional']) if e['optional'] else ''}"
+                             f"{'' if e['in_library'] else '; outside the fitted library'}] {e['description']}"
+                             for e in effects]
     _emit(args, obj, "\n".join(lines))
     return EXIT_OK
 
@@ -177,6 +180,7 @@ def list_effects() -> list[dict]:
     from magbench.simulate.effects import EFFECTS
 
     return [{"name": name, "in_library": cls.in_library, "needs": list(cls.needs),
+             "optional": list(getattr(cls, "optional", ())), "n_parameters": len(cls.fit_params),
              "description": " ".join((cls.__doc__ or "").split())} for name, cls in EFFECTS.items()]
 
 
@@ -467,13 +471,14 @@ def cmd_compare(args) -> int:
 def cmd_diagnose(args) -> int:
     from magbench.benchmarks.diagnosis import diagnose, diagnosis_figure, diagnosis_text
 
+    from magbench.benchmarks.diagnosis import read_gravity
+
     data = load_dataset(args, require_vector=False)
-    result = diagnose(data, base=args.model, folds=args.folds, seed=args.seed)
-    figure = None
-    if not args.no_figure:
-        figure = Path(args.figure or f"diagnosis_{Path(args.file).stem}.png")
-        if figure.exists() and not args.force:
-            raise InputError(f"{figure} exists; refusing to overwrite it (use --figure PATH or --force)")
+    figure = Path(args.figure) if args.figure and not args.no_figure else None
+    if figure is not None and figure.exists() and not args.force:
+        raise InputError(f"{figure} exists; refusing to overwrite it (use another --figure PATH or --force)")
+    result = diagnose(data, base=args.model, folds=args.folds, seed=args.seed, gravity=read_gravity(args.file))
+    if figure is not None:
         diagnosis_figure(data, result, figure)
     result["figure"] = str(figure) if figure else None
     _emit(args, result, diagnosis_text(result, args.file))
@@ -570,8 +575,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", default="nine", choices=["angles", "nine"], help="the base calibration model")
     p.add_argument("--folds", type=_positive_int, default=5, help="cross-validation folds (default 5)")
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
-    p.add_argument("--figure", metavar="PATH.png", help="figure of the residual before/after the winning effect")
-    p.add_argument("--no-figure", action="store_true")
+    p.add_argument("--figure", metavar="PATH.png", help="write the figure of the residual before/after the selected "
+                   "effects to PATH (no figure without it)")
+    p.add_argument("--no-figure", action="store_true", help="no figure even with --figure (kept for old scripts)")
     p.add_argument("--force", action="store_true", help="overwrite the figure")
     p.add_argument("--json", action="store_true")
     _add_reference_options(p)

@@ -1,11 +1,13 @@
 """Effects that simple calibration models leave out: one class per effect, one registry (``EFFECTS``).
 
 Names follow CONTRACT section 3: ``scale``, ``offset`` (relative to the ``angles`` model),
-``temperature`` (offset and scale drifting with temperature), ``field_drift`` (the ambient field
-changing in time, unseen by the reference), ``nonlinearity`` (per-axis response beyond linear),
-``outliers`` (sparse spikes, seed 003).  ``attitude_ripple`` is deliberately *outside* the library
-(``in_library = False``: a high-order attitude-dependent error no library model can represent); the
-diagnosis must not claim it.
+``temperature`` (offset and scale drifting with temperature, optionally through a first-order thermal
+lag), ``field_drift`` (the ambient field changing in time, unseen by the reference), ``nonlinearity``
+(per-axis quadratic and cubic response), ``outliers`` (sparse spikes, seed 003), ``offset_drift``
+(offsets changing slowly in time, independent of temperature) and ``lag`` (a time shift between each
+axis and the reference).  ``attitude_ripple`` is deliberately *outside* the library (``in_library =
+False``: a high-order attitude-dependent error no library model can represent); the diagnosis must not
+claim it.
 
 Each class carries both sides of its effect:
 
@@ -16,17 +18,19 @@ Each class carries both sides of its effect:
   (``field``, ``temperature``, ``readings``, ``spikes``; each returns its input unchanged by default);
 
 * the **fitted form** the sim-to-real diagnosis adds to a base correction (``angles`` or ``nine``,
-  CONTRACT section 1; ``benchmarks.diagnosis``): extra parameters ``fit_params``, their start values
-  (``fit_start``) and bounds (``fit_bounds``), and where they enter the scalar residual
+  CONTRACT section 1; ``benchmarks.diagnosis``).  Every library form is *linear* in its parameters e
+  (measured from ``fit_start``), given as design columns computed from the data:
 
-      u = raw - fit_offset(o)                 ``offset``
-      u = fit_readings(u)                     ``temperature``, ``nonlinearity``, ``scale``
-      r = |P(alpha, beta, gamma) K^-1 u| - F
-      r = fit_residual(r)                     ``field_drift``
+      v = raw - o - sum_k G_k e_k                      G: (n, 3, p) from ``fit_columns``
+      r = |P(alpha, beta, gamma) K^-1 v| - F - H e      H: (n, p)    from ``fit_columns``
 
-  with its held-out scoring (``heldout_residuals``; ``outliers`` is a trimmed robust fit), how a fitted
-  effect is re-simulated (``from_fit``, ``resim_reference``, ``resim_spikes``) and its first-order
-  signature on a level turntable's scalar series (``heading_harmonics``, ``scalar_columns``).
+  so the extended fit has an analytic Jacobian (``-b^T M G`` and ``-H``, b the unit corrected field).
+  ``scale`` and ``offset`` instead free the K and o entries of the base correction (``base_part``).
+  A plug-in effect may give the older non-linear hooks ``fit_readings`` / ``fit_residual`` only; its
+  columns are then their finite-difference derivatives at the start values.
+
+  Data-derived inputs a form needs (the lagged temperature, the time derivative of the readings) are
+  computed once on the whole record by ``prepare`` and kept in ``Columns.extra``.
 
 Adding an effect is one new class decorated with ``@register_effect`` in this file (or in a plug-in):
 the simulator (``Scenario.with_effects``), ``magbench list`` and the diagnosis's candidate effects all
@@ -34,7 +38,7 @@ read the registry.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -53,12 +57,54 @@ MIN_SPAN_S = 1e-9
 """Least time span used as a divisor (a record at one instant)."""
 MAD_TO_SIGMA = 1.4826
 """Robust sigma = 1.4826 median |x - median x| (consistent with the standard deviation for Gaussian x)."""
+FD_STEP = 1e-3
+"""Finite-difference step of the columns of a plug-in's non-linear fitted form."""
 
 
 def robust_sigma(x: np.ndarray) -> float:
     """The scale estimate MAD_TO_SIGMA * median absolute deviation (Hampel 1974)."""
     x = np.asarray(x, dtype=float)
+    if x.size == 0:
+        return 0.0
     return float(MAD_TO_SIGMA * np.median(np.abs(x - np.median(x))))
+
+
+def first_order_lag(t_s: np.ndarray, x: np.ndarray, tau_s: float) -> np.ndarray:
+    """x seen through a first-order lag of time constant ``tau_s`` (exact for piecewise-constant x between
+    samples), in time order; x itself when tau_s <= 0."""
+    if tau_s <= 0:
+        return np.asarray(x, dtype=float).copy()
+    from scipy.signal import lfilter
+
+    order = np.argsort(t_s, kind="stable")
+    ts, xs = t_s[order], np.asarray(x, dtype=float)[order]
+    dt = np.diff(ts)
+    out = np.empty_like(xs)
+    if len(dt) and np.allclose(dt, dt.mean(), rtol=1e-6, atol=0):  # uniform sampling: one IIR filter
+        a = 1.0 - np.exp(-dt.mean() / tau_s)
+        out[:], _ = lfilter([a], [1.0, -(1.0 - a)], xs, zi=[(1.0 - a) * xs[0]])
+    else:
+        a = 1.0 - np.exp(-dt / tau_s)
+        out[0] = xs[0]
+        for i in range(1, len(xs)):
+            out[i] = out[i - 1] + a[i - 1] * (xs[i] - out[i - 1])
+    res = np.empty_like(out)
+    res[order] = out
+    return res
+
+
+def time_derivative(t_s: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """d x / d t along time order (central differences; x may be (n,) or (n, k))."""
+    order = np.argsort(t_s, kind="stable")
+    ts = t_s[order]
+    xs = np.asarray(x, dtype=float)[order]
+    if len(ts) < 3 or np.ptp(ts) <= 0:
+        return np.zeros_like(xs)
+    ts = ts + np.arange(len(ts)) * 1e-12 * max(np.ptp(ts), 1.0)  # repeated times: a tiny spacing
+    g = np.gradient(xs, ts, axis=0)
+    out = np.empty_like(g)
+    out[order] = g
+    return out
 
 
 # ---------------------------------------------------------------------------------------------- data
@@ -84,22 +130,29 @@ COLUMNS = {c.csv: c for c in (Column("t", "t_s"), Column("temp", "temp_C", MIN_T
 
 @dataclass
 class Columns:
-    """The columns the fitted forms use (a subset of a Dataset, e.g. one cross-validation fold)."""
+    """The columns the fitted forms use (a subset of a Dataset, e.g. one cross-validation fold); ``extra``
+    holds per-sample arrays derived from the whole record (``Effect.prepare``)."""
 
     raw_nT: np.ndarray
     f_ref_nT: np.ndarray
     t_s: np.ndarray | None = None
     temp_C: np.ndarray | None = None
+    extra: dict = field(default_factory=dict)
 
     @classmethod
     def of(cls, data) -> "Columns":
         """The columns of a ``Dataset`` as plain arrays."""
-        opt = lambda v: None if v is None else np.asarray(v)  # noqa: E731
-        return cls(np.asarray(data.raw_nT), np.asarray(data.f_ref_nT), opt(data.t_s), opt(data.temp_C))
+        opt = lambda v: None if v is None else np.asarray(v, dtype=float)  # noqa: E731
+        return cls(np.asarray(data.raw_nT, dtype=float), np.asarray(data.f_ref_nT, dtype=float), opt(data.t_s),
+                   opt(data.temp_C))
 
     def take(self, idx) -> "Columns":
-        return Columns(self.raw_nT[idx], self.f_ref_nT[idx], None if self.t_s is None else self.t_s[idx],
-                       None if self.temp_C is None else self.temp_C[idx])
+        opt = lambda v: None if v is None else v[idx]  # noqa: E731
+        return Columns(self.raw_nT[idx], self.f_ref_nT[idx], opt(self.t_s), opt(self.temp_C),
+                       {k: v[idx] for k, v in self.extra.items()})
+
+    def __len__(self) -> int:
+        return self.raw_nT.shape[0]
 
 
 @dataclass(frozen=True)
@@ -177,6 +230,15 @@ def _signed(rng: np.random.Generator, k: int) -> np.ndarray:
     return rng.choice([-1.0, 1.0], size=k) * rng.uniform(0.5, 1.0, size=k)
 
 
+def _per_axis(values: np.ndarray) -> np.ndarray:
+    """(n, k) values -> (n, 3, 3k) columns: value j on each axis in turn (axis-major: x's k, y's k, z's k)."""
+    n, k = values.shape
+    g = np.zeros((n, 3, 3 * k))
+    for a in range(3):
+        g[:, a, a * k:(a + 1) * k] = values
+    return g
+
+
 # ---------------------------------------------------------------------------------------------- base class
 @dataclass(frozen=True)
 class Effect:
@@ -185,14 +247,20 @@ class Effect:
     name: ClassVar[str] = ""
     in_library: ClassVar[bool] = True  # False: forward only, never fitted nor claimed by the diagnosis
     needs: ClassVar[tuple[str, ...]] = ()  # dataset columns (CONTRACT section 2 names) the fitted form needs
+    optional: ClassVar[tuple[str, ...]] = ()  # columns used when present (e.g. t for the thermal lag)
     included_in: ClassVar[tuple[str, ...]] = ()  # base models that already contain the effect
+    base_part: ClassVar[str | None] = None  # "scale" or "offset": the effect frees those base entries
     unseen_by_reference: ClassVar[bool] = False  # the simulated reference stays at its initial value
-    blind_strength: ClassVar[float] = 1.0  # strength of the effect in the diagnosis's blind check
+    robust: ClassVar[bool] = False  # True: the effect is a set of samples explained away (spikes)
     fit_params: ClassVar[tuple[str, ...]] = ()  # extra parameters of the fitted form
     heading_harmonics: ClassVar[tuple[int, ...]] = ()  # cycles per revolution on a level turntable
 
     def as_dict(self) -> dict:
         return {"name": self.name, **{k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}}
+
+    @classmethod
+    def describe(cls) -> str:
+        return " ".join((cls.__doc__ or "").split())
 
     @classmethod
     def random(cls, rng: np.random.Generator, strength: float = 1.0) -> "Effect":
@@ -221,62 +289,61 @@ class Effect:
         return cls.in_library and base not in cls.included_in and all(COLUMNS[c].informative(d) for c in cls.needs)
 
     @classmethod
+    def missing(cls, d: Columns) -> list[str]:
+        """The needed columns absent or without spread."""
+        return [c for c in cls.needs if not COLUMNS[c].informative(d)]
+
+    @classmethod
     def fit_start(cls) -> np.ndarray:
         """Start values of ``fit_params`` (the effect absent)."""
         return np.zeros(len(cls.fit_params))
 
     @classmethod
-    def fit_bounds(cls, norm: Normalization) -> tuple[np.ndarray, np.ndarray]:
-        """Bounds of ``fit_params`` (free by default)."""
-        k = len(cls.fit_params)
-        return np.full(k, -np.inf), np.full(k, np.inf)
-
-    @classmethod
-    def fit_offset(cls, o: np.ndarray, e: np.ndarray) -> np.ndarray:
-        """The offset subtracted from the readings, given the base offset ``o`` and effect parameters ``e``."""
-        return o
+    def prepare(cls, d: Columns, norm: Normalization, r_base: np.ndarray, unit: np.ndarray) -> dict:
+        """Derived inputs computed once on the whole record (stored in ``d.extra``) and what was chosen
+        there (returned, e.g. a fitted time constant)."""
+        return {}
 
     @classmethod
     def fit_readings(cls, u: np.ndarray, e: np.ndarray, d: Columns, norm: Normalization) -> np.ndarray:
-        """Offset-free readings (n, 3) -> readings with the effect removed, before the base matrix."""
+        """Offset-free readings (n, 3) -> readings with the effect removed (plug-in hook)."""
         return u
 
     @classmethod
     def fit_residual(cls, r: np.ndarray, e: np.ndarray, d: Columns, norm: Normalization) -> np.ndarray:
-        """The scalar residual |B| - F -> the residual with the effect's contribution removed."""
+        """The scalar residual |B| - F -> the residual with the effect's contribution removed (plug-in hook)."""
         return r
 
     @classmethod
-    def fit_model(cls, model, d: Columns, x_start: np.ndarray) -> np.ndarray:
-        """Parameters of ``model`` (base + this effect, ``benchmarks.diagnosis.model``) fitted to ``d``."""
-        return model.fit(d, x_start)
+    def fit_columns(cls, u0: np.ndarray, d: Columns, norm: Normalization):
+        """(G, H): v = u - G e (G (n, 3, p) or None) and r -= H e (H (n, p) or None), e measured from
+        ``fit_start``; ``u0`` = raw minus the base offset.  By default the finite-difference columns of
+        ``fit_readings`` and ``fit_residual`` at the start values (exact for forms linear in e)."""
+        p = len(cls.fit_params)
+        if p == 0:
+            return None, None
+        e0 = cls.fit_start()
+        v0 = cls.fit_readings(u0, e0, d, norm)
+        z = np.zeros(len(u0))
+        s0 = cls.fit_residual(z, e0, d, norm)
+        g, h = np.zeros((len(u0), 3, p)), np.zeros((len(u0), p))
+        for k in range(p):
+            step = FD_STEP * max(1.0, abs(e0[k]))
+            e = e0.copy()
+            e[k] += step
+            g[:, :, k] = -(cls.fit_readings(u0, e, d, norm) - v0) / step
+            h[:, k] = -(cls.fit_residual(z, e, d, norm) - s0) / step
+        return (g if np.any(g) else None), (h if np.any(h) else None)
 
     @classmethod
-    def heldout_residuals(cls, model, train: Columns, test: Columns, x_start: np.ndarray,
-                          spike_scale: float) -> tuple[np.ndarray, int]:
-        """Residuals on ``test`` of the model fitted on ``train``, and the number of test samples the
-        effect explains away (spikes; none by default)."""
-        return model.residuals(cls.fit_model(model, train, x_start), test), 0
-
-    @classmethod
-    def evidence(cls, z: float, n_flagged: int, n: int, z_threshold: float) -> bool:
-        """The held-out evidence for the effect: a paired test on the squared residuals beyond ``z_threshold``."""
-        return z > z_threshold
-
-    @classmethod
-    def from_fit(cls, e: np.ndarray, norm: Normalization) -> "Effect | None":
-        """The forward effect with the fitted parameters, when the readings carry it (else None)."""
+    def from_fit(cls, e: np.ndarray, norm: Normalization, info: dict | None = None) -> "Effect | None":
+        """The forward effect with the fitted parameters (else None)."""
         return None
 
     @classmethod
     def resim_reference(cls, f_ref_nT: np.ndarray, e: np.ndarray, d: Columns, norm: Normalization) -> np.ndarray:
         """The reference a re-simulation of the fitted effect uses."""
         return f_ref_nT
-
-    @classmethod
-    def resim_spikes(cls, raw: np.ndarray, r_obs: np.ndarray, unit: np.ndarray) -> np.ndarray:
-        """Noisy re-simulated readings -> with the fitted effect's spikes (none by default)."""
-        return raw
 
     @classmethod
     def scalar_columns(cls, heading_rad: np.ndarray, tau: np.ndarray) -> list[np.ndarray] | None:
@@ -286,25 +353,19 @@ class Effect:
             return None
         return [f(k * heading_rad) for k in cls.heading_harmonics for f in (np.cos, np.sin)]
 
-    @classmethod
-    def scalar_heldout(cls, s) -> np.ndarray | None:
-        """Leave-one-out residuals of the scalar series ``s`` (``benchmarks.diagnosis.scalar``) with the
-        effect's signature fitted; None when the effect has none."""
-        cols = cls.scalar_columns(s.heading_rad, s.tau)
-        return None if cols is None else s.loo(cols)
-
 
 # ---------------------------------------------------------------------------------------------- the library
 @register_effect
 @dataclass(frozen=True)
 class ScaleEffect(Effect):
-    """Per-axis scale factors on top of an ``angles``-model sensor: raw_j = k_j lin_j (about the offset)."""
+    """Per-axis scale factors on top of an angles-model sensor: raw_j = k_j lin_j (about the offset). Frees
+    K of the base correction."""
 
     name: ClassVar[str] = "scale"
     included_in: ClassVar[tuple[str, ...]] = ("nine",)
+    base_part: ClassVar[str | None] = "scale"
     fit_params: ClassVar[tuple[str, ...]] = ("kx", "ky", "kz")
     heading_harmonics: ClassVar[tuple[int, ...]] = (2,)  # scale mismatch (and gamma): two cycles per revolution
-    FIT_RANGE: ClassVar[tuple[float, float]] = (0.5, 2.0)
     RANDOM_SIZE: ClassVar[float] = 0.01
     scale: tuple[float, float, float] = (1.01, 0.99, 1.005)
 
@@ -321,30 +382,25 @@ class ScaleEffect(Effect):
         return np.ones(3)
 
     @classmethod
-    def fit_bounds(cls, norm):
-        lo, hi = cls.FIT_RANGE
-        return np.full(3, lo), np.full(3, hi)
-
-    @classmethod
     def fit_readings(cls, u, e, d, norm):
-        """u / k (CONTRACT section 1: B = P K^-1 (raw - o))."""
         return u / e
 
     @classmethod
-    def from_fit(cls, e, norm):
-        return cls(tuple(e))
+    def from_fit(cls, e, norm, info=None):
+        return cls(tuple(float(v) for v in e))
 
 
 @register_effect
 @dataclass(frozen=True)
 class OffsetEffect(Effect):
-    """Per-axis offsets (hard iron, zero-point bias) on top of an ``angles``-model sensor."""
+    """Per-axis offsets (hard iron, zero-point bias) on top of an angles-model sensor. Frees o of the base
+    correction."""
 
     name: ClassVar[str] = "offset"
     included_in: ClassVar[tuple[str, ...]] = ("nine",)
+    base_part: ClassVar[str | None] = "offset"
     fit_params: ClassVar[tuple[str, ...]] = ("ox_nT", "oy_nT", "oz_nT")
     heading_harmonics: ClassVar[tuple[int, ...]] = (1,)  # hard iron / zero offsets: one cycle per revolution
-    FIT_BOX_OF_FIELD: ClassVar[float] = 0.2  # |o| within 20 % of the field
     RANDOM_SIZE_NT: ClassVar[float] = 150.0
     offset_nT: tuple[float, float, float] = (150.0, -100.0, 80.0)
 
@@ -356,30 +412,28 @@ class OffsetEffect(Effect):
         return lin + np.asarray(self.offset_nT)
 
     @classmethod
-    def fit_bounds(cls, norm):
-        half = cls.FIT_BOX_OF_FIELD * norm.f0_nT
-        return np.full(3, -half), np.full(3, half)
+    def fit_readings(cls, u, e, d, norm):
+        return u - e
 
     @classmethod
-    def fit_offset(cls, o, e):
-        return o + e
-
-    @classmethod
-    def from_fit(cls, e, norm):
-        return cls(tuple(e))
+    def from_fit(cls, e, norm, info=None):
+        return cls(tuple(float(v) for v in e))
 
 
 @register_effect
 @dataclass(frozen=True)
 class TemperatureEffect(Effect):
-    """Offset and scale drifting linearly with temperature about ``ref_C``:
-    raw_j = o_j + o_T,j (T - T0) + (1 + k_T,j (T - T0)) (lin_j - o_j).  The temperature follows a warm-up
-    ramp from ``start_C`` to ``end_C`` with a slow oscillation, written to the ``temp`` column."""
+    """Offset and scale drifting linearly with temperature, optionally through a first-order thermal lag
+    (time constant fitted when t is present): raw_j = o_j + o_T,j dT + (1 + k_T,j dT)(lin_j - o_j), dT the
+    lagged temperature minus its mean."""
 
     name: ClassVar[str] = "temperature"
     needs: ClassVar[tuple[str, ...]] = ("temp",)
+    optional: ClassVar[tuple[str, ...]] = ("t",)
     fit_params: ClassVar[tuple[str, ...]] = ("oTx_nT_per_C", "oTy_nT_per_C", "oTz_nT_per_C",
                                              "kTx_ppm_per_C", "kTy_ppm_per_C", "kTz_ppm_per_C")
+    LAG_GRID_OF_SPAN: ClassVar[tuple[float, ...]] = (0.0, 0.01, 0.03, 0.1, 0.3)
+    """Thermal time constants tried, as shares of the record's time span (the best on the whole record)."""
     RAMP_RATE: ClassVar[float] = 3.0  # warm-up time constant: a third of the record
     RIPPLE_C: ClassVar[float] = 1.5
     RIPPLE_CYCLES: ClassVar[float] = 2.3
@@ -390,6 +444,7 @@ class TemperatureEffect(Effect):
     start_C: float = 10.0
     end_C: float = 35.0
     ref_C: float = 20.0
+    time_constant_s: float = 0.0
 
     @classmethod
     def random(cls, rng, strength=1.0):
@@ -403,31 +458,64 @@ class TemperatureEffect(Effect):
         return ramp + self.RIPPLE_C * np.sin(2 * np.pi * self.RIPPLE_CYCLES * u + rng.uniform(0, 2 * np.pi))
 
     def readings(self, lin, ctx, rng):
-        dt = (ctx["temp_C"] - self.ref_C)[:, None]
+        temp = np.asarray(ctx["temp_C"], dtype=float)
+        if self.time_constant_s > 0 and ctx.get("t_s") is not None:
+            temp = first_order_lag(np.asarray(ctx["t_s"]), temp, self.time_constant_s)
+        dt = (temp - self.ref_C)[:, None]
         o = np.asarray(ctx["offset_nT"])
         return o + np.asarray(self.offset_nT_per_C) * dt + (1 + PPM * np.asarray(self.scale_ppm_per_C) * dt) * (lin - o)
 
     @classmethod
-    def fit_readings(cls, u, e, d, norm):
-        """The inverse of ``readings`` about the mean temperature: u = (u - o_T dT) / (1 + k_T dT)."""
-        dt = (d.temp_C - norm.temp0_C)[:, None]
-        return (u - e[:3] * dt) / (1.0 + PPM * e[3:6] * dt)
+    def _columns_for(cls, u0, dtemp):
+        g = np.zeros((len(u0), 3, 6))
+        for a in range(3):
+            g[:, a, a] = dtemp
+            g[:, a, 3 + a] = PPM * dtemp * u0[:, a]
+        return g
 
     @classmethod
-    def from_fit(cls, e, norm):
-        return cls(tuple(e[:3]), tuple(e[3:]), ref_C=norm.temp0_C)
+    def prepare(cls, d, norm, r_base, unit):
+        """The thermal time constant: the one of LAG_GRID_OF_SPAN whose temperature columns (projected on
+        the field direction) explain most of the base residual on the whole record."""
+        taus = [0.0]
+        if d.t_s is not None and np.ptp(d.t_s) > 0:
+            taus = [f * float(np.ptp(d.t_s)) for f in cls.LAG_GRID_OF_SPAN]
+        u0 = unit * norm.f0_nT
+        # the freedom of a 9-parameter correction, to first order: b_i u_j (i >= j) and b_j
+        lin = [unit[:, i] * u0[:, j] for i in range(3) for j in range(i + 1)] + [unit[:, j] for j in range(3)]
+        best = None
+        for tau in taus:
+            temp = first_order_lag(d.t_s, d.temp_C, tau) if tau > 0 else d.temp_C
+            dtemp = temp - norm.temp0_C
+            x = np.einsum("na,nak->nk", unit, cls._columns_for(u0, dtemp))
+            x = np.column_stack([np.ones(len(x)), x] + lin)
+            coef, *_ = np.linalg.lstsq(x, r_base, rcond=None)
+            sse = float(np.sum((r_base - x @ coef) ** 2))
+            if best is None or sse < best[0] * (1 - 1e-9):
+                best = (sse, tau, temp)
+        d.extra["temp_eff_C"] = best[2]
+        return {"thermal_time_constant_s": best[1]}
+
+    @classmethod
+    def fit_columns(cls, u0, d, norm):
+        temp = d.extra.get("temp_eff_C", d.temp_C)
+        return cls._columns_for(u0, temp - norm.temp0_C), None
+
+    @classmethod
+    def from_fit(cls, e, norm, info=None):
+        tau = float((info or {}).get("thermal_time_constant_s", 0.0))
+        return cls(tuple(map(float, e[:3])), tuple(map(float, e[3:6])), ref_C=norm.temp0_C, time_constant_s=tau)
 
 
 @register_effect
 @dataclass(frozen=True)
 class FieldDriftEffect(Effect):
     """The ambient field varies in time (seed 001: up to 200 nT) while the reference magnitude stays at its
-    initial value (an absolute magnetometer measured before or elsewhere)."""
+    initial value; fitted as Legendre polynomials of time added to the reference."""
 
     name: ClassVar[str] = "field_drift"
     needs: ClassVar[tuple[str, ...]] = ("t",)
     unseen_by_reference: ClassVar[bool] = True
-    blind_strength: ClassVar[float] = 2.0
     DEGREE: ClassVar[int] = 8  # Legendre polynomials of the time in the fitted form
     SCALAR_DEGREE: ClassVar[int] = 3  # a cubic in time on a short turntable series
     fit_params: ClassVar[tuple[str, ...]] = tuple(f"drift_L{j}_nT" for j in range(1, DEGREE + 1))
@@ -452,8 +540,8 @@ class FieldDriftEffect(Effect):
         return legendre.legvander(norm.tau(t_s), len(e))[:, 1:] @ e
 
     @classmethod
-    def fit_residual(cls, r, e, d, norm):
-        return r - cls.drift_nT(e, d.t_s, norm)
+    def fit_columns(cls, u0, d, norm):
+        return None, legendre.legvander(norm.tau(d.t_s), cls.DEGREE)[:, 1:]
 
     @classmethod
     def resim_reference(cls, f_ref_nT, e, d, norm):
@@ -467,43 +555,141 @@ class FieldDriftEffect(Effect):
 @register_effect
 @dataclass(frozen=True)
 class NonlinearityEffect(Effect):
-    """A per-axis quadratic response: raw_j = o_j + u_j + q_j u_j² / F, u_j = lin_j - o_j (q relative to the
-    field magnitude F, so q = 1e-3 gives up to ~50 nT in a 50,000 nT field)."""
+    """Per-axis quadratic and cubic response, x = (lin - o) / F: raw_j = lin_j + F q_j (x_j^2 - 1/3) +
+    F c_j (x_j^3 - 3 x_j / 5). Both terms are orthogonal on the sphere to a constant and to x itself, so the
+    fitted form cannot absorb an offset, a scale or a change of field magnitude along the reading (a
+    physical u^3 response is this plus a scale change)."""
 
     name: ClassVar[str] = "nonlinearity"
-    blind_strength: ClassVar[float] = 2.0
-    fit_params: ClassVar[tuple[str, ...]] = ("qx", "qy", "qz")
-    heading_harmonics: ClassVar[tuple[int, ...]] = (3, 4)  # a quadratic/cubic response adds higher harmonics
+    fit_params: ClassVar[tuple[str, ...]] = ("qx", "qy", "qz", "cx", "cy", "cz")
+    heading_harmonics: ClassVar[tuple[int, ...]] = (3, 4)  # quadratic: 1 and 3 cycles/rev; cubic: 2 and 4
     RANDOM_SIZE: ClassVar[float] = 1e-3
     quadratic: tuple[float, float, float] = (8e-4, -6e-4, 5e-4)
+    cubic: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @classmethod
     def random(cls, rng, strength=1.0):
-        return cls(tuple(strength * cls.RANDOM_SIZE * _signed(rng, 3)))
+        kind = rng.integers(3)  # quadratic, cubic or both
+        q = strength * cls.RANDOM_SIZE * _signed(rng, 3) * (kind != 1)
+        c = strength * cls.RANDOM_SIZE * _signed(rng, 3) * (kind != 0)
+        return cls(tuple(q), tuple(c))
+
+    @staticmethod
+    def basis(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return x * x - 1.0 / 3.0, x**3 - 0.6 * x
 
     def readings(self, lin, ctx, rng):
         o = np.asarray(ctx["offset_nT"])
-        u = lin - o
-        return o + u + np.asarray(self.quadratic) * u * u / ctx["f_nT"]
+        f = float(ctx["f_nT"])
+        q2, c3 = self.basis((lin - o) / f)
+        return lin + f * (np.asarray(self.quadratic) * q2 + np.asarray(self.cubic) * c3)
 
     @classmethod
-    def fit_readings(cls, u, e, d, norm):
-        """u - q u² / F0: the first-order inverse of the quadratic response."""
-        return u - e * u * u / norm.f0_nT
+    def fit_columns(cls, u0, d, norm):
+        q2, c3 = cls.basis(u0 / norm.f0_nT)
+        g = np.zeros((len(u0), 3, 6))
+        for a in range(3):
+            g[:, a, a] = norm.f0_nT * q2[:, a]
+            g[:, a, 3 + a] = norm.f0_nT * c3[:, a]
+        return g, None
 
     @classmethod
-    def from_fit(cls, e, norm):
-        return cls(tuple(e))
+    def from_fit(cls, e, norm, info=None):
+        return cls(tuple(map(float, e[:3])), tuple(map(float, e[3:6])))
+
+
+@register_effect
+@dataclass(frozen=True)
+class OffsetDriftEffect(Effect):
+    """Offsets changing slowly in time, independent of temperature: o_j(t) = o_j + sum_l a_jl L_l(tau),
+    Legendre polynomials of degree 1 to 3 of the time."""
+
+    name: ClassVar[str] = "offset_drift"
+    needs: ClassVar[tuple[str, ...]] = ("t",)
+    DEGREE: ClassVar[int] = 3
+    fit_params: ClassVar[tuple[str, ...]] = tuple(f"o{a}_L{j}_nT" for a in "xyz" for j in (1, 2, 3))
+    RANDOM_SIZE_NT: ClassVar[float] = 20.0
+    coefficients_nT: tuple = ((15.0, -6.0, 3.0), (-10.0, 4.0, 0.0), (8.0, 0.0, -4.0))
+
+    @classmethod
+    def random(cls, rng, strength=1.0):
+        c = strength * cls.RANDOM_SIZE_NT * _signed(rng, 3 * cls.DEGREE) / np.tile(np.arange(1, cls.DEGREE + 1), 3)
+        return cls(tuple(tuple(map(float, row)) for row in c.reshape(3, cls.DEGREE)))
+
+    def as_dict(self):
+        return {"name": self.name, "coefficients_nT": [list(r) for r in self.coefficients_nT]}
+
+    @classmethod
+    def _basis(cls, t_s, norm_tau):
+        return legendre.legvander(norm_tau, cls.DEGREE)[:, 1:]
+
+    def readings(self, lin, ctx, rng):
+        t = np.asarray(ctx["t_s"], dtype=float)
+        tau = 2.0 * (t - t.min()) / max(np.ptp(t), MIN_SPAN_S) - 1.0
+        return lin + self._basis(t, tau) @ np.asarray(self.coefficients_nT, dtype=float).T
+
+    @classmethod
+    def fit_columns(cls, u0, d, norm):
+        return _per_axis(cls._basis(d.t_s, norm.tau(d.t_s))), None
+
+    @classmethod
+    def from_fit(cls, e, norm, info=None):
+        return cls(tuple(tuple(map(float, row)) for row in np.asarray(e).reshape(3, cls.DEGREE)))
+
+
+@register_effect
+@dataclass(frozen=True)
+class LagEffect(Effect):
+    """A time shift of each axis (and of the reference): axis j reads the field of time t - lag_j, the
+    reference that of t - lag_ref; fitted to first order, raw_j = lin_j - lag_j dlin_j/dt."""
+
+    name: ClassVar[str] = "lag"
+    needs: ClassVar[tuple[str, ...]] = ("t",)
+    fit_params: ClassVar[tuple[str, ...]] = ("lag_x_s", "lag_y_s", "lag_z_s", "lag_ref_s")
+    RANDOM_LAG_S: ClassVar[float] = 0.05
+    lag_s: tuple[float, float, float] = (0.05, 0.0, -0.03)
+
+    @classmethod
+    def random(cls, rng, strength=1.0):
+        return cls(tuple(strength * cls.RANDOM_LAG_S * _signed(rng, 3)))
+
+    def readings(self, lin, ctx, rng):
+        t = np.asarray(ctx["t_s"], dtype=float)
+        order = np.argsort(t, kind="stable")
+        out = lin.copy()
+        for a in range(3):
+            out[order, a] = np.interp(t[order] - self.lag_s[a], t[order], lin[order, a])
+        return out
+
+    @classmethod
+    def prepare(cls, d, norm, r_base, unit):
+        d.extra["draw_dt"] = time_derivative(d.t_s, d.raw_nT)
+        d.extra["dref_dt"] = time_derivative(d.t_s, d.f_ref_nT)
+        return {}
+
+    @classmethod
+    def fit_columns(cls, u0, d, norm):
+        du = d.extra["draw_dt"] if "draw_dt" in d.extra else time_derivative(d.t_s, d.raw_nT)
+        g = np.zeros((len(u0), 3, 4))
+        for a in range(3):
+            g[:, a, a] = -du[:, a]
+        h = np.zeros((len(u0), 4))
+        h[:, 3] = -(d.extra["dref_dt"] if "dref_dt" in d.extra else time_derivative(d.t_s, d.f_ref_nT))
+        return g, h
+
+    @classmethod
+    def from_fit(cls, e, norm, info=None):
+        return cls(tuple(map(float, e[:3])))
 
 
 @register_effect
 @dataclass(frozen=True)
 class OutlierEffect(Effect):
-    """Sparse spikes (seed 003: 10 % of the points with 500 nT noise): a ``fraction`` of the samples get
-    Gaussian errors of ``amplitude_nT`` on every axis."""
+    """Sparse spikes (seed 003: 10 % of the points with 500 nT noise): a fraction of the samples get large
+    Gaussian errors on every axis; fitted by explaining away the samples beyond 5 robust sigma."""
 
     name: ClassVar[str] = "outliers"
-    TRIM_ROUNDS: ClassVar[int] = 2
+    robust: ClassVar[bool] = True
     MIN_SPIKES: ClassVar[int] = 3  # spikes found on held-out data before the effect counts ...
     MIN_SPIKE_SHARE: ClassVar[float] = 0.005  # ... and at least this share of the samples
     RANDOM_FRACTION: ClassVar[tuple[float, float]] = (0.03, 0.08)
@@ -525,53 +711,14 @@ class OutlierEffect(Effect):
         return out
 
     @classmethod
-    def trimmed_fit(cls, model, d: Columns, x: np.ndarray) -> tuple[np.ndarray, float, float]:
-        """Least squares refitted without the samples beyond SPIKE_SIGMA robust sigma (TRIM_ROUNDS times).
-        Returns the parameters and the robust scale and centre of the residuals."""
-        for _ in range(cls.TRIM_ROUNDS):
-            r = model.residuals(x, d)
-            centre, scale = np.median(r), robust_sigma(r)
-            keep = np.abs(r - centre) <= SPIKE_SIGMA * scale
-            if keep.all() or keep.sum() < model.n_params + 2:
-                break
-            x = model.fit(d.take(keep), x)
-        r = model.residuals(x, d)
-        return x, robust_sigma(r), float(np.median(r))
+    def spike_mask(cls, r: np.ndarray, scale: float | None = None) -> np.ndarray:
+        s = robust_sigma(r) if scale is None else scale
+        return np.abs(r - np.median(r)) > SPIKE_SIGMA * s
 
     @classmethod
-    def fit_model(cls, model, d, x_start):
-        return cls.trimmed_fit(model, d, model.fit(d, x_start))[0]
-
-    @classmethod
-    def heldout_residuals(cls, model, train, test, x_start, spike_scale):
-        """Held-out samples beyond SPIKE_SIGMA robust sigma of the trimmed fit are explained (zero).  The
-        held-out residuals of a small training set are inflated by leverage, so a spike must also stand out
-        from the base model's own held-out scatter ``spike_scale``."""
-        x, scale, centre = cls.trimmed_fit(model, train, model.fit(train, x_start))
-        r = model.residuals(x, test)
-        spike = np.abs(r - centre) > SPIKE_SIGMA * max(scale, spike_scale)
-        return np.where(spike, 0.0, r), int(spike.sum())
-
-    @classmethod
-    def evidence(cls, z, n_flagged, n, z_threshold):
+    def enough(cls, n_flagged: int, n: int) -> bool:
         """More spikes beyond SPIKE_SIGMA than Gaussian noise would give."""
         return n_flagged >= max(cls.MIN_SPIKES, cls.MIN_SPIKE_SHARE * n)
-
-    @classmethod
-    def spike_mask(cls, r: np.ndarray) -> np.ndarray:
-        return np.abs(r - np.median(r)) > SPIKE_SIGMA * robust_sigma(r)
-
-    @classmethod
-    def resim_spikes(cls, raw, r_obs, unit):
-        """The observed spikes, added along the field direction."""
-        flagged = cls.spike_mask(r_obs)
-        out = raw.copy()
-        out[flagged] += (r_obs[flagged] - np.median(r_obs))[:, None] * unit[flagged]
-        return out
-
-    @classmethod
-    def scalar_heldout(cls, s):
-        return np.where(cls.spike_mask(s.r), 0.0, s.base_cv)
 
 
 # ---------------------------------------------------------------------------------------------- outside the library

@@ -25,12 +25,33 @@ from .scalar import diagnose_scalar
 from .scoring import candidate_effects
 from .vector import DEFAULT_FOLDS, Diagnosis
 
-__all__ = ["Diagnosis", "blind_dataset", "blind_kinds", "candidate_effects", "diagnose", "diagnose_scalar",
+__all__ = ["read_gravity", "Diagnosis", "blind_dataset", "blind_kinds", "candidate_effects", "diagnose", "diagnose_scalar",
            "diagnosis_figure", "diagnosis_text"]
 
 
-def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0) -> dict:
-    """Diagnose a vector ``Dataset`` or a scalar turntable ``ScalarSeries``."""
+def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0, gravity=None,
+             progress: bool | None = None) -> dict:
+    """Diagnose a vector ``Dataset`` or a scalar turntable ``ScalarSeries`` (``gravity``: optional (n, 3)
+    accelerometer directions; ``progress``: a bar on stderr, by default for long records)."""
     if isinstance(data, ScalarSeries):
         return diagnose_scalar(data, folds=folds, seed=seed)
-    return Diagnosis(data, base, folds, seed).run()
+    return Diagnosis(data, base, folds, seed, gravity=gravity, progress=progress).run()
+
+
+def read_gravity(path) -> "np.ndarray | None":
+    """The accelerometer columns ax, ay, az (else gx, gy, gz) of a CSV file, any unit; None without them."""
+    import numpy as np
+    import pandas as pd
+
+    try:
+        head = pd.read_csv(path, comment="#", nrows=0)
+    except Exception:  # noqa: BLE001 - unreadable files are refused by the loader with their own message
+        return None
+    cols = {c.strip().lower(): c for c in head.columns}
+    for names in (("ax", "ay", "az"), ("gx", "gy", "gz")):
+        if all(n in cols for n in names):
+            frame = pd.read_csv(path, comment="#", usecols=[cols[n] for n in names])
+            g = frame[[cols[n] for n in names]].to_numpy(dtype=float)
+            ok = np.all(np.isfinite(g)) and np.all(np.linalg.norm(g, axis=1) > 0)
+            return g if ok else None
+    return None

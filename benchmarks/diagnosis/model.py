@@ -1,79 +1,301 @@
-"""A base correction (``angles`` or ``nine``, CONTRACT section 1) extended by one effect's fitted form
-(``simulate.effects``), fitted by least squares on the scalar residual:
+"""The base correction (CONTRACT section 1, always written as the nine-vector: angles, scales, offsets)
+extended by any set of library effects (``simulate.effects``), with an analytic Jacobian:
 
-    u = raw - effect.fit_offset(o)
-    u = effect.fit_readings(u)
-    r = |P(alpha, beta, gamma) K^-1 u| - F          (seed 000, eq. 2)
-    r = effect.fit_residual(r)
+    v = raw - o - sum_k G_k e_k            (G from ``Effect.fit_columns``)
+    r = |P(alpha, beta, gamma) K^-1 v| - F - sum_k H_k e_k
+
+dr/dtheta = b^T (dM/dtheta) v for the angles and scales, dr/do = -b^T M, dr/de = -b^T M G - H, b the unit
+corrected field.  ``scale`` and ``offset`` free the K and o entries (``Effect.base_part``).
+
+The model with every applicable effect is fitted once on the whole record (Gauss-Newton on normal
+equations accumulated block by block, spikes trimmed); every sub-model (the base alone, base plus some
+effects) is then the linear model of the tangent space at that point, with the left-out parameters held
+at their neutral values.  Its fits on K-1 folds and residuals on the fold left out come from per-fold
+Gram matrices of [J, r], so forward selection costs no refits.
 """
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares
 
-from magbench.simulate.effects import Columns, Effect, Normalization
-from magbench.simulate.sensor import PARAM_NAMES, paper_matrix
+from magbench.simulate.effects import Columns, Effect, Normalization, OutlierEffect, robust_sigma
+from magbench.simulate.sensor import NEUTRAL, PARAM_NAMES, paper_matrix
 
-ANGLE_BOX_RAD = 0.1
-"""The base correction may move by this much in each angle from its start ..."""
-SCALE_BOX = 0.1
-"""... by this share of each scale factor ..."""
-OFFSET_BOX_OF_FIELD = 0.2
-"""... and by this share of the field in offset."""
-NFEV_PER_PARAMETER = 100
-TOLERANCE = 1e-10
-
-
-def base_correction(base_x: np.ndarray, base: str) -> tuple[np.ndarray, np.ndarray]:
-    """M = P(alpha, beta, gamma) K^-1 and the offset o of a base parameter vector (CONTRACT section 1)."""
-    mat = paper_matrix(base_x[0], base_x[1], base_x[2])
-    if base == "nine":
-        return mat * (1.0 / base_x[3:6])[None, :], np.asarray(base_x[6:9], dtype=float)
-    return mat, np.zeros(3)
+BLOCK_ROWS = 65536
+GN_ITERATIONS = 12
+GN_TOLERANCE = 1e-10
+TRIM_ROUNDS = 2
+STORE_J_BYTES = 200e6  # keep the Jacobian in memory (float32) below this size, else recompute it per pass
+NINE_NAMES = ("alpha_rad", "beta_rad", "gamma_rad", "kx", "ky", "kz", "ox_nT", "oy_nT", "oz_nT")
+BASE_FREE = {"angles": (0, 1, 2), "nine": tuple(range(9))}
+PART_INDEX = {"scale": (3, 4, 5), "offset": (6, 7, 8)}
+FIT_RIDGE = 1e-8  # relative ridge of the Gauss-Newton steps (near-degenerate directions stay put)
+RIDGE = 1e-10  # relative ridge on the scaled normal equations (columns without information)
 
 
-class EffectModel:
-    """Base model plus one effect (``None``: the base model alone); ``norm`` fixes the normalizations
-    (time span, mean temperature, F0) from the full record so that every fold uses the same parameter
-    meaning."""
+def base_correction(x9: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """M = P(alpha, beta, gamma) K^-1 and the offset o of a nine-vector."""
+    return paper_matrix(x9[0], x9[1], x9[2]) * (1.0 / x9[3:6])[None, :], np.asarray(x9[6:9], dtype=float)
 
-    def __init__(self, base: str, effect: type[Effect] | None, norm: Normalization):
-        self.base, self.effect, self.norm = base, effect or Effect, norm
-        self.names = PARAM_NAMES[base] + self.effect.fit_params
-        self.nb = len(PARAM_NAMES[base])
 
-    @property
-    def n_params(self) -> int:
-        return len(self.names)
+def _dp(x9):
+    a, b, g = x9[:3]
+    ca, sa, cb, sb, cg, sg = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(g), np.sin(g)
+    da = np.array([[-sa * cg, 0, 0], [0, 0, 0], [ca * cg, 0, 0]])
+    db = np.array([[0, 0, 0], [0, -sb, 0], [0, cb, 0]])
+    dg = np.array([[-ca * sg, 0, 0], [cg, 0, 0], [-sa * sg, 0, 0]])
+    return da, db, dg
 
-    def x0(self, base_x: np.ndarray) -> np.ndarray:
-        """The base parameters followed by the effect's start values."""
-        return np.concatenate([base_x, self.effect.fit_start()])
 
-    def residuals(self, x: np.ndarray, d: Columns) -> np.ndarray:
-        """The scalar residual |B| - F of the extended correction (module docstring)."""
-        base_x, e = x[:self.nb], x[self.nb:]
-        mat, o = base_correction(base_x, self.base)
-        u = d.raw_nT - self.effect.fit_offset(o, e)
-        u = self.effect.fit_readings(u, e, d, self.norm)
-        r = np.linalg.norm(u @ mat.T, axis=1) - d.f_ref_nT
-        return self.effect.fit_residual(r, e, d, self.norm)
+def solve_normal(a: np.ndarray, b: np.ndarray, ridge: float = RIDGE) -> np.ndarray:
+    """x minimizing |A^(1/2) x - ...|: (A) x = b with column scaling and a tiny ridge (singular columns get 0)."""
+    diag = np.clip(np.diag(a), 0, None)
+    live = diag > 1e-24 * max(float(diag.max(initial=0.0)), 1e-300)  # columns with some information
+    out = np.zeros(len(b))
+    if not live.any():
+        return out
+    d = np.sqrt(diag[live])
+    s = a[np.ix_(live, live)] / d[:, None] / d[None, :] + ridge * np.eye(int(live.sum()))
+    try:
+        y = np.linalg.solve(s, b[live] / d)
+    except np.linalg.LinAlgError:
+        y = np.linalg.lstsq(s, b[live] / d, rcond=1e-12)[0]
+    out[live] = y / d
+    return out
 
-    def bounds(self, x_start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """A trust box about the start: the base correction may move by ANGLE_BOX_RAD, SCALE_BOX of scale and
-        OFFSET_BOX_OF_FIELD of the field in offset (far enough for any real sensor; it keeps the fit off the
-        degenerate far-centre ellipsoids that scalar data otherwise allow); the effect's own bounds."""
-        half = np.full(self.nb, ANGLE_BOX_RAD)
-        if self.base == "nine":
-            half[3:6] = SCALE_BOX * np.abs(x_start[3:6])
-            half[6:9] = OFFSET_BOX_OF_FIELD * self.norm.f0_nT
-        lo_e, hi_e = self.effect.fit_bounds(self.norm)
-        base_x = x_start[:self.nb]
-        return np.concatenate([base_x - half, lo_e]), np.concatenate([base_x + half, hi_e])
 
-    def fit(self, d: Columns, x_start: np.ndarray) -> np.ndarray:
-        """Bounded least squares (trust-region reflective) from ``x_start``."""
-        lo, hi = self.bounds(x_start)
-        sol = least_squares(self.residuals, x_start, args=(d,), method="trf", bounds=(lo, hi), x_scale="jac",
-                            max_nfev=NFEV_PER_PARAMETER * self.n_params, ftol=TOLERANCE, xtol=TOLERANCE)
-        return sol.x
+class ExtendedModel:
+    """The base model plus effects (module docstring).  ``groups`` maps "base" and each effect name to its
+    parameter indices; ``default`` holds the neutral values the left-out parameters keep."""
+
+    def __init__(self, base: str, effects: list[type[Effect]], d: Columns, norm: Normalization, o0: np.ndarray,
+                 info: dict | None = None):
+        self.base, self.d, self.norm, self.o0 = base, d, norm, np.asarray(o0, dtype=float)
+        self.effects = list(effects)
+        self.info = info or {}
+        self.groups = {"base": list(BASE_FREE[base])}
+        names = list(NINE_NAMES)
+        self.col_effects = []  # (class, first index)
+        for cls in self.effects:
+            if cls.base_part:
+                self.groups[cls.name] = list(PART_INDEX[cls.base_part])
+            else:
+                self.groups[cls.name] = list(range(len(names), len(names) + len(cls.fit_params)))
+                self.col_effects.append((cls, len(names)))
+                names += list(cls.fit_params)
+        self.names = names
+        self.p = len(names)
+        self.default = np.concatenate([np.asarray(NEUTRAL, dtype=float), np.zeros(self.p - 9)])
+        self._cache = None
+
+    # -- rows ---------------------------------------------------------------------------------
+    def blocks(self):
+        n = len(self.d)
+        for s in range(0, n, BLOCK_ROWS):
+            yield slice(s, min(n, s + BLOCK_ROWS))
+
+    def columns(self, sl) -> list:
+        """Effect columns (G, H) of the rows ``sl``."""
+        d = self.d.take(sl)
+        u0 = d.raw_nT - self.o0
+        return [cls.fit_columns(u0, d, self.norm) for cls, _ in self.col_effects]
+
+    def residual_jacobian(self, x: np.ndarray, sl, cols=None) -> tuple[np.ndarray, np.ndarray]:
+        """r (m,) and J (m, p) of the rows ``sl`` at x."""
+        d = self.d.take(sl)
+        cols = self.columns(sl) if cols is None else cols
+        x9 = x[:9]
+        m_mat, o = base_correction(x9)
+        v = d.raw_nT - o
+        for (cls, i0), (g, h) in zip(self.col_effects, cols):
+            if g is not None:
+                v = v - g @ x[i0:i0 + len(cls.fit_params)]
+        b = v @ m_mat.T
+        nb = np.linalg.norm(b, axis=1)
+        r = nb - d.f_ref_nT
+        bh = b / nb[:, None]
+        w = bh @ m_mat  # b^T M, (m, 3)
+        jac = np.empty((len(r), self.p))
+        p_mat = paper_matrix(*x9[:3])
+        for k, dp in enumerate(_dp(x9)):
+            jac[:, k] = np.einsum("ni,ni->n", bh, v @ (dp * (1.0 / x9[3:6])[None, :]).T)
+        for a in range(3):  # d M / d k_a = -P[:, a] / k_a^2 in column a
+            jac[:, 3 + a] = -(bh @ p_mat[:, a]) * v[:, a] / x9[3 + a] ** 2
+        jac[:, 6:9] = -w
+        for (cls, i0), (g, h) in zip(self.col_effects, cols):
+            k = len(cls.fit_params)
+            col = np.zeros((len(r), k))
+            if g is not None:
+                col -= np.einsum("na,nak->nk", w, g)
+            if h is not None:
+                r = r - h @ x[i0:i0 + k]
+                col -= h
+            jac[:, i0:i0 + k] = col
+        return r, jac
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        return np.concatenate([self.residual_jacobian(x, sl)[0] for sl in self.blocks()])
+
+    # -- the full fit ---------------------------------------------------------------------------
+    def free_indices(self, names) -> list[int]:
+        return sorted({i for nm in ["base", *names] for i in self.groups[nm]})
+
+    def fit(self, x_start: np.ndarray, free: list[int], keep: np.ndarray | None = None) -> np.ndarray:
+        """Gauss-Newton (step halving) on the rows ``keep`` for the ``free`` parameters."""
+        x = x_start.copy()
+        sse_old = None
+        for _ in range(GN_ITERATIONS):
+            a = np.zeros((len(free), len(free)))
+            bvec = np.zeros(len(free))
+            sse = 0.0
+            for sl in self.blocks():
+                r, jac = self.residual_jacobian(x, sl)
+                if keep is not None:
+                    r, jac = r[keep[sl]], jac[keep[sl]]
+                jf = jac[:, free]
+                a += jf.T @ jf
+                bvec += jf.T @ r
+                sse += float(r @ r)
+            if sse_old is not None and sse > sse_old:  # went up: halve the last step
+                step *= 0.5
+                x[free] -= step
+                continue
+            step = -solve_normal(a, bvec, FIT_RIDGE)
+            x_new = x.copy()
+            x_new[free] += step
+            done = sse_old is not None and abs(sse_old - sse) <= GN_TOLERANCE * max(sse, 1e-300)
+            sse_old = sse
+            x = x_new
+            if done:
+                break
+        return x
+
+    def fit_robust(self, x_start: np.ndarray, free: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """The fit with samples beyond SPIKE_SIGMA robust sigma trimmed (TRIM_ROUNDS times); (x, spike mask)."""
+        x = self.fit(x_start, free)
+        spikes = np.zeros(len(self.d), bool)
+        for _ in range(TRIM_ROUNDS):
+            r = self.residuals(x)
+            new = OutlierEffect.spike_mask(r)
+            if not new.any() or (~new).sum() < 2 * len(free) or np.array_equal(new, spikes):
+                spikes = new
+                break
+            spikes = new
+            x = self.fit(x, free, keep=~spikes)
+        return x, spikes
+
+    # -- the tangent space ----------------------------------------------------------------------
+    def tangent(self, x: np.ndarray):
+        """Yield (sl, r, J) at x for every block (J kept in memory when small)."""
+        n = len(self.d)
+        if self._cache is not None and np.array_equal(self._cache[0], x):
+            r_all, j_all = self._cache[1], self._cache[2]
+            for sl in self.blocks():
+                yield sl, r_all[sl], j_all[sl].astype(float)
+            return
+        store = n * self.p * 4 <= STORE_J_BYTES
+        if store:
+            r_all, j_all = np.empty(n), np.empty((n, self.p), np.float32)
+        for sl in self.blocks():
+            r, jac = self.residual_jacobian(x, sl)
+            if store:
+                r_all[sl], j_all[sl] = r, jac
+            yield sl, r, jac
+        if store:
+            self._cache = (x.copy(), r_all, j_all)
+
+
+class Tangent:
+    """Per-fold Gram matrices of [J, r] at the full fit x*, for all samples and for the spikes alone;
+    every sub-model's fold fits and held-out residuals from them."""
+
+    def __init__(self, model: ExtendedModel, x: np.ndarray, fold: np.ndarray, k: int, spikes: np.ndarray):
+        self.model, self.x, self.fold, self.k, self.spikes = model, x, fold, k, spikes
+        p1 = model.p + 1
+        self.gram = np.zeros((k, p1, p1))
+        self.gram_spk = np.zeros((k, p1, p1))
+        for sl, r, jac in model.tangent(x):
+            jr = np.column_stack([jac, r])
+            fl = fold[sl]
+            sp = spikes[sl]
+            for f in range(k):
+                m = fl == f
+                if m.any():
+                    z = jr[m]
+                    self.gram[f] += z.T @ z
+                    ms = m & sp
+                    if ms.any():
+                        zs = jr[ms]
+                        self.gram_spk[f] += zs.T @ zs
+
+    def _shift(self, free: list[int]) -> np.ndarray:
+        """c: the left-out parameters moved from x* to their neutral values (zeros on the free ones)."""
+        c = self.model.default - self.x
+        c[free] = 0.0
+        return c
+
+    def fold_steps(self, names: list[str], robust: bool) -> tuple[list[int], np.ndarray, np.ndarray]:
+        """(free indices, c, delta per fold (k, |free|)) of the sub-model base + ``names`` fitted on the
+        other folds (the spikes left out of the fit when ``robust``)."""
+        free = self.model.free_indices(names)
+        c = self._shift(free)
+        tot = self.gram.sum(axis=0) - (self.gram_spk.sum(axis=0) if robust else 0.0)
+        deltas = np.zeros((self.k, len(free)))
+        p = self.model.p
+        for f in range(self.k):
+            g = tot - self.gram[f] + (self.gram_spk[f] if robust else 0.0)
+            jj, jr = g[:p, :p], g[:p, p]
+            jfy = jr[free] + jj[free] @ c  # J_F^T y, y = r* + J c
+            deltas[f] = -solve_normal(jj[np.ix_(free, free)], jfy)
+        return free, c, deltas
+
+    def heldout(self, names: list[str], robust: bool) -> tuple[np.ndarray, int]:
+        """Held-out residuals of base + ``names`` (spikes explained away, set to 0, when ``robust``) and the
+        number of spikes so explained."""
+        free, c, deltas = self.fold_steps(names, robust)
+        out = np.empty(len(self.model.d))
+        for sl, r, jac in self.model.tangent(self.x):
+            y = r + jac @ c
+            fl = self.fold[sl]
+            step = np.einsum("nk,nk->n", jac[:, free], deltas[fl])
+            out[sl] = y + step
+        n_spk = 0
+        if robust:
+            out[self.spikes] = 0.0
+            n_spk = int(self.spikes.sum())
+        return out, n_spk
+
+    def fit_on(self, names: list[str], robust: bool, fold_ids) -> np.ndarray:
+        """Parameters of base + ``names`` fitted on the folds ``fold_ids`` (one tangent step from x*)."""
+        free = self.model.free_indices(names)
+        c = self._shift(free)
+        ids = list(fold_ids)
+        g = self.gram[ids].sum(axis=0) - (self.gram_spk[ids].sum(axis=0) if robust else 0.0)
+        p = self.model.p
+        jj, jr = g[:p, :p], g[:p, p]
+        delta = -solve_normal(jj[np.ix_(free, free)], jr[free] + jj[free] @ c)
+        x = self.x + c
+        x[free] += delta
+        return x
+
+    def fit_rms(self, names: list[str]) -> float:
+        """RMS on every sample of base + ``names`` fitted on every sample (from the Gram matrices)."""
+        free = self.model.free_indices(names)
+        c = self._shift(free)
+        g = self.gram.sum(axis=0)
+        p = self.model.p
+        jj, jr, rr = g[:p, :p], g[:p, p], g[p, p]
+        jfy = jr[free] + jj[free] @ c
+        delta = -solve_normal(jj[np.ix_(free, free)], jfy)
+        sse = rr + 2 * c @ jr + c @ jj @ c + 2 * delta @ jfy + delta @ jj[np.ix_(free, free)] @ delta
+        return float(np.sqrt(max(sse, 0.0) / max(g[0, 0] * 0 + len(self.model.d), 1)))
+
+    def full_fit(self, names: list[str], robust: bool) -> np.ndarray:
+        """Parameters of base + ``names`` fitted on every fold."""
+        return self.fit_on(names, robust, range(self.k))
+
+
+def spike_scale(r: np.ndarray) -> float:
+    return robust_sigma(r)
+
+
+__all__ = ["ExtendedModel", "Tangent", "base_correction", "PARAM_NAMES"]

@@ -18,11 +18,27 @@ FIGURE_DPI = 110
 def _table(result: dict, source: str) -> list[str]:
     lines = [f"diagnosis of {source} ({result['n_points']} points, base model: {result['base_model']})",
              f"  residual RMS {result['rms_fit_nT']:.3f} nT on the fit, {result['rms_base_nT']:.3f} nT held out; "
-             f"noise floor {result['noise_floor_nT']:.3f} nT",
-             "", f"  {'effect':<14}{'held-out RMS nT':>16}{'shrink %':>10}{'z':>8}  significant"]
+             f"noise floor {result['noise_floor_nT']:.3f} nT"]
+    if "floor_interval_nT" in result:
+        lo, hi = result["floor_interval_nT"]
+        lines.append(f"  noise floor interval {lo:.3f} .. {hi:.3f} nT ({result['floor_method']})")
+    lines += ["", f"  {'effect':<14}{'held-out RMS nT':>16}{'shrink %':>10}{'interval %':>16}{'z':>8}  selected"]
     for e in result["effects"]:
-        lines.append(f"  {e['name']:<14}{e['rms_heldout_nT']:>16.3f}{e['shrink_pct']:>10.1f}{e['z']:>8.1f}  "
-                     f"{'yes' if e['significant'] else 'no'}")
+        iv = e.get("shrink_interval_pct")
+        ivs = f"{iv[0]:.0f} .. {iv[1]:.0f}" if iv else "-"
+        lines.append(f"  {e['name']:<14}{e['rms_heldout_nT']:>16.3f}{e['shrink_pct']:>10.1f}{ivs:>16}{e['z']:>8.1f}  "
+                     f"{'yes' if e['significant'] else 'no'}" + ("  (!)" if e.get("shrink_flag") else ""))
+    if any(e.get("shrink_flag") for e in result["effects"]):
+        lines.append("  (!) " + next(e["shrink_flag"] for e in result["effects"] if e.get("shrink_flag")))
+    if "remainder_nT" in result:
+        lines.append(f"  remainder after the selected effects: {result['remainder_nT']:.3f} nT "
+                     f"(z {result['remainder_z']:.1f}, {'significant' if result['remainder_significant'] else 'not significant'})")
+    if "power" in result:
+        lines.append(f"  power: {result['power']['statement']}")
+    for name, why in result.get("not_tested", {}).items():
+        lines.append(f"  not tested: {name}: {why}")
+    for name, why in result.get("not_applicable", {}).items():
+        lines.append(f"  not applicable: {name}: {why}")
     return lines
 
 
@@ -31,9 +47,9 @@ def _localization(loc: dict) -> list[str]:
         return []
     lines = ["", "  where the residual lies:"]
     for k, v in loc.items():
-        if isinstance(v, dict):
+        if isinstance(v, dict) and all(isinstance(x, (int, float)) for x in v.values()):
             lines.append(f"    {k}: " + ", ".join(f"{kk} {vv:.2f}" for kk, vv in v.items()))
-        else:
+        elif isinstance(v, (int, float)):
             lines.append(f"    {k}: {v:.3f}")
     return lines
 
@@ -47,6 +63,28 @@ def diagnosis_text(result: dict, source: str = "") -> str:
         lines.append(f"  re-simulated: residual RMS {rs['without_effect']['rms_nT']:.3f} nT without the effect, "
                      f"{rs['with_effect']['rms_nT']:.3f} nT with it, observed {rs['observed']['rms_nT']:.3f} nT "
                      f"(remaining gap {rs['remaining_gap_pct']:.1f} %)")
+    g = result.get("geometry")
+    if g:
+        lines += ["", "  both series (harmonics of the error, nT):"]
+        for label in ("before", "after"):
+            h = result["series"][label]
+            lines.append(f"    {label:<7}" + ", ".join(f"{k} {h[f'{k}_per_rev_nT']:.1f}" for k in (1, 2, 3, 4)))
+        c = g["change_before_minus_after"]
+        t1 = g["table1_angles_only"]
+        lines += [f"    change before-after: 1/rev {c['1_per_rev_nT']:.0f} nT, 2/rev {c['2_per_rev_nT']:.0f} nT; Table 1's "
+                  f"angles alone on a level turntable give {t1['level_turntable']['1_per_rev_nT']:.0f} and "
+                  f"{t1['level_turntable']['2_per_rev_nT']:.0f} nT (at most {t1['max_2_per_rev_nT']:.0f} nT at 2/rev over "
+                  f"{t1['random_mountings']} random mountings)",
+                  "  fitted geometry and sensor (both series at once):",
+                  "    " + ", ".join(f"{k} {v:.4g}" for k, v in g["fitted"].items()),
+                  f"    the simulator then reproduces 'before' to {g['rms_misfit_before_nT']:.1f} nT RMS (of "
+                  f"{g['rms_before_nT']:.1f}) and 'after' to {g['rms_misfit_after_nT']:.1f} nT RMS (of {g['rms_after_nT']:.1f})",
+                  f"    {g['note']}",
+                  "  causes sharing a harmonic:"]
+        for k, v in g["harmonic_causes"].items():
+            lines.append(f"    {k}: {', '.join(v)}")
+        lines.append("    cannot be told apart by this series: " + "; ".join(g["cannot_tell_apart"]))
+        lines.append("    can be told apart (4/rev companion of the cubic): " + "; ".join(g["can_tell_apart"]))
     if "offset_and_scale_together" in result:
         both = result["offset_and_scale_together"]
         lines.append(f"  offset (1/rev) and scale (2/rev) together: held-out RMS {both['rms_heldout_nT']:.2f} nT "
@@ -61,7 +99,10 @@ def diagnosis_text(result: dict, source: str = "") -> str:
 def _plot_scalar(ax, series: ScalarSeries) -> str:
     r = scalar_residual(series)
     x = np.asarray(series.heading_deg)
-    ax.plot(x, r, "o-", label="residual of the file's calibration")
+    before = series.extra.get("f_meas_before")
+    if before is not None:
+        ax.plot(x, np.asarray(before) - np.asarray(series.f_ref_nT), "^-", label="before (raw total field - reference)")
+    ax.plot(x, r, "o-", label="after the file's calibration")
     cols = np.column_stack([np.ones(len(x))] + together_columns(np.radians(x)))
     coef, *_ = np.linalg.lstsq(cols, r, rcond=None)
     ax.plot(x, r - cols @ coef, "s-", label="after removing 1 and 2 cycles/rev (offset + scale)")
@@ -78,10 +119,10 @@ def _plot_vector(ax, data, result: dict) -> str:
         x, label = np.asarray(data.t_s), "time (s)"
     else:
         x, label = np.arange(len(r)), "sample"
-    ax.plot(x, r, ".", ms=3, label=f"base model ({result['base_model']})")
-    if result["verdict"] in effect_names(in_library=True) and "winner_params" in result:
-        ax.plot(x, d.model_residuals(result["verdict"], result["winner_params"]), ".", ms=3,
-                label=f"with {result['verdict']}")
+    ax.plot(x, r, ".", ms=2, label=f"base model ({result['base_model']})")
+    if result.get("selected"):
+        d.run()
+        ax.plot(x, d.model_residuals(result["selected"]), ".", ms=2, label="with " + "+".join(result["selected"]))
     return label
 
 

@@ -1,44 +1,36 @@
-"""Cross-validated scoring of each candidate effect: the base model and the base model plus one library
-effect (``simulate.effects``) are fitted on K-1 folds and their residuals measured on the fold left out,
-so that added parameters cannot win by over-fitting.  ``shrink_pct`` is the share of the gap (held-out
-base RMS minus noise floor) the effect removes; ``significant`` needs the effect's held-out evidence (a
-paired z-test on the squared residuals beyond Z_SIGNIFICANT, or, for spikes, enough of them) and a
-shrink beyond MIN_SIGNIFICANT_SHRINK_PCT."""
+"""Held-out scoring: residuals on folds not used to fit, paired z-tests, shrink with a bootstrap
+interval, the significance of what is left, and which effects the data can test at all."""
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
-from magbench.simulate.effects import Columns, Effect, Normalization, library_effects, robust_sigma
-
-from .localize import folds
-from .model import EffectModel
+from magbench.simulate.effects import Columns, Effect, library_effects
 
 Z_SIGNIFICANT = 3.0
-MIN_SIGNIFICANT_SHRINK_PCT = 10.0
+MIN_SIGNIFICANT_SHRINK_PCT = 10.0  # a selected effect removes at least this share of the gap on held-out data
 POINTS_PER_PARAMETER = 2  # a fold's training set must have at least this many points per parameter
-
-
-@dataclass
-class HeldOut:
-    """Residuals on held-out folds (spikes the effect explains set to zero) and their RMS."""
-
-    rms_nT: float
-    resid_nT: np.ndarray
-    n_flagged: int = 0
+MIN_COVERAGE_PCT = 10.0  # attitude coverage (share of equal-area cells hit) for the attitude-shaped effects
+ATTITUDE_SHAPED = ("nonlinearity",)
+BOOTSTRAP = 400
+BOOTSTRAP_GROUPS = 200
+INTERVAL = (5.0, 95.0)
+REMAINDER_Z = 3.0
+REMAINDER_MIN_OF_FLOOR = 0.3  # a remainder counts when its RMS is at least this share of the floor
+POWER_Z = Z_SIGNIFICANT + 1.28  # 90 % power of the one-sided paired test
+POWER_MAX_OF_FLOOR = 1.0  # "none" needs the power to see an effect of RMS at most this share of the floor
 
 
 def rms(r: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(r**2)))
+    return float(np.sqrt(np.mean(np.square(r)))) if len(r) else 0.0
 
 
 def paired_z(base_resid: np.ndarray, resid: np.ndarray) -> float:
     """z of the mean decrease of the squared residual, sample by sample (0 when nothing changes)."""
     diff = base_resid**2 - resid**2
-    if not np.std(diff) > 0:
+    sd = np.std(diff, ddof=1) if len(diff) > 1 else 0.0
+    if not sd > 0:
         return 0.0
-    return float(np.mean(diff) / (np.std(diff, ddof=1) / np.sqrt(len(diff))))
+    return float(np.mean(diff) / (sd / np.sqrt(len(diff))))
 
 
 def shrink_pct(rms_base: float, rms_effect: float, floor: float) -> float:
@@ -47,41 +39,80 @@ def shrink_pct(rms_base: float, rms_effect: float, floor: float) -> float:
     return 100.0 * (rms_base - rms_effect) / gap if gap > 0 else 0.0
 
 
+def shrink_interval(base: np.ndarray, without: np.ndarray, with_: np.ndarray, floor: float, floor_se: float,
+                    seed: int) -> list[float]:
+    """5-95 % bootstrap interval of (rms(without) - rms(with)) / (rms(base) - floor), resampling groups of
+    samples and the floor within its standard error."""
+    n = len(base)
+    rng = np.random.default_rng(seed)
+    g = min(n, BOOTSTRAP_GROUPS)
+    lab = rng.permutation(n) % g
+    sums = np.stack([np.bincount(lab, weights=x**2, minlength=g) for x in (base, without, with_)])
+    cnt = np.bincount(lab, minlength=g)
+    pick = rng.integers(0, g, size=(BOOTSTRAP, g))
+    tot = sums[:, pick].sum(axis=2)
+    m = cnt[pick].sum(axis=1)
+    rb, rw, rs = np.sqrt(tot / m)
+    fl = np.clip(floor + floor_se * rng.standard_normal(BOOTSTRAP), 0, None)
+    gap = rb - fl
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(gap > 0, 100.0 * (rw - rs) / gap, 0.0)
+    lo, hi = np.percentile(s, INTERVAL)
+    return [float(lo), float(hi)]
+
+
+def remainder(resid: np.ndarray, floor: float, floor_se: float, n_params: int, n_train: int) -> dict:
+    """What is left above the noise: RMS in nT (held-out mean square minus the floor's square, the latter
+    inflated by the fit's own held-out variance 1 + p / n_train) and whether it is significant."""
+    n = len(resid)
+    mse = float(np.mean(resid**2))
+    expected = floor**2 * (1.0 + n_params / max(n_train, 1))
+    excess = mse - expected
+    se = np.sqrt(np.var(resid**2) / n + (2 * floor * floor_se) ** 2)
+    z = excess / se if se > 0 else 0.0
+    rem = float(np.sqrt(max(excess, 0.0)))
+    return {"remainder_nT": rem, "remainder_z": float(z),
+            "remainder_significant": bool(z > REMAINDER_Z and rem > REMAINDER_MIN_OF_FLOOR * floor)}
+
+
+def min_detectable_nT(floor: float, n: int) -> float:
+    """RMS of an effect the paired held-out test sees with 90 % power: mean decrease s^2 against a
+    standard deviation 2 sigma s of the per-sample difference, so s = 2 POWER_Z sigma / sqrt(n)."""
+    return float(2.0 * POWER_Z * floor / np.sqrt(max(n, 1)))
+
+
+def coverage_pct(unit: np.ndarray, cells_az: int = 12, cells_z: int = 6) -> float:
+    """Share (%) of equal-area cells of the sphere (cells_az azimuths x cells_z bands of z) the field
+    directions hit."""
+    az = ((np.arctan2(unit[:, 1], unit[:, 0]) + np.pi) / (2 * np.pi) * cells_az).astype(int) % cells_az
+    zc = np.clip(((unit[:, 2] + 1) / 2 * cells_z).astype(int), 0, cells_z - 1)
+    return float(100.0 * len(np.unique(zc * cells_az + az)) / (cells_az * cells_z))
+
+
 def candidate_effects(base: str, d: Columns) -> list[type[Effect]]:
     """The library effects that can be fitted on these data with this base model, in registry order."""
     return [cls for cls in library_effects() if cls.applicable(base, d)]
 
 
-def cross_validate(base: str, effect: type[Effect] | None, d: Columns, norm: Normalization, base_x: np.ndarray,
-                   k: int, seed: int, spike_scale: float = 0.0) -> HeldOut:
-    """K-fold held-out residuals of the base model plus ``effect`` (None: the base model alone)."""
-    model = EffectModel(base, effect, norm)
-    fold = folds(len(d.raw_nT), k, seed)
-    resid = np.empty(len(d.raw_nT))
-    flagged = 0
-    for f in range(k):
-        tr, te = fold != f, fold == f
-        resid[te], n = model.effect.heldout_residuals(model, d.take(tr), d.take(te), model.x0(base_x), spike_scale)
-        flagged += n
-    return HeldOut(rms(resid), resid, flagged)
-
-
-def score_vector_effects(base: str, d: Columns, base_x: np.ndarray, base_cv: HeldOut, floor: float,
-                         k: int, seed: int) -> list[dict]:
-    """One entry per candidate effect with enough points for its parameters, best (lowest held-out RMS) first."""
-    n = len(d.raw_nT)
+def testable(base: str, d: Columns, unit: np.ndarray, n_base: int, k: int) -> tuple[list, dict, dict]:
+    """(effects the data can test, {name: why not tested}, {name: why not applicable})."""
+    n = len(d)
     n_train = n * (k - 1) // k
-    norm = Normalization.of(d)
-    spike_scale = robust_sigma(base_cv.resid_nT)
-    effects = []
-    for cls in candidate_effects(base, d):
-        if n_train < POINTS_PER_PARAMETER * (len(base_x) + len(cls.fit_params)):
-            continue  # too many parameters for the points available
-        cv = cross_validate(base, cls, d, norm, base_x, k, seed, spike_scale)
-        z = paired_z(base_cv.resid_nT, cv.resid_nT)
-        shrink = shrink_pct(base_cv.rms_nT, cv.rms_nT, floor)
-        significant = cls.evidence(z, cv.n_flagged, n, Z_SIGNIFICANT) and shrink > MIN_SIGNIFICANT_SHRINK_PCT
-        effects.append({"name": cls.name, "rms_heldout_nT": cv.rms_nT, "shrink_pct": shrink,
-                        "significant": bool(significant), "z": z,
-                        "n_parameters": len(cls.fit_params) + cv.n_flagged})  # a flagged spike is one parameter
-    return sorted(effects, key=lambda e: e["rms_heldout_nT"])
+    cover = coverage_pct(unit)
+    ok, untested, not_applicable = [], {}, {}
+    for cls in library_effects():
+        if base in cls.included_in:
+            continue
+        miss = cls.missing(d)
+        if miss:
+            not_applicable[cls.name] = "no informative " + ", ".join(miss) + " column"
+            continue
+        need = POINTS_PER_PARAMETER * (n_base + len(cls.fit_params))
+        if n_train < need:
+            untested[cls.name] = f"{n_train} training points per fold, {need} needed for its {len(cls.fit_params)} parameters"
+            continue
+        if cls.name in ATTITUDE_SHAPED and cover < MIN_COVERAGE_PCT:
+            untested[cls.name] = f"attitude coverage {cover:.0f} % of the sphere (at least {MIN_COVERAGE_PCT:.0f} % needed)"
+            continue
+        ok.append(cls)
+    return ok, untested, not_applicable

@@ -1,13 +1,21 @@
 """The diagnosis of a vector dataset (``magbench diagnose``, CONTRACT section 3):
 
-1. calibrate with the base model (``angles`` or ``nine``) by ``lsq`` and localize the residual
-   (``localize``);
-2. estimate the noise floor without any model (``floor``);
-3. add each applicable library effect in turn and score it on held-out folds (``scoring``);
-4. give the verdict (``verdict``);
-5. refit the winning effect on all the data and re-simulate it (``resimulate``).
+1. calibrate with the base model (``angles`` or ``nine``) by ``lsq``; localize its residual
+   (``localize``: held-out explained fractions);
+2. estimate the noise floor from differences of samples close in time, with an interval (``floor``);
+3. fit base + every testable library effect once on the whole record (``model.ExtendedModel``, spikes
+   trimmed) and build the per-fold tangent-space Gram matrices (``model.Tangent``);
+4. forward selection: add, one at a time, the effect that lowers the held-out residual most, while it is
+   significant (paired z > Z_SIGNIFICANT on held-out squared residuals; for spikes, enough of them) and
+   removes at least MIN_SIGNIFICANT_SHRINK_PCT of the gap;
+5. each selected effect's own held-out contribution (the selected set with and without it) with a
+   bootstrap interval, the remainder in nT and its significance, the power of the tests;
+6. the verdict (``verdict``) and a re-simulation scored on folds not used to fit (``resimulate``).
 """
 from __future__ import annotations
+
+import sys
+import time
 
 import numpy as np
 
@@ -18,67 +26,206 @@ from magbench.simulate.effects import EFFECTS, Columns, Normalization
 from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
 from .floor import vector_floor
-from .localize import localize
-from .model import EffectModel
+from .localize import folds, localize
+from .model import BASE_FREE, ExtendedModel, Tangent
 from .resimulate import resimulate
-from .scoring import cross_validate, rms, score_vector_effects
+from .scoring import (MIN_SIGNIFICANT_SHRINK_PCT, POWER_MAX_OF_FLOOR, Z_SIGNIFICANT, coverage_pct,
+                      min_detectable_nT, paired_z, remainder, rms, shrink_interval, shrink_pct, testable)
 from .verdict import verdict
 
 DEFAULT_FOLDS = 5
 MIN_POINTS_BEYOND_PARAMETERS = 10
+MAX_EFFECTS = 4
+SELECTION_PASSES = 3
+MIN_STEP_OF_REMAINING = 0.25  # ... or a quarter of what the effects before it left
+TANGENT_TOLERANCE = 0.05  # a later tangent point must reproduce the base fit's RMS within 5 %
+SHRINK_FLAG = ("above 100 %: the held-out RMS with the effect is below the noise-floor estimate, so the floor "
+               "(its interval is given) is too high for these data or the remainder is smaller than its error")
+
+
+class Progress:
+    """A progress bar on stderr for long records (silent otherwise)."""
+
+    def __init__(self, enabled: bool, total: int):
+        self.enabled, self.total, self.done, self.t0 = enabled, total, 0, time.time()
+
+    def step(self, label: str) -> None:
+        if not self.enabled:
+            return
+        self.done += 1
+        width = 30
+        fill = int(width * self.done / self.total)
+        sys.stderr.write(f"\rdiagnose [{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} "
+                         f"{time.time() - self.t0:5.1f} s {label:<24}")
+        if self.done >= self.total:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
 
 
 class Diagnosis:
     """Runs the diagnosis of a vector dataset; ``run()`` returns the JSON-ready dict."""
 
-    def __init__(self, data: Dataset, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0):
-        if base not in MODELS:
+    PROGRESS_ROWS = 100_000
+
+    def __init__(self, data: Dataset, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0,
+                 gravity: np.ndarray | None = None, progress: bool | None = None, rows_in_time_order: bool = False):
+        if base not in MODELS or base not in BASE_FREE:
             raise InputError(f"unknown base model {base!r}: use angles or nine")
         if not data.has_reference:
             raise InputError("no reference magnitude: give an f_ref column, --field NT, --igrf ..., or '# field_nT:'")
+        if folds < 2:
+            raise InputError(f"--folds must be at least 2, not {folds}")
         self.dataset, self.base, self.k, self.seed = data, base, folds, seed
+        self.gravity = gravity
+        self.rows_in_time_order = rows_in_time_order
         self.columns = Columns.of(data)
         self.norm = Normalization.of(self.columns)
         n, need = len(data), len(PARAM_NAMES[base]) + MIN_POINTS_BEYOND_PARAMETERS
         if n < need:
             raise InputError(f"{n} points are too few to diagnose with the {base} model (need at least {need})")
+        self.progress = Progress(n >= self.PROGRESS_ROWS if progress is None else progress, 6)
 
     def base_residual(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The ``lsq`` base calibration: its parameters, the scalar residual and the corrected field directions."""
-        base_fit = make("lsq", model=self.base).fit(self.dataset)
-        corrected = base_fit.correct(self.columns.raw_nT)
-        r = np.linalg.norm(corrected, axis=1) - self.columns.f_ref_nT
-        return base_fit.x, r, corrected / np.linalg.norm(corrected, axis=1, keepdims=True)
+        """The ``lsq`` base calibration: its nine-vector, the scalar residual and the corrected field directions."""
+        fit = make("lsq", model=self.base).fit(self.dataset)
+        corrected = fit.correct(self.columns.raw_nT)
+        nb = np.linalg.norm(corrected, axis=1)
+        r = nb - self.columns.f_ref_nT
+        x9 = np.array([fit.params.alpha_rad, fit.params.beta_rad, fit.params.gamma_rad, *fit.params.scale,
+                       *fit.params.offset_nT], dtype=float)
+        return x9, r, corrected / nb[:, None]
 
-    def heldout_base(self, base_x: np.ndarray):
-        """Held-out residuals of the base model alone (``scoring.HeldOut``)."""
-        return cross_validate(self.base, None, self.columns, self.norm, base_x, self.k, self.seed)
+    def heldout(self, names: list[str]) -> tuple[np.ndarray, int]:
+        return self.tangent.heldout(names, "outliers" in names)
 
     def run(self) -> dict:
-        d = self.columns
-        base_x, r_all, unit = self.base_residual()
-        floor = vector_floor(unit, d, r_all)
-        base_cv = self.heldout_base(base_x)
-        effects = score_vector_effects(self.base, d, base_x, base_cv, floor, self.k, self.seed)
-        n = len(r_all)
-        result = verdict(effects, base_cv.rms_nT, floor, n)
+        d, n, k = self.columns, len(self.columns), self.k
+        x9, r_all, unit = self.base_residual()
+        self.unit = unit
+        self.progress.step("base calibration")
+        fl = vector_floor(unit, d, r_all, self.rows_in_time_order)
+        floor, floor_se = fl["noise_floor_nT"], fl["floor_se_nT"]
+        n_base = len(BASE_FREE[self.base])
+        effects_ok, untested, not_applicable = testable(self.base, d, unit, n_base, k)
+        self.effect_info = {cls.name: cls.prepare(d, self.norm, r_all, unit) for cls in effects_ok}
+        self.progress.step("noise floor")
+        model = self.model = ExtendedModel(self.base, effects_ok, d, self.norm, x9[6:9], self.effect_info)
+        x_lin = np.concatenate([x9, np.zeros(model.p - 9)])
+        every = [cls.name for cls in effects_ok]
+        fold = folds(n, k, self.seed)
+        n_train = n * (k - 1) // k
+        selected, seen = [], []
+        state = None
+        for _ in range(SELECTION_PASSES):  # the tangent space at the base fit, then at the selected model's fit
+            free = model.free_indices(selected)
+            x_try, spikes = model.fit_robust(x_lin, free) if n >= 3 * len(free) else (x_lin, np.zeros(n, bool))
+            tangent = Tangent(model, x_try, fold, k, spikes)
+            if state is not None and abs(tangent.fit_rms([]) / rms(r_all) - 1.0) > TANGENT_TOLERANCE:
+                break  # too far from the base fit for the base model's tangent to hold: keep the last pass
+            self.tangent, x_lin = tangent, x_try
+            base_res, _ = self.heldout([])
+            rms_base = rms(base_res)
+            selected, current, trail = self._select(every, base_res, rms_base, floor, n)
+            state = (selected, current, trail, base_res, rms_base, x_lin)
+            if selected in seen:
+                break
+            seen.append(list(selected))
+        selected, current, trail, base_res, rms_base, x_lin = state
+        gap = rms_base - floor
+        self.progress.step("extended fit, selection")
+        self.r_star = model.residuals(x_lin) if selected else r_all
+        self.progress.step("fold Gram matrices")
+
+        # each effect's own held-out contribution ----------------------------------------------------
+        entries = []
+        for i, name in enumerate(selected):
+            without, _ = self.heldout([s for s in selected if s != name])
+            alone, _ = self.heldout([name])
+            own = shrink_pct(rms_base, rms(current), floor) - shrink_pct(rms_base, rms(without), floor)
+            entries.append(self._entry(name, current, without, base_res, own, alone, floor, floor_se, True,
+                                       paired_z(without, current), i))
+        for name in [c for c in every if c not in selected]:
+            res, _ = self.heldout(selected + [name])
+            add = shrink_pct(rms_base, rms(current), floor) - shrink_pct(rms_base, rms(res), floor)
+            alone, _ = self.heldout([name])
+            entries.append(self._entry(name, res, current, base_res, -add, alone, floor, floor_se, False,
+                                       paired_z(current, res), len(entries)))
+        entries.sort(key=lambda e: (not e["selected"], -e["shrink_pct"] if e["selected"] else e["rms_heldout_nT"]))
+        order = [e["name"] for e in entries if e["selected"]]
+        self.progress.step("contributions")
+
+        n_params = len(self.tangent.model.free_indices(selected))
+        rem = remainder(current, floor, floor_se, n_params, n_train)
+        mdn = min_detectable_nT(floor, n)
+        powered = mdn <= POWER_MAX_OF_FLOOR * floor
+        result = verdict(order, rem["remainder_significant"], powered, untested)
+        x_sel = self.tangent.full_fit(selected, "outliers" in selected)
         out = {"kind": "vector", "base_model": self.base, "n_points": n, "rms_fit_nT": rms(r_all),
-               "rms_base_nT": base_cv.rms_nT, "noise_floor_nT": floor, "verdict": result, "effects": effects,
-               "folds": self.k, "seed": self.seed,
-               "localization": localize(r_all, unit, d, self.dataset.heading_deg, self.k, self.seed),
-               "base_params": dict(zip(PARAM_NAMES[self.base], map(float, base_x)))}
-        if any(e["name"] == result for e in effects):
-            out.update(self.winner(result, base_x, floor, r_all, unit))
+               "rms_base_nT": rms_base, "noise_floor_nT": floor, **{k_: v for k_, v in fl.items() if k_ != "noise_floor_nT"},
+               "verdict": result, "effects": entries, "selected": order,
+               "rms_selected_heldout_nT": rms(current), **rem,
+               "power": {"min_detectable_effect_rms_nT": mdn, "powered": bool(powered),
+                         "statement": f"the held-out tests see an effect of RMS {mdn:.3g} nT or more with 90 % power "
+                                      f"(z > {Z_SIGNIFICANT:g})"},
+               "not_tested": untested, "not_applicable": not_applicable,
+               "coverage_pct": coverage_pct(unit), "folds": k, "seed": self.seed,
+               "effect_info": {nm: v for nm, v in self.effect_info.items() if v},
+               "selection_trail": trail,
+               "localization": localize(r_all, unit, d, self.dataset.heading_deg, k, self.seed, self.gravity),
+               "base_params": dict(zip(PARAM_NAMES[self.base], map(float, x9[list(BASE_FREE[self.base])]))),
+               "fitted_params": {self.model.names[i]: float(x_sel[i]) for i in self.model.free_indices(selected)}}
+        if selected:
+            out["winner_params"] = out["fitted_params"]
+        self.progress.step("localization")
+        if selected:
+            rs = resimulate(self, selected, "outliers" in selected, floor, self.seed)
+            if rs is not None:
+                out["resimulation"] = rs
         return out
 
-    def winner(self, name: str, base_x: np.ndarray, floor: float, r_obs: np.ndarray, unit: np.ndarray) -> dict:
-        """The winning effect refitted on all the data, and its re-simulation."""
-        model = EffectModel(self.base, EFFECTS[name], self.norm)
-        x = model.effect.fit_model(model, self.columns, model.x0(base_x))
-        return {"winner_params": dict(zip(model.names, map(float, x))),
-                "resimulation": resimulate(model, x, self.columns, unit, self.dataset.heading_deg, floor, r_obs,
-                                           self.seed)}
+    def _select(self, every, base_res, rms_base, floor, n):
+        """Forward selection (module docstring, step 4): (selected, its held-out residual, the trail)."""
+        selected: list[str] = []
+        current = base_res
+        trail = []
+        candidates = list(every)
+        while candidates and len(selected) < MAX_EFFECTS:
+            scored = []
+            for name in candidates:
+                res, n_spk = self.heldout(selected + [name])
+                z = paired_z(current, res)
+                step = shrink_pct(rms_base, rms(res), floor) - shrink_pct(rms_base, rms(current), floor)
+                left = 100.0 - shrink_pct(rms_base, rms(current), floor)  # the share of the gap still open
+                ok = z > Z_SIGNIFICANT and (step >= MIN_SIGNIFICANT_SHRINK_PCT or step >= MIN_STEP_OF_REMAINING * left)
+                if EFFECTS[name].robust:
+                    ok = ok and EFFECTS[name].enough(n_spk, n)
+                scored.append((rms(res), name, z, step, ok, res))
+            trail.append({"after": "+".join(selected) or "base",
+                          "candidates": {nm: {"rms_heldout_nT": r_, "z": z_, "step_shrink_pct": s_, "significant": ok_}
+                                         for r_, nm, z_, s_, ok_, _ in scored}})
+            best = min((s for s in scored if s[4]), default=None, key=lambda s: s[0])
+            if best is None:
+                break
+            selected.append(best[1])
+            current = best[5]
+            candidates.remove(best[1])
+        return selected, current, trail
 
-    def model_residuals(self, name: str, params: dict) -> np.ndarray:
-        """The residual of base + effect ``name`` with the given (winner) parameters."""
-        return EffectModel(self.base, EFFECTS[name], self.norm).residuals(np.array(list(params.values())), self.columns)
+    def _entry(self, name, with_res, without_res, base_res, own, alone, floor, floor_se, selected, z, i) -> dict:
+        cls = EFFECTS[name]
+        interval = shrink_interval(base_res, without_res, with_res, floor, floor_se, self.seed + 31 * i + 1)
+        e = {"name": name, "rms_heldout_nT": rms(with_res), "shrink_pct": float(own),
+             "shrink_interval_pct": interval, "shrink_alone_pct": shrink_pct(rms(base_res), rms(alone), floor),
+             "significant": bool(selected), "selected": bool(selected), "z": float(z),
+             "n_parameters": len(cls.fit_params) or int(self.tangent.spikes.sum())}
+        if max(own, interval[1]) > 100.0:
+            e["shrink_flag"] = SHRINK_FLAG
+        return e
+
+    def model_residuals(self, names: list[str]) -> np.ndarray:
+        """The residual of base + ``names`` fitted on all the data (tangent step)."""
+        x = self.tangent.full_fit(names, "outliers" in names)
+        r = self.model.residuals(x)
+        if "outliers" in names:
+            r = np.where(self.tangent.spikes, np.nan, r)
+        return r

@@ -1,17 +1,16 @@
-"""The verdict of a diagnosis (CONTRACT section 3): the best significant effect when it removes at least
-MIN_SHRINK_PCT of the gap; else ``none`` when the base residual is within NONE_TOLERANCE / sqrt(n) of the
-noise floor; else ``unexplained``."""
+"""The verdict of a diagnosis (CONTRACT section 3): the selected effects, strongest first, joined by
+``+`` and ending in ``+unexplained`` when a significant remainder is left; with none selected,
+``unexplained`` for a significant remainder the tested effects cannot explain, ``none`` when the residual
+is consistent with the noise and the tests had the power to see an effect of the stated size, else
+``insufficient_data`` (too few points, too little coverage: the untested effects are listed)."""
 from __future__ import annotations
 
-import numpy as np
-
-MIN_SHRINK_PCT = 50.0
-NONE_TOLERANCE = 4.0
+UNEXPLAINED, NONE, INSUFFICIENT = "unexplained", "none", "insufficient_data"
 
 
-def verdict(effects: list[dict], rms_base: float, floor: float, n: int) -> str:
-    """``effects`` best first, as ``scoring.score_vector_effects`` or ``scalar.score_scalar_effects`` give them."""
-    best = next((e for e in effects if e["significant"]), None)
-    if best is not None and best["shrink_pct"] >= MIN_SHRINK_PCT:
-        return best["name"]
-    return "none" if rms_base <= floor * (1.0 + NONE_TOLERANCE / np.sqrt(n)) else "unexplained"
+def verdict(selected: list[str], remainder_significant: bool, powered: bool, untested: dict) -> str:
+    if selected:
+        return "+".join(selected) + ("+" + UNEXPLAINED if remainder_significant else "")
+    if remainder_significant:
+        return INSUFFICIENT if untested else UNEXPLAINED
+    return NONE if powered and not untested else INSUFFICIENT
