@@ -161,14 +161,30 @@ def algebraic_vector(raw_nT: np.ndarray, f_ref_nT, model: str) -> np.ndarray | N
     return None
 
 
+MIN_SPREAD_FOR_SHAPE_FIT = 0.2
+"""Readings whose spread along their least-covered direction is below this fraction of the largest spread
+(a level turntable, a vehicle pitching a few degrees) fit no sphere or ellipsoid reliably: the magnitude is
+then the angles model's (the mean corrected magnitude)."""
+
+
 def estimate_field(raw_nT: np.ndarray, model: str) -> tuple[float, str]:
     """The field magnitude of readings without a reference (magcal's ``expmfs``) and how it was found."""
     raw = np.asarray(raw_nT, dtype=float)
     if raw.ndim != 2 or raw.shape[1] != 3 or raw.shape[0] < 4 or not np.all(np.isfinite(raw)):
         raise InputError("--field auto needs at least 4 finite readings bx, by, bz")
+    angles_how = "mean corrected magnitude, refined with the angles (angles model)"
     if model == "angles":
-        return _angles_field(raw), "mean corrected magnitude, refined with the angles (angles model)"
-    tries = {"nine": ("ellipsoid", "axis", "sphere"), "diag": ("axis", "sphere")}.get(model, ("sphere",))
+        return _angles_field(raw), angles_how
+    from .acceptance import least_covered_direction
+
+    _, spread = least_covered_direction(raw)
+    if spread < MIN_SPREAD_FOR_SHAPE_FIT:
+        # near-planar readings determine no sphere or ellipsoid (their centre along the normal is free)
+        return _angles_field(raw), (f"{angles_how}: the readings lie close to a plane (out-of-plane spread "
+                                    f"{100 * spread:.2g} % of the in-plane spread), so no sphere or ellipsoid fits")
+    typical = float(np.median(np.linalg.norm(raw, axis=1)))
+    tries = {"nine": ("ellipsoid", "axis", "sphere"), "auto": ("ellipsoid", "axis", "sphere"),
+             "diag": ("axis", "sphere")}.get(model, ("sphere",))
     for kind in tries:
         try:
             if kind == "ellipsoid":
@@ -176,16 +192,18 @@ def estimate_field(raw_nT: np.ndarray, model: str) -> tuple[float, str]:
 
                 shape, _ = fit_ellipsoid(raw)
                 det = float(np.linalg.det(shape))
-                if det > 0:
-                    return det ** (-1.0 / 6.0), "radius of the sphere of the fitted ellipsoid's volume"
+                f, how = (det ** (-1.0 / 6.0) if det > 0 else float("nan"),
+                          "radius of the sphere of the fitted ellipsoid's volume")
             elif kind == "axis":
                 _, radii = axis_ellipsoid_fit(raw)
-                return float(np.prod(radii) ** (1.0 / 3.0)), ("radius of the sphere of the fitted axis-aligned "
-                                                               "ellipsoid's volume")
+                f, how = float(np.prod(radii) ** (1.0 / 3.0)), ("radius of the sphere of the fitted axis-aligned "
+                                                                 "ellipsoid's volume")
             else:
-                return sphere_fit(raw)[1], "radius of the fitted sphere"
+                f, how = sphere_fit(raw)[1], "radius of the fitted sphere"
         except (InputError, np.linalg.LinAlgError):
             continue
+        if np.isfinite(f) and 0.2 * typical <= f <= 5.0 * typical:
+            return float(f), how
     raise InputError("--field auto: the readings fit no sphere or ellipsoid (they cover too few directions); "
                      "give a reference (--field NT or --igrf)")
 
@@ -211,7 +229,7 @@ def _angles_field(raw: np.ndarray) -> float:
 
 def with_estimated_field(dataset: Dataset, model: str) -> Dataset:
     """The dataset with its reference replaced by the magnitude estimated from its readings."""
-    f, how = estimate_field(dataset.raw_nT, "nine" if model == "auto" else model)
+    f, how = estimate_field(dataset.raw_nT, model)
     if not (np.isfinite(f) and f > 0):
         raise InputError("--field auto: the estimated field magnitude is not a positive number")
     had = dataset.meta.get("reference_source") if dataset.f_ref_nT is not None else None

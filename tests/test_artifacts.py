@@ -363,3 +363,13 @@ def test_every_result_has_uncertainties():
         res = make(name, model=model).fit(simulate(scenario, 0))
         assert set(res.uncertainty) == set(PARAM_NAMES[model]) and np.isfinite(res.noise_nT)
         assert all(v > 0 for v in res.uncertainty.values())
+
+
+def test_field_auto_on_a_level_turntable_uses_the_angles_estimate():
+    """No sphere or ellipsoid fits planar readings: the magnitude is the angles model's mean corrected one."""
+    data = simulate("lu2014", 0)
+    res = make("lsq", model="auto").fit(np.array(data.raw_nT), field="auto")
+    assert res.model == "angles" and res.accepted
+    assert "plane" in res.reference["source"]
+    assert abs(res.reference["median_nT"] - float(np.median(data.f_ref_nT))) < 5.0
+    np.testing.assert_allclose(res.x, data.truth.params.to_vector("angles"), atol=2e-4)
