@@ -36,7 +36,7 @@ import pandas as pd
 from magbench.errors import InputError
 
 RUNTIME_COLUMNS = ("runtime_s", "median_runtime_s")
-TRACE_POINTS = 200  # convergence traces are thinned to at most this many points per run
+TRACE_POINTS = 100  # convergence traces (kept for every trial) are thinned to at most this many points per run
 CHECKPOINT = "runs.partial.jsonl"  # one header line, then one JSON line per finished run
 CHECKPOINT_VERSION = 1
 TABLE_FILES = ("runs.csv", "summary.csv", "summary.md", "summary.tex", "traces.csv", "fields.csv", "manifest.json")
@@ -94,7 +94,7 @@ class Campaign:
     methods: tuple[MethodSpec, ...]
     trials: int = 10
     seed: int = 0
-    traces: bool = True  # keep convergence traces and field-vs-heading curves of trial 0
+    traces: bool = True  # keep every trial's convergence trace (thinned) and trial 0's field-vs-heading curves
 
     def definition(self) -> dict:
         """What identifies the campaign (a resume must match it); JSON-ready."""
@@ -130,7 +130,7 @@ class Campaign:
                                   "configuration": spec.label, "model": model, "trial": trial,
                                   "data_seed": data_seed, "validation_seed": val_seed,
                                   "seed": int(m_seq.generate_state(1)[0]),
-                                  "keep_trace": self.traces and trial == 0})
+                                  "keep_trace": self.traces, "keep_fields": self.traces and trial == 0})
         return tasks, skipped
 
 
@@ -169,10 +169,10 @@ def run_task(task: dict) -> dict:
             if len(trace) > TRACE_POINTS:
                 trace = trace[np.unique(np.geomspace(1, len(trace), TRACE_POINTS).astype(int) - 1)]
             extra["trace"] = trace.tolist()
-            if data.heading_deg is not None:
-                extra["fields"] = {"heading_deg": data.heading_deg.tolist(), "f_ref_nT": data.f_ref_nT.tolist(),
-                                   "f_before_nT": np.linalg.norm(data.raw_nT, axis=1).tolist(),
-                                   "f_after_nT": np.linalg.norm(result.correct(data.raw_nT), axis=1).tolist()}
+        if task.get("keep_fields", task.get("keep_trace") and task["trial"] == 0) and data.heading_deg is not None:
+            extra["fields"] = {"heading_deg": data.heading_deg.tolist(), "f_ref_nT": data.f_ref_nT.tolist(),
+                               "f_before_nT": np.linalg.norm(data.raw_nT, axis=1).tolist(),
+                               "f_after_nT": np.linalg.norm(result.correct(data.raw_nT), axis=1).tolist()}
     except Exception as exc:  # a failed run is a row with its error text
         row["error"] = str(exc) if isinstance(exc, InputError) else f"{type(exc).__name__}: {exc}"
     row["_extra"] = extra
@@ -583,7 +583,7 @@ def _write_campaign_tables(campaign: Campaign, out: Path, rows: list[dict], skip
         flat.append(row)
         for ev, best, mean in extra.get("trace", []):
             traces.append({"scenario": row["scenario"], "configuration": row["configuration"],
-                           "evaluations": int(ev), "best_F": best, "mean_F": mean})
+                           "trial": int(row["trial"]), "evaluations": int(ev), "best_F": best, "mean_F": mean})
         if "fields" in extra:
             f = extra["fields"]
             for i in range(len(f["heading_deg"])):

@@ -1,15 +1,23 @@
-"""Figures of a campaign directory: angle errors, accuracy against runtime, convergence, total field
-against heading and efficiency against the Cramér-Rao bound, each as PNG (dpi 120) and SVG.
+"""Figures of a campaign directory, drawn for print: angle errors relative to the Cramér-Rao bound,
+accuracy against runtime, convergence over all trials, total field against heading (turntable and
+vehicle scenarios only) and efficiency with bootstrap intervals.
 
     from magbench.benchmarks.figures import make_figures
-    make_figures("results/campaign")          # -> results/campaign/figures/<kind>_<scenario>.png/.svg
+    make_figures("results/campaign", formats=("png", "pdf"), dpi=300)
+    # -> results/campaign/figures/<kind>_<scenario>.png/.pdf
+
+Conventions, the same in every figure: one colour (and marker) per calibrator configuration, taken from
+the Okabe-Ito colour-blind-safe palette in the order of ``comparison_figures.style_of`` (so that a method
+has the same colour in the comparison figures too); the Cramér-Rao bound and the reference in neutral
+grey; one scale per figure, logarithmic where values span decades.
 
 Only the Agg canvas is used (``matplotlib.figure.Figure``, never pyplot), so importing this module does
 not change the caller's backend. Output is deterministic: fixed style, fixed SVG hash salt, no dates and
-no software tag in the files, a seeded jitter.
+no software tag in the files, a seeded jitter and a seeded bootstrap.
 """
 from __future__ import annotations
 
+import io
 import re
 import textwrap
 from pathlib import Path
@@ -23,16 +31,25 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
+from magbench.benchmarks.comparison_figures import style_of
+from magbench.benchmarks.tables import MIN_TRIALS_EFFICIENCY, efficiency_interval
 from magbench.paper import ARCSEC_PER_RAD
 
 ANGLES = ("alpha", "beta", "gamma")
 GREEK = {"alpha": "α", "beta": "β", "gamma": "γ"}
+ANGLE_MARKERS = {"alpha": "o", "beta": "s", "gamma": "^"}
 KINDS = ("errors", "accuracy_runtime", "convergence", "field_heading", "efficiency")
-DPI = 120
+FORMATS = ("png", "svg", "pdf")
+DPI = 300  # print resolution of the PNG files
+SCREEN_DPI = 100  # the report's embedded images
+BOUND_GREY = "0.5"  # the Cramér-Rao bound and other references: neutral grey, never a method's colour
+WARN_COLOUR = "#B8860B"
 SVG_SALT = "magbench"
 MARKERS = ("o", "s", "D", "^", "v", "P", "X", "<", ">", "*", "h", "p")
 RC = {"svg.hashsalt": SVG_SALT, "svg.fonttype": "path", "figure.dpi": 100, "savefig.dpi": DPI,
-      "axes.grid": True, "grid.alpha": 0.3, "font.size": 9, "legend.fontsize": 8, "axes.titlesize": 10}
+      "pdf.fonttype": 42, "axes.grid": True, "grid.alpha": 0.3, "font.size": 9, "legend.fontsize": 8,
+      "axes.titlesize": 10}
+CONVERGENCE_GRID = 80  # evaluation points of the aggregated convergence curves
 
 
 # ---------------------------------------------------------------------------------------------- input
@@ -89,6 +106,13 @@ def _wrap(label: str, width: int = 26) -> str:
     return "\n".join(textwrap.wrap(str(label), width)) or str(label)
 
 
+def _trials(df: pd.DataFrame) -> int:
+    """Trials per configuration (the most any configuration has)."""
+    if df.empty or "configuration" not in df.columns:
+        return 0
+    return int(df.groupby("configuration").size().max())
+
+
 # --------------------------------------------------------------------------------------------- output
 
 
@@ -98,22 +122,43 @@ def _new_figure(width: float, height: float) -> Figure:
     return fig
 
 
-def _save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
-    """Write ``stem``.png and ``stem``.svg without dates or software tags."""
-    png, svg = out_dir / f"{stem}.png", out_dir / f"{stem}.svg"
-    fig.savefig(png, format="png", dpi=DPI, metadata={"Software": None})
-    fig.savefig(svg, format="svg", metadata={"Date": None, "Creator": "magbench"})
-    return [png, svg]
+METADATA = {"png": {"Software": None}, "svg": {"Date": None, "Creator": "magbench"},
+            "pdf": {"Creator": "magbench", "Producer": None, "CreationDate": None, "ModDate": None}}
 
 
-def _colours(configs: list[str]) -> dict[str, tuple]:
-    cmap = matplotlib.colormaps["tab10" if len(configs) <= 10 else "tab20"]
-    return {c: cmap(i % cmap.N) for i, c in enumerate(configs)}
+def _save(fig: Figure, out_dir: Path, stem: str, formats=("png", "svg"), dpi: int = DPI) -> list[Path]:
+    """Write ``stem`` in each format, without dates or software tags."""
+    paths = []
+    for fmt in formats:
+        path = out_dir / f"{stem}.{fmt}"
+        fig.savefig(path, format=fmt, dpi=dpi, metadata=METADATA[fmt])
+        paths.append(path)
+    return paths
+
+
+def png_bytes(fig: Figure, dpi: int = SCREEN_DPI) -> bytes:
+    """The figure as PNG bytes (for embedding in the report)."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, metadata=METADATA["png"])
+    return buf.getvalue()
+
+
+def method_styles(configs: list[str]) -> dict[str, dict]:
+    """Colour and marker of every configuration: the comparison figures' colour (``style_of``, Okabe-Ito in
+    sorted order) and a marker in the same order, so that more than eight methods stay distinct."""
+    colours = style_of(list(configs))
+    return {c: {"color": colours[c][0], "marker": MARKERS[i % len(MARKERS)], "ls": colours[c][1]}
+            for i, c in enumerate(sorted(configs))}
 
 
 def _positive(values: np.ndarray) -> np.ndarray:
     values = np.asarray(values, dtype=float)
     return values[np.isfinite(values) & (values > 0)]
+
+
+def _few_trials_note(fig: Figure, n: int, what: str) -> None:
+    """A visible warning in the figure when the trials are too few for what it shows."""
+    fig.supxlabel(f"⚠ only {n} trials: {what}", color=WARN_COLOUR, fontsize=8)
 
 
 # -------------------------------------------------------------------------------------------- figures
@@ -132,55 +177,76 @@ def _boxplot_h(ax, data: list[np.ndarray], positions: list[float], colour_list: 
         patch.set_alpha(0.35)
 
 
-def fig_errors(runs: pd.DataFrame, scenario: str, colours: dict) -> Figure | None:
-    """Signed alpha/beta/gamma errors per configuration in arcsec, with the CRB ±1σ band."""
+def _relative_errors(ok: pd.DataFrame) -> tuple[dict, bool]:
+    """|estimate − truth| per angle, relative to the run's Cramér-Rao standard deviation when every
+    angle has one (``True``), else in arc-seconds (``False``)."""
+    errs = {a: _numeric(ok, f"{a}_err_rad").abs() for a in ANGLES}
+    crbs = {a: _numeric(ok, f"crb_{a}_rad") for a in ANGLES}
+    relative = all((crbs[a][errs[a].notna()] > 0).all() and crbs[a][errs[a].notna()].notna().all()
+                   for a in ANGLES if errs[a].notna().any())
+    if relative:
+        return {a: errs[a] / crbs[a] for a in ANGLES}, True
+    return {a: errs[a] * ARCSEC_PER_RAD for a in ANGLES}, False
+
+
+def _log_floor(values: list[np.ndarray]) -> float:
+    """Where exact zeros are drawn on a log axis: a decade under the smallest positive value."""
+    pos = _positive(np.concatenate(values)) if values else np.array([])
+    return float(10.0 ** (np.floor(np.log10(pos.min())) - 1)) if pos.size else 1e-3
+
+
+def fig_errors(runs: pd.DataFrame, scenario: str, styles: dict) -> Figure | None:
+    """|estimate − truth| of α, β, γ per configuration, relative to the Cramér-Rao standard deviation, on
+    one logarithmic axis shared by the three panels; the bound (1) and the region under it in grey."""
     ok = runs[~failed_mask(runs)]
-    errs = {a: _numeric(ok, f"{a}_err_rad") * ARCSEC_PER_RAD for a in ANGLES}
-    crbs = {a: _numeric(ok, f"crb_{a}_rad") * ARCSEC_PER_RAD for a in ANGLES}
+    errs, relative = _relative_errors(ok)
     if all(e.isna().all() for e in errs.values()):
         return None
     cfg_col = ok["configuration"] if "configuration" in ok.columns else pd.Series("all", index=ok.index)
     configs = [c for c in _unique(cfg_col) if any(errs[a][cfg_col == c].notna().any() for a in ANGLES)]
     n = len(configs)
-    fig = _new_figure(11.0, 1.6 + 0.5 * n)
-    axes = fig.subplots(1, 3, sharey=True)
+    fig = _new_figure(11.0, 1.9 + 0.45 * n)
+    axes = fig.subplots(1, 3, sharey=True, sharex=True)
     rng = np.random.default_rng(0)
-    band_drawn = False
+    every = [e.dropna().to_numpy() for e in errs.values()]
+    floor = _log_floor(every)
     for ax, a in zip(axes, ANGLES):
         data, pos, cols = [], [], []
         for i, c in enumerate(configs):
             v = errs[a][cfg_col == c].dropna().to_numpy()
             if v.size:
-                data.append(v)
+                data.append(np.maximum(v, floor))
                 pos.append(i)
-                cols.append(colours[c])
-            s = np.nanmedian(crbs[a][cfg_col == c].to_numpy()) if crbs[a][cfg_col == c].notna().any() else np.nan
-            if np.isfinite(s) and s > 0:
-                ax.fill_betweenx([i - 0.4, i + 0.4], -s, s, color="tab:green", alpha=0.25, lw=0, zorder=0)
-                band_drawn = True
-        ax.axvline(0.0, color="grey", lw=0.8, zorder=1)
+                cols.append(styles[c]["color"])
+        if relative:
+            ax.axvspan(floor / 10, 1.0, color=BOUND_GREY, alpha=0.12, lw=0, zorder=0)
+            ax.axvline(1.0, color=BOUND_GREY, lw=1.2, ls="--", zorder=1)
         if data:
             _boxplot_h(ax, data, pos, cols)
-            for v, p, col in zip(data, pos, cols):
-                ax.scatter(v, p + rng.uniform(-0.18, 0.18, v.size), s=7, color=col, alpha=0.7, lw=0, zorder=3)
-            allv = np.abs(np.concatenate(data))
-            nz = _positive(allv)
-            if nz.size and nz.max() > 1e3 * np.median(nz):
-                ax.set_xscale("symlog", linthresh=float(10.0 ** np.floor(np.log10(np.percentile(nz, 5)))),
-                              linscale=1.0)
+            for v, p, c in zip(data, pos, [configs[i] for i in pos]):
+                ax.scatter(v, p + rng.uniform(-0.18, 0.18, v.size), s=8, color=styles[c]["color"],
+                           marker=styles[c]["marker"], alpha=0.75, lw=0, zorder=3)
         else:
             ax.text(0.5, 0.5, "no data", transform=ax.transAxes, ha="center", va="center", color="0.4")
-            ax.set_xticks([])
-        ax.set_title(f"{GREEK[a]} error")
-        ax.set_xlabel("estimate − truth (arcsec)")
+        ax.set_xscale("log")
+        ax.set_title(f"{GREEK[a]}")
+        ax.set_xlabel("|estimate − truth| / Cramér-Rao σ" if relative else "|estimate − truth| (arcsec)")
+    hi = max((float(np.max(v)) for v in every if v.size), default=1.0)
+    axes[0].set_xlim(floor / 2, max(hi, 1.0) * 2)
     axes[0].set_yticks(range(n), [_wrap(c) for c in configs])
     axes[0].set_ylim(n - 0.5, -0.5)
     n_failed = int(failed_mask(runs).sum())
-    fig.suptitle(f"Angle recovery errors — {scenario} ({len(ok)} runs"
-                 + (f", {n_failed} failed run{'s' if n_failed != 1 else ''} excluded)" if n_failed else ")"))
-    if band_drawn:
-        fig.legend(handles=[Patch(color="tab:green", alpha=0.25, label="CRB ±1σ (median over trials)")],
-                   loc="outside lower center")
+    sigma = ""
+    if relative:
+        med = {a: np.nanmedian(_numeric(ok, f"crb_{a}_rad")) * ARCSEC_PER_RAD for a in ANGLES}
+        sigma = "; Cramér-Rao σ (median): " + ", ".join(f"{GREEK[a]} {med[a]:.3g}″" for a in ANGLES)
+    fig.suptitle(f"Angle errors{' relative to the Cramér-Rao bound' if relative else ''} — {scenario} "
+                 f"({_trials(ok)} trials per method" + (f", {n_failed} failed runs excluded" if n_failed else "")
+                 + f"){sigma}")
+    if relative:
+        fig.legend(handles=[Patch(color=BOUND_GREY, alpha=0.25, label="within 1 σ of the Cramér-Rao bound"),
+                            Line2D([], [], color=BOUND_GREY, ls="--", label="1 σ (the bound)")],
+                   loc="outside lower center", ncols=2)
     return fig
 
 
@@ -189,32 +255,36 @@ def _median_iqr(v: np.ndarray) -> tuple[float, float, float]:
     return float(q50), float(q50 - q25), float(q75 - q50)
 
 
-def fig_accuracy_runtime(runs: pd.DataFrame, scenario: str, colours: dict) -> Figure | None:
-    """Median RMS angle error against median runtime per configuration, IQR as error bars."""
+def fig_accuracy_runtime(runs: pd.DataFrame, scenario: str, styles: dict) -> Figure | None:
+    """Median RMS over the three angles of the error relative to the Cramér-Rao σ against median runtime
+    per configuration; bars are inter-quartile ranges."""
     ok = runs[~failed_mask(runs)]
     if "configuration" not in ok.columns:
         return None
-    rms = np.sqrt(sum(_numeric(ok, f"{a}_err_rad") ** 2 for a in ANGLES) / 3.0) * ARCSEC_PER_RAD
+    errs, relative = _relative_errors(ok)
+    rms = np.sqrt(sum(errs[a] ** 2 for a in ANGLES) / 3.0)
     rt = _numeric(ok, "runtime_s")
     points = []
-    for i, c in enumerate(_unique(ok["configuration"])):
+    for c in _unique(ok["configuration"]):
         sel = ok["configuration"] == c
         r, t = _positive(rms[sel].to_numpy()), _positive(rt[sel].to_numpy())
         if r.size and t.size:
-            points.append((i, c, _median_iqr(t), _median_iqr(r), int(sel.sum())))
+            points.append((c, _median_iqr(t), _median_iqr(r), int(sel.sum())))
     if not points:
         return None
     fig = _new_figure(8.5, 4.8)
     ax = fig.subplots()
-    for i, c, (tx, tl, th), (ry, rl, rh), n in points:
-        ax.errorbar([tx], [ry], xerr=[[tl], [th]], yerr=[[rl], [rh]], fmt=MARKERS[i % len(MARKERS)],
-                    color=colours[c], ms=7, capsize=3, lw=1.2, label=f"{_wrap(c, 34)} (n={n})")
+    if relative:
+        ax.axhline(1.0, color=BOUND_GREY, ls="--", lw=1.2, label="Cramér-Rao bound (1 σ)")
+    for c, (tx, tl, th), (ry, rl, rh), n in points:
+        ax.errorbar([tx], [ry], xerr=[[tl], [th]], yerr=[[rl], [rh]], fmt=styles[c]["marker"],
+                    color=styles[c]["color"], ms=7, capsize=3, lw=1.2, label=f"{_wrap(c, 34)} (n={n})")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("median runtime (s)")
-    ax.set_ylabel("median RMS angle error √((α²+β²+γ²)/3) (arcsec)")
+    ax.set_xlabel("median runtime per calibration (s)")
+    ax.set_ylabel("median RMS angle error / Cramér-Rao σ" if relative else "median RMS angle error (arcsec)")
     ax.set_title(f"Accuracy against runtime — {scenario} (bars: inter-quartile range)")
-    fig.legend(loc="outside right upper", title="configuration")
+    fig.legend(loc="outside right upper", title="calibrator")
     return fig
 
 
@@ -228,49 +298,111 @@ def _segments(part: pd.DataFrame) -> list[pd.DataFrame]:
     return [part.iloc[bounds[k]:bounds[k + 1]] for k in range(len(starts))]
 
 
-def fig_convergence(traces: pd.DataFrame, scenario: str, colours: dict) -> Figure | None:
-    """best_F (solid) and mean_F (dashed) against cumulative evaluations, log-log."""
+def convergence_curves(part: pd.DataFrame, grid: np.ndarray) -> np.ndarray:
+    """Best F so far of every trial at the evaluation counts ``grid`` (trials x grid; NaN before a run's
+    first evaluation; a run that has stopped keeps its final value)."""
+    out = []
+    for seg in _segments(part):
+        ev = _numeric(seg, "evaluations").to_numpy()
+        f = _numeric(seg, "best_F").to_numpy()
+        keep = np.isfinite(ev) & np.isfinite(f)
+        if not keep.any():
+            continue
+        order = np.argsort(ev[keep], kind="stable")
+        ev, f = ev[keep][order], np.minimum.accumulate(f[keep][order])
+        idx = np.searchsorted(ev, grid, side="right") - 1
+        out.append(np.where(idx >= 0, f[np.clip(idx, 0, None)], np.nan))
+    return np.array(out)
+
+
+def fig_convergence(data: tuple, scenario: str, styles: dict) -> Figure | None:
+    """RMS total-field residual √F of the best point so far against objective evaluations: the median over
+    all trials (line) and the inter-quartile band; methods that stop after a few evaluations (closed-form
+    and Gauss-Newton ones) as a marker with its inter-quartile bar, so that every method is visible.
+    ``data`` is (traces, runs): a closed-form method without a trace is placed at one evaluation with the
+    final residual of its runs."""
+    traces, runs = data
     if traces.empty or "evaluations" not in traces.columns or "configuration" not in traces.columns:
         return None
-    if _numeric(traces, "best_F").isna().all() and _numeric(traces, "mean_F").isna().all():
+    ev_all = _positive(_numeric(traces, "evaluations").to_numpy())
+    if not ev_all.size or _numeric(traces, "best_F").isna().all():
         return None
     fig = _new_figure(8.5, 4.8)
     ax = fig.subplots()
-    handles, drew_mean, drew_any = [], False, False
+    handles, n_trials = [], 0
+    ok = runs[~failed_mask(runs)] if "configuration" in runs.columns else runs
+    for c in [c for c in _unique(_col(ok, "configuration")) if c not in set(traces["configuration"])]:
+        rms = _positive(_numeric(ok[ok["configuration"] == c], "rms_after_nT").to_numpy())
+        if not rms.size:
+            continue
+        y, lo, hi = _median_iqr(rms)
+        st = styles[c]
+        ax.errorbar([1.0], [y], yerr=[[lo], [hi]], fmt=st["marker"], color=st["color"], ms=7, capsize=3, lw=1.2)
+        handles.append(Line2D([], [], color=st["color"], marker=st["marker"], ls="none",
+                              label=f"{_wrap(c, 30)} ({len(rms)} trials; closed form, final residual)"))
     for c in _unique(traces["configuration"]):
         part = traces[traces["configuration"] == c]
-        drew_cfg = False
-        for seg in _segments(part):
-            ev = _numeric(seg, "evaluations").to_numpy()
-            for col, style in (("best_F", "-"), ("mean_F", "--")):
-                y = _numeric(seg, col).to_numpy()
-                keep = np.isfinite(ev) & (ev > 0) & np.isfinite(y) & (y > 0)
-                if keep.sum() == 0:
-                    continue
-                order = np.argsort(ev[keep], kind="stable")
-                ax.plot(ev[keep][order], y[keep][order], style, color=colours[c], lw=1.2 if style == "-" else 0.9,
-                        alpha=0.85, marker="." if keep.sum() == 1 else None)
-                drew_cfg = True
-                drew_mean |= col == "mean_F"
-        if drew_cfg:
-            handles.append(Line2D([], [], color=colours[c], lw=1.5, label=_wrap(c, 34)))
-            drew_any = True
-    if not drew_any:
+        ev = _positive(_numeric(part, "evaluations").to_numpy())
+        if not ev.size:
+            continue
+        grid = np.unique(np.geomspace(1, ev.max(), CONVERGENCE_GRID).round())
+        curves = convergence_curves(part, grid)
+        if not curves.size:
+            continue
+        n_trials = max(n_trials, len(curves))
+        rms = np.sqrt(curves)
+        st = styles[c]
+        label = f"{_wrap(c, 30)} ({len(curves)} trial{'s' if len(curves) != 1 else ''})"
+        if ev.max() <= 5:  # a few evaluations: a marker at the median end point
+            ends = np.array([[np.nanmax(np.where(np.isfinite(r), grid, np.nan)), r[np.isfinite(r)][-1]]
+                             for r in rms if np.isfinite(r).any()])
+            x = float(np.median(ends[:, 0]))
+            y, lo, hi = _median_iqr(ends[:, 1])
+            ax.errorbar([x], [y], yerr=[[lo], [hi]], fmt=st["marker"], color=st["color"], ms=7, capsize=3, lw=1.2)
+            handles.append(Line2D([], [], color=st["color"], marker=st["marker"], ls="none", label=label))
+            continue
+        enough = np.sum(np.isfinite(rms), axis=0) >= max(1, len(rms) / 2)
+        with np.errstate(all="ignore"):
+            q25, q50, q75 = np.nanpercentile(np.where(enough, rms, np.nan), [25, 50, 75], axis=0)
+        ax.fill_between(grid[enough], q25[enough], q75[enough], color=st["color"], alpha=0.18, lw=0)
+        ax.plot(grid[enough], q50[enough], color=st["color"], ls=st["ls"], lw=1.5)
+        handles.append(Line2D([], [], color=st["color"], ls=st["ls"], lw=1.5, label=label))
+    if not handles:
         return None
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("objective evaluations (cumulative)")
-    ax.set_ylabel("F, mean squared total-field error (nT²)")
-    ax.set_title(f"Convergence — {scenario}")
-    handles.append(Line2D([], [], color="black", ls="-", label="best F"))
-    if drew_mean:
-        handles.append(Line2D([], [], color="black", ls="--", label="mean F of the batch"))
-    fig.legend(handles=handles, loc="outside right upper")
+    ax.set_xlabel("objective evaluations")
+    ax.set_ylabel("RMS total-field residual of the best point so far, √F (nT)")
+    ax.set_title(f"Convergence — {scenario} (median over trials)")
+    handles.append(Patch(color="0.6", alpha=0.3, label="inter-quartile band"))
+    fig.legend(handles=handles, loc="outside right upper", title="calibrator")
+    if n_trials < 5:
+        _few_trials_note(fig, n_trials, "the median and band rest on very few runs")
     return fig
 
 
-def fig_field_heading(fields: pd.DataFrame, scenario: str, colours: dict) -> Figure | None:
-    """Total field before/after correction and the reference against turntable heading."""
+def _heading_kind(scenario: str, df: pd.DataFrame) -> str | None:
+    """``"turntable"``, ``"vehicle"`` or another label when the data have a heading in the sense of a
+    rotation about the vertical that sweeps the circle in order; None for random attitudes."""
+    try:
+        from magbench.simulate.scenarios import get_scenario
+
+        schedule = get_scenario(scenario).schedule
+    except Exception:  # an unknown (or user) scenario: judge from the data
+        schedule = None
+    if schedule in ("turntable", "vehicle"):
+        return schedule
+    if schedule is not None:
+        return None
+    first = df[df["configuration"] == df["configuration"].iloc[0]]
+    h = np.unwrap(np.radians(first["heading_deg"].to_numpy(float)))
+    steps = np.diff(h)
+    return "heading" if len(steps) > 3 and (np.mean(steps > 0) > 0.9 or np.mean(steps < 0) > 0.9) else None
+
+
+def fig_field_heading(fields: pd.DataFrame, scenario: str, styles: dict) -> Figure | None:
+    """Total field before/after correction and the reference against heading (trial 0), where the
+    scenario has a heading (a turntable or a vehicle turning); none for random attitudes."""
     need = ("heading_deg", "configuration")
     if fields.empty or any(c not in fields.columns for c in need):
         return None
@@ -279,105 +411,153 @@ def fig_field_heading(fields: pd.DataFrame, scenario: str, colours: dict) -> Fig
     df = df[df["heading_deg"].notna()]
     if df.empty or df[["f_ref_nT", "f_before_nT", "f_after_nT"]].isna().all().all():
         return None
+    kind = _heading_kind(scenario, df)
+    if kind is None:
+        return None
+    df = df.assign(heading_deg=df["heading_deg"] % 360.0)
     common = df.groupby("heading_deg", sort=True)[["f_ref_nT", "f_before_nT"]].median()
     fig = _new_figure(9.0, 6.0)
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 2])
     h = common.index.to_numpy()
-    ref = common["f_ref_nT"].to_numpy()
     if np.isfinite(common["f_before_nT"]).any():
-        top.plot(h, common["f_before_nT"], color="0.45", lw=1.8, marker=".", label="before (raw readings)")
-    if np.isfinite(ref).any():
-        top.plot(h, ref, color="black", ls="--", lw=1.2, label="reference")
+        top.plot(h, common["f_before_nT"], color="0.25", lw=1.6, label="before (raw readings)")
+    if np.isfinite(common["f_ref_nT"]).any():
+        top.plot(h, common["f_ref_nT"], color=BOUND_GREY, ls="--", lw=1.2, label="reference")
     for c in _unique(df["configuration"]):
         part = df[df["configuration"] == c].groupby("heading_deg", sort=True)[["f_after_nT", "f_ref_nT"]].median()
         if part["f_after_nT"].notna().any():
-            top.plot(part.index, part["f_after_nT"], color=colours[c], lw=1.1, label=f"after: {_wrap(c, 34)}")
-            bottom.plot(part.index, part["f_after_nT"] - part["f_ref_nT"], color=colours[c], lw=1.1, marker=".",
-                        ms=3)
-    bottom.axhline(0.0, color="black", ls="--", lw=1.0)
+            st = styles[c]
+            top.plot(part.index, part["f_after_nT"], color=st["color"], ls=st["ls"], lw=1.1,
+                     label=f"after: {_wrap(c, 34)}")
+            bottom.plot(part.index, part["f_after_nT"] - part["f_ref_nT"], color=st["color"], ls=st["ls"], lw=1.1)
+    bottom.axhline(0.0, color=BOUND_GREY, ls="--", lw=1.0)
     top.set_ylabel("total field (nT)")
     bottom.set_ylabel("after − reference (nT)")
-    bottom.set_xlabel("turntable heading (deg)")
-    if h.size and np.nanmax(h) - np.nanmin(h) > 90:
-        bottom.set_xticks(np.arange(45 * np.floor(np.nanmin(h) / 45), np.nanmax(h) + 1, 45))
-    top.set_title(f"Total field against heading — {scenario}")
+    bottom.set_xlabel({"turntable": "turntable heading (deg)", "vehicle": "vehicle heading, yaw (deg)"}
+                      .get(kind, "heading (deg)"))
+    bottom.set_xticks(np.arange(0, 361, 45))
+    bottom.set_xlim(0, 360)
+    top.set_title(f"Total field against heading — {scenario} (trial 0)")
     top.ticklabel_format(axis="y", useOffset=False, style="plain")
     fig.legend(*top.get_legend_handles_labels(), loc="outside right upper")
     return fig
 
 
-def fig_efficiency(summary: pd.DataFrame, scenario: str, colours: dict) -> Figure | None:
-    """Efficiency (CRB variance / MSE) of alpha, beta, gamma per configuration; 1 means efficient."""
-    cols = [f"efficiency_{a}" for a in ANGLES]
-    if summary.empty or "configuration" not in summary.columns or not any(c in summary.columns for c in cols):
-        return None
-    eff = pd.DataFrame({a: _numeric(summary, f"efficiency_{a}") for a in ANGLES})
-    eff.index = summary["configuration"].to_numpy()
-    eff = eff[eff.notna().any(axis=1)]
-    eff = eff[~eff.index.duplicated()]
+def efficiency_table(runs: pd.DataFrame) -> pd.DataFrame:
+    """Efficiency (CRB variance / MSE) per configuration and angle with its 95 % bootstrap interval and
+    the number of successful trials behind it."""
+    ok = runs[~failed_mask(runs)]
+    if "success" in ok.columns:
+        ok = ok[ok["success"].astype("boolean").fillna(False).astype(bool)]
+    rows = []
+    for c in _unique(_col(ok, "configuration")):
+        part = ok[ok["configuration"] == c]
+        for a in ANGLES:
+            err, crb = _numeric(part, f"{a}_err_rad").to_numpy(), _numeric(part, f"crb_{a}_rad").to_numpy()
+            keep = np.isfinite(err) & np.isfinite(crb)
+            if keep.sum() < 2:
+                continue
+            with np.errstate(divide="ignore"):
+                value = float(np.mean(crb[keep] ** 2) / np.mean(err[keep] ** 2))
+            lo, hi = efficiency_interval(err[keep], crb[keep])
+            rows.append({"configuration": c, "angle": a, "efficiency": value, "lo": lo, "hi": hi, "n": int(keep.sum())})
+    return pd.DataFrame(rows)
+
+
+def fig_efficiency(runs: pd.DataFrame, scenario: str, styles: dict) -> Figure | None:
+    """Efficiency (CRB variance / MSE) of α, β, γ per configuration with 95 % bootstrap intervals, on a
+    log axis; 1 (grey) is the bound.  Warns in the figure below ``MIN_TRIALS_EFFICIENCY`` trials."""
+    eff = efficiency_table(runs)
     if eff.empty:
         return None
-    pos = _positive(eff.to_numpy().ravel())
-    log = pos.size > 0 and max(pos.max(), 1.0) / min(pos.min(), 1.0) > 30
-    n = len(eff)
-    fig = _new_figure(max(6.5, 1.2 * n + 3.0), 4.8)
+    eff = eff[np.isfinite(eff["efficiency"]) & (eff["efficiency"] > 0)]
+    if eff.empty:
+        return None
+    configs = _unique(eff["configuration"])
+    n = len(configs)
+    fig = _new_figure(max(6.5, 0.9 * n + 3.5), 4.8)
     ax = fig.subplots()
-    x = np.arange(n)
-    width = 0.26
-    hatch_colour = {"alpha": "tab:blue", "beta": "tab:orange", "gamma": "tab:green"}
-    for k, a in enumerate(ANGLES):
-        v = eff[a].to_numpy(dtype=float)
-        keep = np.isfinite(v) & ((v > 0) if log else np.ones_like(v, dtype=bool))
-        ax.bar(x[keep] + (k - 1) * width, v[keep], width, color=hatch_colour[a], label=GREEK[a], log=log)
-        for xi in x[~keep]:
-            ax.text(xi + (k - 1) * width, 1.0 if log else 0.0, "n/a", rotation=90, ha="center", va="bottom",
-                    fontsize=7, color="0.4")
-    ax.axhline(1.0, color="black", ls="--", lw=1.0, label="bound (efficiency 1)")
-    if log:
-        lo, hi = min(pos.min(), 1.0), max(pos.max(), 1.0)
-        ax.set_ylim(lo / 2.0, hi * 2.0)
-    else:
-        ax.set_ylim(0.0, max(float(np.nanmax(eff.to_numpy())) if pos.size else 1.0, 1.0) * 1.15)
-    ax.set_xticks(x, [_wrap(c, 18) for c in eff.index], rotation=25, ha="right", rotation_mode="anchor")
-    ax.set_ylabel("efficiency = CRB variance / MSE")
-    ax.set_title(f"Efficiency against the Cramér-Rao bound — {scenario}")
-    fig.legend(loc="outside right upper")
+    ax.axhline(1.0, color=BOUND_GREY, ls="--", lw=1.2)
+    offsets = {"alpha": -0.22, "beta": 0.0, "gamma": 0.22}
+    for i, c in enumerate(configs):
+        for _, r in eff[eff["configuration"] == c].iterrows():
+            x = i + offsets[r["angle"]]
+            y = r["efficiency"]
+            lo = y - r["lo"] if np.isfinite(r["lo"]) else 0.0
+            hi = r["hi"] - y if np.isfinite(r["hi"]) else 0.0
+            ax.errorbar([x], [y], yerr=[[max(lo, 0.0)], [max(hi, 0.0)]], fmt=ANGLE_MARKERS[r["angle"]],
+                        color=styles[c]["color"], mec="black", mew=0.5, ms=6, capsize=2.5, lw=1.1)
+    ax.set_yscale("log")
+    vals = _positive(np.r_[eff["lo"].to_numpy(float), eff["hi"].to_numpy(float), eff["efficiency"].to_numpy(float)])
+    ax.set_ylim(min(vals.min(), 0.5) / 2, max(vals.max(), 2.0) * 2)
+    ax.set_xticks(range(n), [_wrap(c, 18) for c in configs], rotation=25 if n > 6 else 0,
+                  ha="right" if n > 6 else "center", rotation_mode="anchor")
+    ax.set_xlim(-0.6, n - 0.4)
+    ax.set_ylabel("efficiency = Cramér-Rao variance / MSE")
+    n_min = int(eff["n"].min())
+    n_max = int(eff["n"].max())
+    ax.set_title(f"Efficiency against the Cramér-Rao bound — {scenario} "
+                 f"({n_min if n_min == n_max else f'{n_min}-{n_max}'} trials)")
+    handles = [Line2D([], [], color="0.3", marker=ANGLE_MARKERS[a], ls="none", label=GREEK[a]) for a in ANGLES]
+    handles.append(Line2D([], [], color="0.3", marker="|", ms=12, ls="none", label="95 % bootstrap interval"))
+    handles.append(Line2D([], [], color=BOUND_GREY, ls="--", label="the bound (efficiency 1)"))
+    fig.legend(handles=handles, loc="outside right upper")
+    if n_min < MIN_TRIALS_EFFICIENCY:
+        _few_trials_note(fig, n_min, f"an efficiency needs about {MIN_TRIALS_EFFICIENCY} or more to be "
+                         "quoted; read the intervals, not the points")
     return fig
+
+
+BUILDERS = (("errors", fig_errors, "runs"), ("accuracy_runtime", fig_accuracy_runtime, "runs"),
+            ("convergence", fig_convergence, "traces"), ("field_heading", fig_field_heading, "fields"),
+            ("efficiency", fig_efficiency, "runs"))
 
 
 # ------------------------------------------------------------------------------------------------ API
 
 
-def make_figures(campaign_dir: str | Path, out_dir: str | Path | None = None) -> list[Path]:
-    """Draw every figure the campaign's data support; return the written PNG and SVG paths."""
+def make_figures(campaign_dir: str | Path, out_dir: str | Path | None = None, formats=("png", "svg"),
+                 dpi: int = DPI, images: dict | None = None, progress: bool = False) -> list[Path]:
+    """Draw every figure the campaign's data support in each of ``formats`` (png, svg, pdf; PNG at
+    ``dpi``); return the written paths.  ``images``, when given, receives ``{stem: PNG bytes}`` at screen
+    resolution for the report (``formats=()`` then writes nothing).  ``progress`` shows a bar on stderr."""
+    import sys
+
+    from tqdm import tqdm
+
+    bad = [f for f in formats if f not in FORMATS]
+    if bad:
+        raise ValueError(f"unknown figure format {bad[0]!r}; known: {', '.join(FORMATS)}")
     campaign_dir = Path(campaign_dir)
     out_dir = Path(out_dir) if out_dir is not None else campaign_dir / "figures"
-    runs = _read_csv(campaign_dir / "runs.csv", str_cols=("error", "configuration", "scenario"))
-    summary = _read_csv(campaign_dir / "summary.csv", str_cols=("configuration", "scenario"))
-    traces = _read_csv(campaign_dir / "traces.csv", str_cols=("configuration", "scenario"))
-    fields = _read_csv(campaign_dir / "fields.csv", str_cols=("configuration", "scenario"))
-    frames = (runs, summary, traces, fields)
-    scenarios = _unique(*(_col(f, "scenario") for f in frames))
-    colours = _colours(_unique(*(_col(f, "configuration") for f in frames)))
+    frames = {"runs": _read_csv(campaign_dir / "runs.csv", str_cols=("error", "configuration", "scenario")),
+              "traces": _read_csv(campaign_dir / "traces.csv", str_cols=("configuration", "scenario")),
+              "fields": _read_csv(campaign_dir / "fields.csv", str_cols=("configuration", "scenario"))}
+    scenarios = _unique(*(_col(f, "scenario") for f in frames.values()))
+    styles = method_styles(_unique(*(_col(f, "configuration") for f in frames.values())))
 
     def of(df: pd.DataFrame, scenario: str) -> pd.DataFrame:
         return df[df["scenario"] == scenario] if "scenario" in df.columns else df.iloc[0:0]
 
     written: list[Path] = []
-    with matplotlib.rc_context():
+    jobs = [(s, kind, build, key) for s in scenarios for kind, build, key in BUILDERS]
+    with matplotlib.rc_context(), tqdm(jobs, desc="figures", unit="fig", disable=not progress, file=sys.stderr,
+                                       leave=False, dynamic_ncols=True) as bar:
         mpl_style.use("default")
         matplotlib.rcParams.update(RC)
-        for scenario in scenarios:
-            r, s, t, f = (of(df, scenario) for df in frames)
-            builders = (("errors", fig_errors, r), ("accuracy_runtime", fig_accuracy_runtime, r),
-                        ("convergence", fig_convergence, t), ("field_heading", fig_field_heading, f),
-                        ("efficiency", fig_efficiency, s))
-            for kind, build, data in builders:
-                if data.empty:
-                    continue
-                fig = build(data, scenario, colours)
-                if fig is None:
-                    continue
+        for scenario, kind, build, key in bar:
+            data = of(frames[key], scenario)
+            if data.empty:
+                continue
+            if kind == "convergence":
+                data = (data, of(frames["runs"], scenario))
+            fig = build(data, scenario, styles)
+            if fig is None:
+                continue
+            stem = f"{kind}_{safe_name(scenario)}"
+            if formats:
                 out_dir.mkdir(parents=True, exist_ok=True)
-                written += _save(fig, out_dir, f"{kind}_{safe_name(scenario)}")
+                written += _save(fig, out_dir, stem, formats, dpi)
+            if images is not None:
+                images[stem] = png_bytes(fig)
     return written

@@ -1,61 +1,98 @@
-"""One self-contained HTML page for a campaign directory: manifest, summary table, every figure (PNG
-embedded as base64), failed runs and the command that made the campaign.
+"""One self-contained HTML page for a campaign directory: results first (one table per scenario, human
+column names, medians with their inter-quartile ranges), a contents list, every figure (PNG embedded as
+base64) with a warning wherever the trials are too few for what it shows, the failed runs, and the
+campaign's details (command, manifest) last.
 
     from magbench.benchmarks.report import write_report
     write_report("results/campaign")          # -> results/campaign/report.html
 
-No external resources, no timestamps of its own: the same directory gives the same bytes.
+The page is a Jinja2 template (``templates/report.html.j2``, autoescaped); no external resources, no
+timestamps of its own: the same directory gives the same bytes.
 """
 from __future__ import annotations
 
 import base64
-import html
 import json
+import re
 import shlex
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
-from magbench.benchmarks.figures import KINDS, failed_mask, make_figures
+from magbench.benchmarks.figures import KINDS, failed_mask, make_figures, safe_name
+from magbench.benchmarks.tables import (ANGLE_COLUMNS, COLUMNS, MIN_TRIALS_EFFICIENCY, _few, _value, add_intervals,
+                                        efficiency_text, summarize)
 
+TEMPLATES = Path(__file__).with_name("templates")
+
+TITLES = {"errors": "Angle errors relative to the Cramér-Rao bound",
+          "accuracy_runtime": "Accuracy against runtime",
+          "convergence": "Convergence over all trials",
+          "field_heading": "Total field against heading",
+          "efficiency": "Efficiency against the Cramér-Rao bound"}
 CAPTIONS = {
-    "errors": "Angle recovery errors (estimate − truth, arcsec) per configuration; boxes span the inter-quartile "
-              "range, points are single runs, the shaded band is the Cramér-Rao ±1σ (median over trials). "
-              "Failed runs are excluded.",
-    "accuracy_runtime": "Median RMS angle error √((α²+β²+γ²)/3) against median runtime per configuration; "
-                        "bars are inter-quartile ranges.",
-    "convergence": "Convergence: best F (solid) and batch mean F (dashed) against cumulative objective "
-                   "evaluations; F is the mean squared total-field error (nT², eq. 3).",
-    "field_heading": "Total field against turntable heading: raw readings, reference and each configuration's "
-                     "corrected field (top); corrected field minus the reference (bottom).",
-    "efficiency": "Efficiency against the Cramér-Rao bound (CRB variance / mean squared error) of α, β, γ; "
-                  "1 is efficient.",
+    "errors": "|estimate − truth| of each angle divided by the run's Cramér-Rao standard deviation, on one "
+              "logarithmic axis for the three panels; boxes span the inter-quartile range, points are single runs, "
+              "the grey region lies within one standard deviation of the bound (the dashed line). Failed runs are "
+              "excluded.",
+    "accuracy_runtime": "Median over runs of the RMS over α, β, γ of the error relative to the Cramér-Rao "
+                        "standard deviation, against the median runtime per calibration; bars are inter-quartile "
+                        "ranges; the grey line is the bound.",
+    "convergence": "RMS total-field residual of the best point found so far (√F, F the mean squared total-field "
+                   "error of eq. 3) against objective evaluations: the median over all trials and the "
+                   "inter-quartile band. Methods that finish in a few evaluations are drawn as a marker with its "
+                   "inter-quartile bar.",
+    "field_heading": "Trial 0: total field of the raw readings, the reference and each calibrator's corrected field "
+                     "against heading (top); corrected field minus the reference (bottom). Drawn only for scenarios "
+                     "with a heading (a turntable, a vehicle turning).",
+    "efficiency": "Cramér-Rao variance over the mean squared error of α, β, γ per calibrator (1: efficient) with "
+                  "95 % percentile-bootstrap intervals over the trials; logarithmic axis.",
 }
+EXTRA = {"ecdf": ("Runtime ECDFs", "Fraction of (run, target) pairs reached against evaluations."),
+         "anytime": ("Anytime curves", "Median and inter-quartile band over trials of the best RMS so far relative "
+                                       "to the trial's optimum."),
+         "profile": ("Performance profiles", "Dolan-Moré profiles across scenarios of the expected running time "
+                                             "to the 1.01 × optimum target.")}
+FEW_TRIALS_CURVES = 5
 
 CSS = """
-body{font-family:system-ui,-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;margin:2em auto;max-width:1200px;
+:root{--warn-bg:#fff6dc;--warn-border:#d8a400;--muted:#555}
+*{box-sizing:border-box}
+body{font-family:system-ui,-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;margin:1.5em auto;max-width:1280px;
 padding:0 1em;color:#222;line-height:1.4}
-h1{font-size:1.6em;border-bottom:2px solid #444;padding-bottom:.2em}
-h2{font-size:1.25em;margin-top:1.8em;border-bottom:1px solid #bbb}
-h3{font-size:1.05em;margin-top:1.4em}
-table{border-collapse:collapse;font-size:.85em;margin:.6em 0}
-th,td{border:1px solid #ccc;padding:.25em .5em;text-align:left;vertical-align:top}
-th{background:#f0f0f0}
-td.num,table.summary td{text-align:right;font-variant-numeric:tabular-nums}
-table.summary td:first-child,table.summary td:nth-child(2){text-align:left}
-.scroll{overflow-x:auto}
+h1{font-size:1.6em;border-bottom:2px solid #444;padding-bottom:.2em;margin-bottom:.3em}
+h2{font-size:1.3em;margin-top:1.8em;border-bottom:1px solid #bbb}
+h3{font-size:1.1em;margin-top:1.4em}
+.lede{color:var(--muted);margin-top:0}
+.warnings,.warn{background:var(--warn-bg);border-left:4px solid var(--warn-border);padding:.4em .8em}
+.warnings ul{margin:.3em 0;padding-left:1.2em}
+.warn{margin:.4em 0;font-size:.9em}
+nav.toc{background:#f6f6f6;padding:.3em 1em .6em;margin:1em 0}
+nav.toc h2{margin-top:.3em;border:0;font-size:1.1em}
+nav.toc ol{margin:.2em 0}
+nav.toc ol ol{display:flex;flex-wrap:wrap;gap:.2em 1.4em;padding-left:1.2em;list-style:none}
+table{border-collapse:collapse;font-size:.82em;margin:.6em 0}
+th,td{border:1px solid #ccc;padding:.2em .4em;vertical-align:top}
+th{background:#f0f0f0;text-align:center;font-weight:600}
+table.summary{width:100%}
+table.summary td{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}
+table.summary td.text{text-align:left}
+td.fewtrials{background:var(--warn-bg)}
+.unit,.iqr{color:var(--muted);font-weight:normal;font-size:.88em}
+.note,.desc{color:var(--muted);font-size:.9em}
 figure{margin:1em 0 2em 0}
 figure img{max-width:100%;height:auto;border:1px solid #ddd}
-figcaption{font-size:.85em;color:#444;margin-top:.3em}
+figcaption{font-size:.88em;color:#333;margin-top:.3em;max-width:70em}
+.files{color:var(--muted)}
+table.manifest th{text-align:left;white-space:nowrap}
+table.manifest td,table.failures td{overflow-wrap:anywhere}
 code,pre{font-family:ui-monospace,Menlo,Consolas,monospace;font-size:.9em}
-pre{background:#f6f6f6;padding:.5em;overflow-x:auto;white-space:pre-wrap}
-footer{margin-top:3em;border-top:1px solid #bbb;padding-top:.5em;font-size:.85em;color:#555}
+pre{background:#f6f6f6;padding:.5em;white-space:pre-wrap;overflow-wrap:anywhere}
+footer{margin-top:3em;border-top:1px solid #bbb;padding-top:.5em;font-size:.85em;color:var(--muted)}
 """.strip()
 
 
-def _esc(value: object) -> str:
-    return html.escape(str(value), quote=True)
+# ---------------------------------------------------------------------------------------------- data
 
 
 def _read_manifest(path: Path) -> dict:
@@ -81,86 +118,149 @@ def _flatten(obj: object, prefix: str = "") -> list[tuple[str, str]]:
     return [(prefix, "" if obj is None else str(obj))]
 
 
-def _manifest_html(manifest: dict) -> str:
-    if not manifest:
-        return "<p>No manifest.json.</p>"
-    first = ("root_seed", "seed", "git_commit", "commit", "git", "versions", "machine")
+def _manifest_rows(manifest: dict) -> list[tuple[str, str]]:
+    first = ("root_seed", "seed", "trials", "complete", "git_commit", "versions", "python", "machine")
     keys = [k for k in first if k in manifest] + [k for k in manifest if k not in first and k != "command"]
+    return [row for k in keys for row in _flatten(manifest[k], str(k))]
+
+
+def _read_runs(campaign_dir: Path) -> pd.DataFrame:
+    try:
+        runs = pd.read_csv(campaign_dir / "runs.csv", dtype={"error": str, "configuration": str, "scenario": str})
+    except (OSError, pd.errors.EmptyDataError, pd.errors.ParserError):
+        return pd.DataFrame()
+    if "error" in runs:
+        runs["error"] = runs["error"].fillna("")
+    return runs
+
+
+def _summary(campaign_dir: Path, runs: pd.DataFrame) -> pd.DataFrame:
+    """summary.csv, with the efficiency intervals added from runs.csv when it predates them."""
+    try:
+        summary = pd.read_csv(campaign_dir / "summary.csv", dtype={"configuration": str, "scenario": str})
+    except (OSError, pd.errors.EmptyDataError, pd.errors.ParserError):
+        summary = summarize(runs) if len(runs) else pd.DataFrame()
+    if len(summary) and len(runs) and "n_ok" not in summary:
+        summary = add_intervals(summary, runs)
+    return summary
+
+
+def _scenario_description(name: str) -> str:
+    try:
+        from magbench.simulate.scenarios import get_scenario
+
+        return get_scenario(name).description
+    except Exception:  # a scenario this installation does not know
+        return ""
+
+
+# -------------------------------------------------------------------------------------------- tables
+
+HEADERS = [("calibrator", "", ""), ("runs", "", "runs in the campaign"), ("success", "%", "runs that converged"),
+           ("accepted", "%", "runs whose acceptance checks passed")]
+
+
+def _columns(summary: pd.DataFrame) -> list:
+    """The measured columns that have a value somewhere in the campaign."""
+    keys = [*ANGLE_COLUMNS, *(COLUMNS[k] for k in ("scale", "offset", "rms_fit", "rms_val", "heading", "efficiency",
+                                                    "evals", "runtime"))]
+    return [c for c in keys if c.key in summary and pd.to_numeric(summary[c.key], errors="coerce").notna().any()]
+
+
+def _header(summary: pd.DataFrame, cols: list) -> list[dict]:
+    tips = {"median_scale_err_max": "largest scale-factor error over the axes",
+            "median_offset_err_max_nT": "largest offset error over the axes",
+            "median_rms_after_nT": "total-field RMS residual on the calibration data",
+            "median_val_rms_after_nT": "total-field RMS residual on a second data set of the same sensor",
+            "efficiency_min_angle": "smallest over α, β, γ of Cramér-Rao variance / MSE, with its 95 % bootstrap "
+                                    "interval"}
+    head = [{"name": n, "unit": u, "tip": t} for n, u, t in HEADERS if n != "accepted" or "accept_rate" in summary]
+    for c in cols:
+        unit = c.unit if c.key != "efficiency_min_angle" else "95 % interval"
+        if c.iqr:
+            unit = f"{unit}, median (IQR)" if unit else "median (IQR)"
+        head.append({"name": c.title, "unit": unit, "tip": tips.get(c.key, "")})
+    return head
+
+
+def _rows(part: pd.DataFrame, cols: list, accept: bool) -> list[list[dict]]:
     rows = []
-    for k in keys:
-        for key, text in _flatten(manifest[k], str(k)):
-            rows.append(f"<tr><th>{_esc(key)}</th><td><code>{_esc(text)}</code></td></tr>")
-    return "<table class=\"manifest\">\n" + "\n".join(rows) + "\n</table>"
+    for _, r in part.iterrows():
+        cells = [{"value": r["configuration"], "cls": "text"}, {"value": _value(r, COLUMNS["runs"]), "cls": ""},
+                 {"value": _value(r, COLUMNS["success"]), "cls": ""}]
+        if accept:
+            cells.append({"value": _value(r, COLUMNS["accepted"]) or "–", "cls": ""})
+        for c in cols:
+            if c.key == "efficiency_min_angle":
+                text = efficiency_text(r).replace(" †", "")
+                value, _, interval = text.partition(" ")
+                few = _few(r)
+                cells.append({"value": (("⚠ " if few else "") + value) if value else "–",
+                              "sub": interval.strip("()"), "cls": "fewtrials" if few else "",
+                              "tip": f"from {int(r.get('n_ok', r['n_runs']))} trials: fewer than "
+                                     f"{MIN_TRIALS_EFFICIENCY}, too few to quote" if few else ""})
+                continue
+            value = _value(r, c)
+            iqr = _value(r, c, c.iqr) if c.iqr and value else ""
+            cells.append({"value": value or "–", "sub": f"({iqr})" if iqr else "", "cls": ""})
+        rows.append(cells)
+    return rows
 
 
-def _fmt(v: object) -> str:
-    if isinstance(v, (float, np.floating)):
-        return "–" if not np.isfinite(v) else f"{v:.4g}"
-    return str(v)
+# ------------------------------------------------------------------------------------------- figures
 
 
-def _summary_html(campaign_dir: Path) -> str:
-    path = campaign_dir / "summary.csv"
-    try:
-        summary = pd.read_csv(path)
-    except (OSError, pd.errors.EmptyDataError, pd.errors.ParserError):
-        md = campaign_dir / "summary.md"
-        if md.is_file():
-            return f"<pre>{_esc(md.read_text(encoding='utf-8'))}</pre>"
-        return "<p>No summary.csv.</p>"
-    table = summary.to_html(index=False, escape=True, na_rep="–", border=0, classes="summary",
-                            float_format=lambda v: _fmt(float(v)), justify="left")
-    return f"<div class=\"scroll\">\n{table}\n</div>"
+def _figure_items(images: dict, scenario: str, trials: int, fig_dir: Path) -> list[dict]:
+    items = []
+    for kind in KINDS:
+        stem = f"{kind}_{safe_name(scenario)}"
+        if stem not in images:
+            continue
+        warning = ""
+        if kind == "efficiency" and trials < MIN_TRIALS_EFFICIENCY:
+            warning = (f"Only {trials} trials per calibrator: an efficiency needs about {MIN_TRIALS_EFFICIENCY} "
+                       "or more before the point means much; read the intervals.")
+        elif kind in ("convergence", "errors") and trials < FEW_TRIALS_CURVES:
+            warning = f"Only {trials} trials per calibrator: medians and quartiles of so few runs are rough."
+        files = ", ".join(sorted(p.name for p in fig_dir.glob(f"{stem}.*"))) if fig_dir.is_dir() else ""
+        items.append({"data": base64.b64encode(images[stem]).decode("ascii"), "alt": f"{TITLES[kind]}, {scenario}",
+                      "title": f"{TITLES[kind]} — {scenario}", "caption": CAPTIONS[kind], "warning": warning,
+                      "files": files})
+    return items
 
 
-def _failures_html(campaign_dir: Path) -> str:
-    path = campaign_dir / "runs.csv"
-    try:
-        runs = pd.read_csv(path, dtype={"error": str, "configuration": str, "scenario": str})
-    except (OSError, pd.errors.EmptyDataError, pd.errors.ParserError):
-        return "<p>No runs.csv.</p>"
+def _extra_figures(fig_dir: Path) -> list[dict]:
+    """Figures written by others into figures/ (the method comparison): embedded as they are."""
+    if not fig_dir.is_dir():
+        return []
+    ours = re.compile("^(" + "|".join(KINDS) + ")_")
+    items = []
+    for path in sorted(fig_dir.iterdir()):
+        if ours.match(path.stem) or path.suffix not in (".png", ".svg"):
+            continue
+        if path.suffix == ".svg" and path.with_suffix(".png").is_file():
+            continue
+        title, caption = EXTRA.get(path.stem, (path.stem.replace("_", " ").capitalize(), ""))
+        mime = "image/png" if path.suffix == ".png" else "image/svg+xml"
+        items.append({"data": base64.b64encode(path.read_bytes()).decode("ascii"), "mime": mime, "alt": title,
+                      "title": title, "caption": f"{caption} File: {path.name}.".strip()})
+    return items
+
+
+def _failures(runs: pd.DataFrame) -> dict:
+    if runs.empty:
+        return {"head": "No runs.csv.", "rows": []}
     failed = runs[failed_mask(runs)]
-    head = f"<p>{len(failed)} of {len(runs)} runs failed.</p>"
-    if failed.empty:
-        return head
-    errors = failed["error"].astype(str).str.strip()
+    head = f"{len(failed)} of {len(runs)} runs failed."
     rows = []
+    errors = failed["error"].astype(str).str.strip() if len(failed) else pd.Series(dtype=str)
     for text in pd.unique(errors):
         sel = failed[errors == text]
         where = sorted({f"{s} / {c}" for s, c in zip(sel.get("scenario", pd.Series("", index=sel.index)).fillna(""),
                                                       sel.get("configuration", pd.Series("", index=sel.index))
                                                       .fillna(""))})
-        rows.append(f"<tr><td class=\"num\">{len(sel)}</td><td><code>{_esc(text)}</code></td>"
-                    f"<td>{'<br>'.join(_esc(w) for w in where)}</td></tr>")
-    return (head + "\n<table class=\"failures\">\n<tr><th>runs</th><th>error</th><th>scenario / configuration"
-            "</th></tr>\n" + "\n".join(rows) + "\n</table>")
-
-
-def _split_stem(stem: str) -> tuple[str, str]:
-    """(kind, scenario) of a figure file stem ``<kind>_<scenario>``."""
-    for kind in sorted(KINDS, key=len, reverse=True):
-        if stem.startswith(kind + "_"):
-            return kind, stem[len(kind) + 1:]
-    return "", stem
-
-
-def _figures_html(fig_dir: Path) -> str:
-    pngs = sorted(fig_dir.glob("*.png")) if fig_dir.is_dir() else []
-    if not pngs:
-        return "<p>No figures.</p>"
-    order = {k: i for i, k in enumerate(KINDS)}
-    items = sorted(((*_split_stem(p.stem), p) for p in pngs),
-                   key=lambda t: (t[1], order.get(t[0], len(KINDS)), t[2].name))
-    parts, current = [], None
-    for kind, scenario, png in items:
-        if scenario != current:
-            parts.append(f"<h3>Scenario <code>{_esc(scenario)}</code></h3>")
-            current = scenario
-        data = base64.b64encode(png.read_bytes()).decode("ascii")
-        caption = CAPTIONS.get(kind, "Figure.")
-        parts.append(f"<figure>\n<img src=\"data:image/png;base64,{data}\" alt=\"{_esc(png.stem)}\">\n"
-                     f"<figcaption><b>{_esc(png.name)}</b> — {_esc(caption)}</figcaption>\n</figure>")
-    return "\n".join(parts)
+        rows.append({"count": len(sel), "error": text, "where": where})
+    return {"head": head, "rows": rows}
 
 
 def _command_text(manifest: dict) -> str:
@@ -170,44 +270,89 @@ def _command_text(manifest: dict) -> str:
     return str(cmd) if cmd else ""
 
 
-def write_report(campaign_dir: str | Path, out: str | Path | None = None) -> Path:
+def _anchor(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_-]+", "-", name).strip("-") or "scenario"
+
+
+# ----------------------------------------------------------------------------------------------- API
+
+
+def render_report(campaign_dir: str | Path, images: dict | None = None, progress: bool = False) -> str:
+    """The report's HTML text.  ``images`` ({figure stem: PNG bytes}, as ``make_figures(images=...)``
+    fills it) saves drawing the figures again; without it they are drawn in memory."""
+    from jinja2 import Environment, FileSystemLoader, select_autoescape
+    from markupsafe import Markup
+
+    campaign_dir = Path(campaign_dir)
+    fig_dir = campaign_dir / "figures"
+    if images is None:
+        images = {}
+        make_figures(campaign_dir, formats=(), images=images, progress=progress)
+    runs = _read_runs(campaign_dir)
+    summary = _summary(campaign_dir, runs)
+    manifest = _read_manifest(campaign_dir / "manifest.json")
+    cols = _columns(summary)
+    accept = "accept_rate" in summary
+    ok = runs[~failed_mask(runs)] if len(runs) else runs
+    trials = int(ok.groupby(["scenario", "configuration"]).size().min()) if len(ok) else 0
+
+    scenarios = []
+    names = list(dict.fromkeys(list(summary.get("scenario", [])) + list(runs.get("scenario", []))))
+    for name in names:
+        part = summary[summary["scenario"] == name] if len(summary) else summary
+        n = int(ok[ok["scenario"] == name].groupby("configuration").size().min()) if len(ok) and \
+            (ok["scenario"] == name).any() else 0
+        warnings = []
+        few = [r["configuration"] for _, r in part.iterrows() if _few(r)]
+        if few:
+            warnings.append(f"Efficiency from fewer than {MIN_TRIALS_EFFICIENCY} successful trials "
+                            f"({', '.join(few)}): too few to quote; the 95 % interval under each value says how "
+                            "little it is pinned down.")
+        scenarios.append({"name": name, "anchor": _anchor(name), "description": _scenario_description(name),
+                          "rows": _rows(part, cols, accept), "warnings": warnings,
+                          "figures": _figure_items(images, name, n, fig_dir)})
+
+    configs = list(dict.fromkeys(summary.get("configuration", [])))
+    n_failed = int(failed_mask(runs).sum()) if len(runs) else 0
+    lede = (f"{len(runs)} runs: {len(names)} scenario{'s' if len(names) != 1 else ''} × {len(configs)} "
+            f"calibrator configuration{'s' if len(configs) != 1 else ''} × {manifest.get('trials', trials)} trials"
+            f"{f', {n_failed} failed' if n_failed else ''}; root seed {manifest.get('root_seed', '?')}.")
+    warnings = []
+    if manifest.get("complete") is False:
+        warnings.append(f"The campaign is incomplete: {manifest.get('n_missing', '?')} runs are missing "
+                        "(compare ... --resume completes it).")
+    if len(runs) and trials < MIN_TRIALS_EFFICIENCY:
+        warnings.append(f"Only {trials} successful trials per calibrator (fewer in places): efficiencies need about "
+                        f"{MIN_TRIALS_EFFICIENCY} or more to be quoted; they are marked ⚠ and shown with their 95 % "
+                        "bootstrap intervals.")
+    if n_failed:
+        warnings.append(f"{n_failed} runs failed and are left out of the medians (see Failed runs).")
+    table_note = ("Medians over the successful runs, inter-quartile range (IQR) underneath. α, β, γ error: absolute "
+                  "error of the recovered non-orthogonality angles in arc-seconds; scale and offset error: the "
+                  "largest over the three axes; RMS fit and held-out: total-field residual on the calibration data "
+                  "and on a second data set of the same sensor; efficiency: the smallest over the three angles of "
+                  "the Cramér-Rao variance over the mean squared error (1: efficient), its 95 % bootstrap interval "
+                  "underneath. Hover a column name for its definition.")
+    skipped = [f"{s.get('scenario')} / {s.get('configuration')}: {s.get('reason')}"
+               for s in manifest.get("skipped", []) if isinstance(s, dict)]
+    env = Environment(loader=FileSystemLoader(str(TEMPLATES)), autoescape=select_autoescape(["html", "j2"]),
+                      trim_blocks=False, lstrip_blocks=False, keep_trailing_newline=True)
+    template = env.get_template("report.html.j2")
+    return template.render(
+        title=f"magbench campaign report — {campaign_dir.resolve().name}", lede=lede, warnings=warnings, css=Markup(CSS),
+        scenarios=scenarios, columns=_header(summary, cols), table_note=table_note,
+        extra_figures=_extra_figures(fig_dir), failures=_failures(runs), skipped=skipped,
+        command=_command_text(manifest), manifest=_manifest_rows(manifest))
+
+
+def write_report(campaign_dir: str | Path, out: str | Path | None = None, images: dict | None = None,
+                 progress: bool = False) -> Path:
     """Write the campaign's single-file HTML report and return its path."""
     campaign_dir = Path(campaign_dir)
     out = Path(out) if out is not None else campaign_dir / "report.html"
-    fig_dir = campaign_dir / "figures"
-    if not fig_dir.is_dir() or not any(fig_dir.glob("*.png")):
-        make_figures(campaign_dir, fig_dir)
-    manifest = _read_manifest(campaign_dir / "manifest.json")
-    command = _command_text(manifest)
-    footer = (f"Campaign made by <code>{_esc(command)}</code>; report written by "
-              f"<code>benchmarks.report.write_report</code>." if command else
-              "Report written by <code>benchmarks.report.write_report</code>; the manifest does not record the "
-              "campaign's command.")
-    title = f"magbench campaign report — {campaign_dir.resolve().name}"
-    page = [
-        "<!DOCTYPE html>",
-        "<html lang=\"en\">",
-        "<head>",
-        "<meta charset=\"utf-8\">",
-        f"<title>{_esc(title)}</title>",
-        f"<style>\n{CSS}\n</style>",
-        "</head>",
-        "<body>",
-        f"<h1>{_esc(title)}</h1>",
-        "<h2>Manifest</h2>",
-        _manifest_html(manifest),
-        "<h2>Summary</h2>",
-        _summary_html(campaign_dir),
-        "<h2>Failed runs</h2>",
-        _failures_html(campaign_dir),
-        "<h2>Figures</h2>",
-        _figures_html(fig_dir),
-        f"<footer>{footer}</footer>",
-        "</body>",
-        "</html>",
-        "",
-    ]
+    page = render_report(campaign_dir, images=images, progress=progress)
     out.parent.mkdir(parents=True, exist_ok=True)
     with open(out, "w", encoding="utf-8", newline="\n") as fh:
-        fh.write("\n".join(page))
+        fh.write(page)
     return out
+
