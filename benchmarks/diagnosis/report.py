@@ -57,7 +57,9 @@ def _localization(loc: dict) -> list[str]:
 def diagnosis_text(result: dict, source: str = "") -> str:
     """The human table of a diagnosis (``magbench diagnose`` without ``--json``)."""
     lines = _table(result, source) + _localization(result.get("localization", {}))
-    if "resimulation" in result:
+    if "resimulation" in result and "skipped" in result["resimulation"]:
+        lines += ["", "  " + result["resimulation"]["skipped"]]
+    elif "resimulation" in result:
         rs = result["resimulation"]
         lines.append("")
         lines.append(f"  re-simulated: residual RMS {rs['without_effect']['rms_nT']:.3f} nT without the effect, "

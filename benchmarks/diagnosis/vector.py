@@ -178,7 +178,10 @@ class Diagnosis:
             out["winner_params"] = out["fitted_params"]
         self.progress.step("localization")
         if selected:
-            rs = resimulate(self, selected, "outliers" in selected, floor, self.seed)
+            try:
+                rs = resimulate(self, selected, "outliers" in selected, floor, self.seed)
+            except (InputError, np.linalg.LinAlgError, ValueError) as exc:  # a fitted effect the calibrator refuses
+                rs = {"skipped": f"re-simulation refused: {exc}"}
             if rs is not None:
                 out["resimulation"] = rs
         return out
