@@ -6,7 +6,9 @@ prints exactly one JSON object on stdout.
 from __future__ import annotations
 
 import argparse
+import copy
 import json
+import logging
 import math
 import os
 import sys
@@ -31,8 +33,40 @@ class UsageError(InputError):
     pass
 
 
+# What an option without a help string of its own means (so that every option's --help line says it).
+FALLBACK_HELP = {"json": "print one JSON object on stdout and nothing else there",
+                 "quiet": "no progress bars on stderr", "force": "overwrite existing output files",
+                 "scenario": "scenario name ('magbench list' shows them)",
+                 "method": "calibrator name ('magbench list' shows them)",
+                 "file": "the data file (CSV, CONTRACT section 2)", "out": "output file or folder",
+                 "truth": "also write the ground truth to this JSON file"}
+
+
+class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Every option's line says what it means and, where it has one, its default."""
+
+    def _format_action(self, action):
+        if not action.help and action.dest in FALLBACK_HELP:
+            action = copy.copy(action)
+            action.help = FALLBACK_HELP[action.dest]
+        return super()._format_action(action)
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        default = action.default
+        if ("%(default)" in text or "default" in text.lower() or default in (None, False, argparse.SUPPRESS)
+                or isinstance(action, (argparse._HelpAction, argparse._VersionAction))):
+            return text
+        shown = " ".join(map(str, default)) if isinstance(default, (list, tuple)) else default
+        return f"{text} (default: {shown})".replace("%", "%%").replace("%%(", "%(")
+
+
 class _Parser(argparse.ArgumentParser):
-    """argparse that reports a usage error in one line and exits 2."""
+    """argparse that reports a usage error in one line and exits 2; every option's default in --help."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
 
     def error(self, message):
         raise UsageError(f"{self.prog}: {message} (see --help)")
@@ -427,9 +461,11 @@ def cmd_compare(args) -> int:
     if args.force:
         clear_outputs(out)
     command = "magbench " + shlex.join(args._argv)
+    progress = not args.json and not args.quiet
+    cluster = _local_dask_cluster(args.jobs, progress) if args.dask == "local" else None
     try:
-        runs = run_campaign(campaign, out, jobs=args.jobs, dask_address=args.dask, command=command,
-                            progress=not args.json and not args.quiet, resume=args.resume)
+        runs = run_campaign(campaign, out, jobs=args.jobs, command=command, progress=progress, resume=args.resume,
+                            dask_address=cluster.scheduler_address if cluster is not None else args.dask)
     except CampaignInterrupted as stop:
         argv = [a for a in args._argv if a != "--force"] + ([] if args.resume else ["--resume"])
         sys.stderr.write(f"magbench: interrupted: {stop.n_done} of {stop.n_total} runs finished, kept in {out} "
@@ -439,6 +475,9 @@ def cmd_compare(args) -> int:
             _emit(args, {"out": str(out), "complete": False, "n_runs": stop.n_done, "n_missing": stop.n_missing,
                          "resume": "magbench " + shlex.join(argv)}, "")
         return stop.exit_status
+    finally:
+        if cluster is not None:
+            cluster.close()
     attrs = runs.attrs
     figures = not args.no_figures and (not attrs.get("already_complete") or not (out / "report.html").is_file())
     if not attrs.get("already_complete"):
@@ -449,8 +488,9 @@ def cmd_compare(args) -> int:
         from magbench.benchmarks.figures import make_figures
         from magbench.benchmarks.report import write_report
 
-        make_figures(out)
-        write_report(out)
+        images: dict = {}  # the report embeds the figures drawn here at screen resolution
+        make_figures(out, formats=tuple(args.format), dpi=args.dpi, images=images, progress=progress)
+        write_report(out, images=images)
     failed = int((runs["error"] != "").sum())
     obj = {"out": str(out), "n_runs": len(runs), "n_failed": failed, "complete": True,
            "n_new": int(attrs.get("n_new", len(runs))), "n_resumed": int(attrs.get("n_resumed", 0)),
@@ -486,29 +526,54 @@ def cmd_diagnose(args) -> int:
 
 
 def cmd_report(args) -> int:
+    from magbench.benchmarks.figures import make_figures
     from magbench.benchmarks.report import write_report
 
     d = Path(args.dir)
     if not (d / "runs.csv").is_file():
         raise InputError(f"{d} is not a campaign directory (no runs.csv): run 'magbench compare' first")
-    path = write_report(d)
-    _emit(args, {"report": str(path)}, f"wrote {path}")
+    images: dict = {}
+    progress = not args.json and not args.quiet
+    written = make_figures(d, formats=tuple(args.format or ()), dpi=args.dpi, images=images, progress=progress)
+    path = write_report(d, images=images)
+    _emit(args, {"report": str(path), "figures": [str(p) for p in written]},
+          f"wrote {path}" + (f" and {len(written)} figure files in {d / 'figures'}" if written else ""))
     return EXIT_OK
 
 
 def cmd_reproduce(args) -> int:
     from magbench.benchmarks.reproduce import reproduce
 
-    written = reproduce(Path(args.out), quick=args.quick, jobs=args.jobs, progress=not args.json)
+    written = reproduce(Path(args.out), quick=args.quick, jobs=args.jobs, progress=not (args.json or args.quiet))
     _emit(args, {"out": args.out, "written": [str(p) for p in written]},
           "\n".join(f"wrote {p}" for p in written))
     return EXIT_OK
 
 
+def _add_figure_options(p: argparse.ArgumentParser, default, help_text: str | None = None) -> None:
+    p.add_argument("--format", nargs="+", choices=["png", "svg", "pdf"], default=default, metavar="FMT",
+                   help=help_text or "figure file formats, one or more of png, svg, pdf")
+    p.add_argument("--dpi", type=_positive_int, default=300, help="resolution of PNG figures (print: 300)")
+
+
+def _local_dask_cluster(workers: int, progress: bool):
+    """``--dask local``: a Dask cluster on this machine, scheduler and workers bound to 127.0.0.1 (no
+    dashboard), one single-threaded worker process per --jobs; closed when the campaign ends."""
+    try:
+        from distributed import LocalCluster
+    except ImportError:
+        raise InputError("--dask local needs Dask's distributed package: pip install 'magbench[dask]'") from None
+    if progress:
+        sys.stderr.write(f"magbench: starting a local Dask cluster ({workers} worker{'s' if workers != 1 else ''}, "
+                         "127.0.0.1)\n")
+    return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                        dashboard_address=None, silence_logs=logging.ERROR)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="magbench", description="Simulate tri-axial fluxgate magnetometers and benchmark "
                      "their calibration algorithms.", epilog=EXIT_STATUS_HELP,
-                     formatter_class=argparse.RawDescriptionHelpFormatter)
+                     formatter_class=_HelpFormatter)
     from magbench import __version__
 
     parser.add_argument("--version", action="version", version=f"magbench {__version__}")
@@ -584,25 +649,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("compare", help="a campaign: scenarios x calibrators x trials -> tables, figures, report")
-    p.add_argument("--scenarios", nargs="+", required=True, metavar="NAME")
+    p.add_argument("--scenarios", nargs="+", required=True, metavar="NAME",
+                   help="scenarios to simulate ('magbench list' shows them); space- or comma-separated")
     p.add_argument("--methods", nargs="+", default=["all"], metavar="NAME[:KEY=VALUE...]",
                    help="calibrators, optionally with hyper-parameters (nlopt:algorithm=GN_ISRES); 'all' = every one")
-    p.add_argument("--trials", type=int, default=10)
+    p.add_argument("--trials", type=int, default=10, help="trials (data sets) per scenario; every calibrator "
+                   "sees the same data in a trial; efficiencies need about 30")
     p.add_argument("--budgets", type=_positive_int, nargs="+", metavar="N",
                    help="run every iterative method at each of these evaluation budgets (fixed-budget comparison); "
                         "closed-form methods run once")
     p.add_argument("--seed", type=_seed, default=0, help="root seed, a non-negative integer; every run's seed is spawned from it (default 0)")
-    p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--jobs", type=int, default=1, help="local worker processes")
-    p.add_argument("--dask", metavar="ADDRESS", help="run on an existing Dask cluster (tcp://host:port)")
+    p.add_argument("--out", required=True, metavar="DIR", help="campaign folder: tables, figures, report.html")
+    p.add_argument("--jobs", type=int, default=1, help="local worker processes (with --dask local: Dask workers)")
+    p.add_argument("--dask", metavar="ADDRESS|local",
+                   help="run on a Dask cluster: a scheduler's address (tcp://127.0.0.1:8786), or 'local' to start "
+                        "a local cluster of --jobs workers bound to 127.0.0.1 for this campaign (default: no Dask)")
     p.add_argument("--no-figures", action="store_true", help="tables only")
+    _add_figure_options(p, ["png", "svg"])
     p.add_argument("--force", action="store_true",
                    help="start over in a non-empty directory: first delete the campaign outputs there (tables, "
                         "manifest, checkpoint, figures, report.html), nothing else")
     p.add_argument("--resume", action="store_true",
                    help="complete an interrupted campaign in --out: same arguments, only the missing runs are run "
                         "(every finished run is kept in DIR/runs.partial.jsonl as it completes)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_compare)
 
@@ -611,14 +681,18 @@ def build_parser() -> argparse.ArgumentParser:
     add_gradiometer_command(sub)
 
     p = sub.add_parser("report", help="one self-contained HTML page of a campaign directory")
-    p.add_argument("dir", metavar="DIR")
+    p.add_argument("dir", metavar="DIR", help="a campaign folder written by 'magbench compare'")
+    _add_figure_options(p, None, "also write the figures to DIR/figures in these formats (default: none; the "
+                                 "report embeds its own)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("reproduce", help="regenerate everything committed in results/")
-    p.add_argument("--out", default="results", metavar="DIR")
-    p.add_argument("--jobs", type=_positive_int, default=2, help="local worker processes (default 2)")
+    p.add_argument("--out", default="results", metavar="DIR", help="folder to write everything to")
+    p.add_argument("--jobs", type=_positive_int, default=2, help="local worker processes")
     p.add_argument("--quick", action="store_true", help="few trials (a smoke test, not the committed results)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_reproduce)
 
