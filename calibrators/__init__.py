@@ -2,9 +2,13 @@
 
 >>> from magbench.calibrators import make
 >>> result = make("lsq", model="nine").fit(dataset)          # doctest: +SKIP
+>>> result = make("lsq", model="auto").fit(raw_nT, field="auto")  # (N, 3) array, no reference  # doctest: +SKIP
+>>> open("cal.json", "w").write(result.to_json())             # doctest: +SKIP
+>>> load_calibration("cal.json").correct(other_raw_nT)        # doctest: +SKIP
 """
 from magbench.simulate.sensor import ErrorParams
 
+from .artifacts import Calibration, export, load_calibration
 from .base import CalibrationResult, Calibrator, Problem, ReadingsProblem, SolveOutput, search_bounds
 from .objective import Budget, BudgetExhausted, Evaluator, ScalarObjective, audit_evaluations
 from .registry import ENTRY_POINT_GROUP, available, get, make, register
@@ -13,7 +17,7 @@ __all__ = [
     "ErrorParams", "CalibrationResult", "Calibrator", "Problem", "ReadingsProblem",
     "SolveOutput", "search_bounds", "Budget", "BudgetExhausted", "Evaluator", "audit_evaluations",
     "ScalarObjective", "ENTRY_POINT_GROUP", "available", "get", "make", "register",
-    "check_calibrator",
+    "check_calibrator", "Calibration", "load_calibration", "export",
 ]
 
 
