@@ -20,6 +20,7 @@ from __future__ import annotations
 import io
 import re
 import textwrap
+import warnings
 from pathlib import Path
 
 import matplotlib
@@ -158,7 +159,7 @@ def _positive(values: np.ndarray) -> np.ndarray:
 
 def _few_trials_note(fig: Figure, n: int, what: str) -> None:
     """A visible warning in the figure when the trials are too few for what it shows."""
-    fig.supxlabel(f"⚠ only {n} trials: {what}", color=WARN_COLOUR, fontsize=8)
+    fig.supxlabel(f"⚠ only {n} trial{'s' if n != 1 else ''}: {what}", color=WARN_COLOUR, fontsize=8)
 
 
 # -------------------------------------------------------------------------------------------- figures
@@ -232,7 +233,9 @@ def fig_errors(runs: pd.DataFrame, scenario: str, styles: dict) -> Figure | None
         ax.set_title(f"{GREEK[a]}")
         ax.set_xlabel("|estimate − truth| / Cramér-Rao σ" if relative else "|estimate − truth| (arcsec)")
     hi = max((float(np.max(v)) for v in every if v.size), default=1.0)
-    axes[0].set_xlim(floor / 2, max(hi, 1.0) * 2)
+    pos = _positive(np.concatenate(every)) if every else np.array([])
+    lo = floor / 2 if any((v == 0).any() for v in every) or not pos.size else pos.min() / 2
+    axes[0].set_xlim(min(lo, 0.5), max(hi, 1.0) * 2)
     axes[0].set_yticks(range(n), [_wrap(c) for c in configs])
     axes[0].set_ylim(n - 0.5, -0.5)
     n_failed = int(failed_mask(runs).sum())
@@ -362,7 +365,8 @@ def fig_convergence(data: tuple, scenario: str, styles: dict) -> Figure | None:
             handles.append(Line2D([], [], color=st["color"], marker=st["marker"], ls="none", label=label))
             continue
         enough = np.sum(np.isfinite(rms), axis=0) >= max(1, len(rms) / 2)
-        with np.errstate(all="ignore"):
+        with warnings.catch_warnings():  # columns before every run's first evaluation are all NaN
+            warnings.simplefilter("ignore", RuntimeWarning)
             q25, q50, q75 = np.nanpercentile(np.where(enough, rms, np.nan), [25, 50, 75], axis=0)
         ax.fill_between(grid[enough], q25[enough], q75[enough], color=st["color"], alpha=0.18, lw=0)
         ax.plot(grid[enough], q50[enough], color=st["color"], ls=st["ls"], lw=1.5)
