@@ -226,7 +226,14 @@ class Calibration:
         if not (np.allclose(matrix, params.matrix, rtol=1e-9, atol=1e-12)
                 and np.allclose(offset, params.offset_nT, rtol=1e-12, atol=1e-9)):
             raise InputError(f"{where}: model mismatch: M and o_nT disagree with the parameters")
-        uncertainty = {k: v["std"] for k, v in p.items() if isinstance(v, dict) and v.get("std") is not None}
+        try:
+            return cls._rest_of_dict(d, model, matrix, offset, params, p)
+        except (TypeError, ValueError, AttributeError) as exc:
+            raise InputError(f"{where}: malformed entry ({exc})") from None
+
+    @classmethod
+    def _rest_of_dict(cls, d, model, matrix, offset, params, p) -> "Calibration":
+        uncertainty = {k: float(v["std"]) for k, v in p.items() if isinstance(v, dict) and v.get("std") is not None}
         data = d.get("data") or {}
         return cls(model=model, matrix=matrix, offset_nT=tuple(offset), params=params, uncertainty=uncertainty,
                    noise_nT=_float(d.get("noise_nT")), reference=dict(d.get("reference") or {}),

@@ -165,6 +165,10 @@ def test_loader_refuses_bad_files(tmp_path):
                                                                                        "fixed": True}}},
         "M mismatch": {**good, "M": (np.array(good["M"]) * 1.01).tolist()},
         "missing M": {k: v for k, v in good.items() if k != "M"},
+        "bad count": {**good, "data": {"n_points": "many"}},
+        "bad data": {**good, "data": 5},
+        "bad std": {**good, "parameters": {**good["parameters"], "kx": {**good["parameters"]["kx"], "std": "s"}}},
+        "not an object": [1, 2],
     }
     for what, d in cases.items():
         path = tmp_path / f"{what.replace(' ', '_')}.json"
