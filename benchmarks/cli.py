@@ -483,7 +483,7 @@ def cmd_compare(args) -> int:
     if not attrs.get("already_complete"):
         from magbench.benchmarks.comparison import write_comparison
 
-        write_comparison(out, figures=not args.no_figures)  # targets, ERT, ECDF, profiles, paired tests
+        write_comparison(out, figures=not args.no_figures, formats=tuple(args.format), dpi=args.dpi)
     if figures:
         from magbench.benchmarks.figures import make_figures
         from magbench.benchmarks.report import write_report

@@ -266,7 +266,7 @@ def _md_table(frame: pd.DataFrame, columns: list[tuple[str, str, str]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_comparison(campaign_dir, figures: bool = True, fmt: str = "png", dpi: int = 150) -> list[Path]:
+def write_comparison(campaign_dir, figures: bool = True, formats=("png",), dpi: int = 300) -> list[Path]:
     """Compute everything above for a campaign folder and write comparison/*.csv, comparison.md and, with
     ``figures``, figures/ecdf, figures/anytime and figures/profile."""
     d = Path(campaign_dir)
@@ -291,11 +291,12 @@ def write_comparison(campaign_dir, figures: bool = True, fmt: str = "png", dpi: 
     if figures:
         from magbench.benchmarks.comparison_figures import comparison_figures
 
-        written += comparison_figures(d, curves, any_, profile, fmt=fmt, dpi=dpi)
+        for fmt in formats or ("png",):
+            written += comparison_figures(d, curves, any_, profile, fmt=fmt, dpi=dpi)
     return written
 
 
-def _ert_cell(r) -> str:
+def ert_cell(r) -> str:
     """An ERT for the table: evaluations for a counted method, seconds for a closed-form one, ∞ when no run
     reached the target; the success rate when some runs missed it."""
     if math.isinf(r.ert_evaluations):
@@ -319,7 +320,7 @@ def _write_markdown(path: Path, runs: pd.DataFrame, ert: pd.DataFrame, tests: pd
         lines += [f"## {scenario}", "", "### Expected running time to each target", ""]
         part = part.assign(col=np.where(part["kind"] == "rms", "RMS ≤ " + part["target"].map("{:g}".format) + "×",
                                         "angle ≤ " + part["target"].map("{:g}".format) + "σ"),
-                           cell=[_ert_cell(r) for r in part.itertuples(index=False)])
+                           cell=[ert_cell(r) for r in part.itertuples(index=False)])
         order = list(dict.fromkeys(part["configuration"]))
         table = part.pivot_table(index="configuration", columns="col", values="cell", aggfunc="first", sort=False)
         table = table.reindex(order).reset_index()

@@ -10,6 +10,8 @@ import pandas as pd
 
 OKABE_ITO = ("#0072B2", "#E69F00", "#009E73", "#D55E00", "#CC79A7", "#56B4E9", "#F0E442", "#000000")
 LINESTYLES = ("-", "--", ":", "-.")
+MARK_EVERY = 6
+"""A marker on every sixth point of a curve, so that methods sharing a colour stay apart."""
 
 
 def style_of(names: list[str]) -> dict:
@@ -32,7 +34,8 @@ def _panels(n: int):
 
 def _save(fig, path: Path, fmt: str, dpi: int) -> Path:
     target = path.with_suffix(f".{fmt}")
-    fig.savefig(target, dpi=dpi)
+    fig.savefig(target, dpi=dpi, metadata={"Date": None} if fmt == "pdf" else
+                ({"Software": None} if fmt == "png" else {"Date": None} if fmt == "svg" else None))
     return target
 
 
@@ -40,9 +43,11 @@ def comparison_figures(campaign_dir, curves: pd.DataFrame, anytime: pd.DataFrame
                        fmt: str = "png", dpi: int = 150) -> list[Path]:
     out = Path(campaign_dir) / "figures"
     out.mkdir(exist_ok=True)
+    from magbench.benchmarks.figures import method_styles
+
     names = sorted(set(curves.get("configuration", [])) | set(anytime.get("configuration", []))
                    | set(profile.get("configuration", [])))
-    styles = style_of(names)
+    styles = method_styles(names)  # colour, line style and a marker per method (more than eight stay distinct)
     written = []
     if len(curves):
         written.append(_ecdf_figure(curves, styles, out / "ecdf", fmt, dpi))
@@ -58,8 +63,9 @@ def _ecdf_figure(curves, styles, path, fmt, dpi):
     fig, axes = _panels(len(scenarios))
     for ax, scenario in zip(axes, scenarios):
         for conf, part in curves[curves["scenario"] == scenario].groupby("configuration", sort=False):
-            colour, ls = styles[conf]
-            ax.step(part["evaluations"], part["fraction"], where="post", color=colour, ls=ls, label=conf)
+            st = styles[conf]
+            ax.step(part["evaluations"], part["fraction"], where="post", color=st["color"], ls=st["ls"], label=conf,
+                    marker=st["marker"], markevery=MARK_EVERY, ms=4)
         ax.set_xscale("log")
         ax.set_ylim(-0.02, 1.02)
         ax.set_xlabel("objective evaluations")
@@ -75,9 +81,10 @@ def _anytime_figure(anytime, styles, path, fmt, dpi):
     fig, axes = _panels(len(scenarios))
     for ax, scenario in zip(axes, scenarios):
         for conf, part in anytime[anytime["scenario"] == scenario].groupby("configuration", sort=False):
-            colour, ls = styles[conf]
-            ax.plot(part["evaluations"], part["median"], color=colour, ls=ls, label=f"{conf} (n={part['n'].max()})")
-            ax.fill_between(part["evaluations"], part["q25"], part["q75"], color=colour, alpha=0.15, lw=0)
+            st = styles[conf]
+            ax.plot(part["evaluations"], part["median"], color=st["color"], ls=st["ls"], marker=st["marker"],
+                    markevery=MARK_EVERY, ms=4, label=f"{conf} (n={part['n'].max()})")
+            ax.fill_between(part["evaluations"], part["q25"], part["q75"], color=st["color"], alpha=0.15, lw=0)
         ax.axhline(1.0, color="0.5", lw=1, ls="--")
         ax.set_xscale("log")
         ax.set_yscale("log")
@@ -95,8 +102,9 @@ def _profile_figure(profile, styles, path, fmt, dpi):
     fig = Figure(figsize=(6.2, 3.9), layout="constrained")
     ax = fig.subplots()
     for conf, part in profile.groupby("configuration", sort=False):
-        colour, ls = styles[conf]
-        ax.step(part["tau"], part["fraction"], where="post", color=colour, ls=ls, label=conf)
+        st = styles[conf]
+        ax.step(part["tau"], part["fraction"], where="post", color=st["color"], ls=st["ls"], marker=st["marker"],
+                markevery=MARK_EVERY, ms=4, label=conf)
     ax.set_xscale("log")
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel("tau: ERT (evaluations) to 1.01 x optimum within tau x the best method's")

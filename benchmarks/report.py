@@ -247,6 +247,37 @@ def _extra_figures(fig_dir: Path) -> list[dict]:
     return items
 
 
+def _comparison_tables(campaign_dir: Path) -> list[dict]:
+    """The method comparison's tables (benchmarks/comparison.py) per scenario: the expected running time to
+    each target, the Holm-corrected paired tests and the win rates, as escaped HTML tables."""
+    from magbench.benchmarks.comparison import ert_cell
+
+    d = campaign_dir / "comparison"
+    if not (d / "ert.csv").is_file():
+        return []
+    ert = pd.read_csv(d / "ert.csv")
+    tests = pd.read_csv(d / "paired_tests.csv", keep_default_na=False) if (d / "paired_tests.csv").stat().st_size > 1 \
+        else pd.DataFrame()
+    out = []
+    for scenario, part in ert.groupby("scenario", sort=False):
+        part = part.assign(target_label=[("RMS ≤ %g×" % t) if k == "rms" else ("angle ≤ %gσ" % t)
+                                         for k, t in zip(part["kind"], part["target"])],
+                           cell=[ert_cell(x) for x in part.itertuples(index=False)])
+        order = list(dict.fromkeys(part["configuration"]))
+        wide = part.pivot_table(index="configuration", columns="target_label", values="cell", aggfunc="first",
+                                sort=False).reindex(order)
+        item = {"name": scenario, "ert": wide.to_html(escape=True, border=0, classes="comparison",
+                                                      index_names=False), "tests": ""}
+        if len(tests):
+            t = tests[tests["scenario"] == scenario][["a", "b", "n", "median_diff", "p_holm", "better", "warning"]]
+            t = t.rename(columns={"a": "A", "b": "B", "n": "trials", "median_diff": "median A−B (nT)",
+                                  "p_holm": "p (Holm)", "better": "better", "warning": "note"})
+            item["tests"] = t.to_html(escape=True, border=0, index=False, classes="comparison",
+                                      float_format=lambda v: f"{v:.3g}")
+        out.append(item)
+    return out
+
+
 def _failures(runs: pd.DataFrame) -> dict:
     if runs.empty:
         return {"head": "No runs.csv.", "rows": []}
@@ -341,7 +372,8 @@ def render_report(campaign_dir: str | Path, images: dict | None = None, progress
     return template.render(
         title=f"magbench campaign report — {campaign_dir.resolve().name}", lede=lede, warnings=warnings, css=Markup(CSS),
         scenarios=scenarios, columns=_header(summary, cols), table_note=table_note,
-        extra_figures=_extra_figures(fig_dir), failures=_failures(runs), skipped=skipped,
+        extra_figures=_extra_figures(fig_dir), comparison=_comparison_tables(campaign_dir),
+        failures=_failures(runs), skipped=skipped,
         command=_command_text(manifest), manifest=_manifest_rows(manifest))
 
 
