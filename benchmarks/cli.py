@@ -427,11 +427,11 @@ def _at_budgets(specs, budgets, calibrators):
     return tuple(out)
 
 
-def cmd_compare(args) -> int:
-    import shlex
-
-    from magbench.benchmarks.campaign import (CHECKPOINT, Campaign, CampaignInterrupted, MethodSpec, clear_outputs,
-                                              run_campaign)
+def _campaign_from_args(args):
+    """The campaign and output folder ``compare`` was asked for, refused (InputError) before anything in
+    ``--out`` is touched: unknown scenarios or methods, bad counts, a non-empty folder without --force or
+    --resume."""
+    from magbench.benchmarks.campaign import CHECKPOINT, Campaign, MethodSpec
     from magbench.calibrators import available
     from magbench.simulate.scenarios import get_scenario
 
@@ -458,6 +458,15 @@ def cmd_compare(args) -> int:
         specs = _at_budgets(specs, args.budgets, available())
     campaign = Campaign(scenarios, specs, trials=args.trials, seed=args.seed)
     campaign.tasks()  # bad methods are refused before anything in --out is touched
+    return campaign, out
+
+
+def cmd_compare(args) -> int:
+    import shlex
+
+    from magbench.benchmarks.campaign import CampaignInterrupted, clear_outputs, run_campaign
+
+    campaign, out = _campaign_from_args(args)
     if args.force:
         clear_outputs(out)
     command = "magbench " + shlex.join(args._argv)
@@ -478,6 +487,11 @@ def cmd_compare(args) -> int:
     finally:
         if cluster is not None:
             cluster.close()
+    return _compare_outputs(args, runs, out, progress)
+
+
+def _compare_outputs(args, runs, out: Path, progress: bool) -> int:
+    """After the runs: the comparison, figures and report, then the summary (or one JSON object)."""
     attrs = runs.attrs
     figures = not args.no_figures and (not attrs.get("already_complete") or not (out / "report.html").is_file())
     if not attrs.get("already_complete"):
@@ -575,14 +589,31 @@ def build_parser() -> argparse.ArgumentParser:
                      "their calibration algorithms.", epilog=EXIT_STATUS_HELP,
                      formatter_class=_HelpFormatter)
     from magbench import __version__
+    from magbench.benchmarks.gradiometer_cli import add_gradiometer_command
 
     parser.add_argument("--version", action="version", version=f"magbench {__version__}")
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
 
+    _add_list_parser(sub)
+    _add_simulate_parser(sub)
+    _add_calibrate_parser(sub)
+    _add_apply_parser(sub)
+    _add_diagnose_parser(sub)
+    _add_compare_parser(sub)
+    add_gradiometer_command(sub)
+    _add_report_parser(sub)
+    _add_reproduce_parser(sub)
+    _add_demo_parser(sub)
+    return parser
+
+
+def _add_list_parser(sub) -> None:
     p = sub.add_parser("list", help="calibrators, models, scenarios, effects")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_list)
 
+
+def _add_simulate_parser(sub) -> None:
     p = sub.add_parser("simulate", help="simulate a scenario to a CSV file and its truth to JSON")
     p.add_argument("--scenario", required=True)
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
@@ -592,6 +623,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_simulate)
 
+
+def _add_calibrate_parser(sub) -> None:
     p = sub.add_parser("calibrate", help="calibrate a data file with one method")
     p.add_argument("file", metavar="FILE.csv")
     p.add_argument("--method", required=True)
@@ -624,6 +657,8 @@ def build_parser() -> argparse.ArgumentParser:
                            "relative to it)")
     p.set_defaults(func=cmd_calibrate)
 
+
+def _add_apply_parser(sub) -> None:
     p = sub.add_parser("apply", help="apply a saved calibration to a data file: corrected columns added")
     p.add_argument("calibration", metavar="CAL", help="a calibration file: magbench json, or magcal's A, b (.mat/.json)")
     p.add_argument("file", metavar="FILE.csv")
@@ -635,6 +670,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_apply)
 
+
+def _add_diagnose_parser(sub) -> None:
     p = sub.add_parser("diagnose", help="where the calibration residual lies and which unmodelled effect causes it")
     p.add_argument("file", metavar="FILE.csv")
     p.add_argument("--model", default="nine", choices=["angles", "nine"], help="the base calibration model")
@@ -648,6 +685,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_reference_options(p)
     p.set_defaults(func=cmd_diagnose)
 
+
+def _add_compare_parser(sub) -> None:
     p = sub.add_parser("compare", help="a campaign: scenarios x calibrators x trials -> tables, figures, report")
     p.add_argument("--scenarios", nargs="+", required=True, metavar="NAME",
                    help="scenarios to simulate ('magbench list' shows them); space- or comma-separated")
@@ -676,10 +715,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_compare)
 
-    from magbench.benchmarks.gradiometer_cli import add_gradiometer_command
 
-    add_gradiometer_command(sub)
-
+def _add_report_parser(sub) -> None:
     p = sub.add_parser("report", help="one self-contained HTML page of a campaign directory")
     p.add_argument("dir", metavar="DIR", help="a campaign folder written by 'magbench compare'")
     _add_figure_options(p, None, "also write the figures to DIR/figures in these formats (default: none; the "
@@ -688,6 +725,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_report)
 
+
+def _add_reproduce_parser(sub) -> None:
     p = sub.add_parser("reproduce", help="regenerate everything committed in results/")
     p.add_argument("--out", default="results", metavar="DIR", help="folder to write everything to")
     p.add_argument("--jobs", type=_positive_int, default=2, help="local worker processes")
@@ -696,11 +735,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_reproduce)
 
+
+def _add_demo_parser(sub) -> None:
     p = sub.add_parser("demo", help="simulate seed 000's experiment and a sphere, compare every calibrator")
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_demo)
-    return parser
 
 
 def main(argv=None) -> int:
