@@ -75,6 +75,7 @@ def report(raw: Path, out: Path) -> str:
     lines += ["", "| target | measured | met |", "|---|---|---|"]
     lines += [f"| {t} | {m} | {'yes' if ok else 'no'} |" for t, m, ok in targets]
     lines += _quality_lines(bench)
+    lines += _scaling_lines(bench)
     lines += ["", "Every calibrator evaluates its population in one call of the shared objective "
               "(calibrators/objective.py: the quadric form, one matrix product and one square root per "
               "population). The peers get the very same objective and search box; what differs is the "
@@ -115,6 +116,22 @@ def _quality_lines(bench: dict) -> list[str]:
                      f"{o['extra_info'].get('rms_after_nT', float('nan')) if o else float('nan'):.3f} | {peer_name} | "
                      f"{cell(t_p) if p else 'not run'} | "
                      f"{p['extra_info'].get('rms_after_nT', float('nan')) if p else float('nan'):.3f} | {ratio} |")
+    return lines
+
+
+def _scaling_lines(bench: dict) -> list[str]:
+    """The population objective's time per reading from 1e4 to 1e6 readings (linear in n when flat)."""
+    rows = [(b["extra_info"]["rows"], b["stats"]["median"]) for n, b in bench.items()
+            if n.startswith("test_population_objective_scaling")]
+    if not rows:
+        return []
+    rows.sort()
+    base = rows[0][1] / rows[0][0]
+    lines = ["", "## Population objective on long records", "",
+             "One population of 80 (nine model) per call; the (80, n) intermediate is computed in blocks of at most "
+             "2 MiB, so memory per call is bounded.", "",
+             "| readings | median per population | per reading | per reading / at 1e4 |", "|---|---|---|---|"]
+    lines += [f"| {n:,} | {t * 1e3:.1f} ms | {t / n * 1e9:.0f} ns | {t / n / base:.2f} |" for n, t in rows]
     return lines
 
 

@@ -147,9 +147,21 @@ class ScalarObjective:
             rows = np.atleast_2d(np.asarray(x, dtype=float))
             return np.array([np.mean(self.residuals(row) ** 2) for row in rows])
         q = quadric_coefficients(x, self.model)
-        c2 = q @ self._design
-        np.sqrt(c2, out=c2)  # |c|² >= 0 for any finite parameters; a NaN marks a broken candidate
-        return q @ self._design_mean - c2 @ self._f_scaled + self._f2_mean
+        design = self._design
+        n = design.shape[1]
+        step = max(1, POPULATION_BLOCK_ELEMENTS // max(q.shape[0], 1))
+        if n <= step:
+            c2 = q @ design
+            np.sqrt(c2, out=c2)  # |c|² >= 0 for any finite parameters; a NaN marks a broken candidate
+            return q @ self._design_mean - c2 @ self._f_scaled + self._f2_mean
+        # a long record: the (m, n) intermediate in blocks of columns, so that it stays in the cache and the
+        # memory per call is bounded (time linear in n)
+        cross = np.zeros(q.shape[0])
+        for start in range(0, n, step):
+            c2 = q @ design[:, start:start + step]
+            np.sqrt(c2, out=c2)
+            cross += c2 @ self._f_scaled[start:start + step]
+        return q @ self._design_mean - cross + self._f2_mean
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Residuals at one point, computed directly as |M (raw - o)| - F (the reference form), block by block."""
@@ -280,6 +292,8 @@ def lm_normal(normal_equations, x: np.ndarray, lower: np.ndarray | None = None, 
     return x, float(cost), calls
 
 
+POPULATION_BLOCK_ELEMENTS = 1 << 18
+"""Largest (population x readings) block of the population objective (2 MiB of float64)."""
 CHUNK_ROWS = 1 << 15
 """Rows per block of the Jacobian computations: a block of the (p, m) Jacobian stays in the cache."""
 

@@ -219,3 +219,18 @@ def test_quality_mealpy(benchmark, sphere9):
     hit = np.flatnonzero(best <= target)
     benchmark.extra_info.update(reached=bool(hit.size), time_to_target_s=float(times[hit[0]]) if hit.size else None,
                                 rms_after_nT=float(np.sqrt(best[-1])), target_rms_nT=float(np.sqrt(target)))
+
+
+# -- the population objective on long records -----------------------------------------------------------
+@pytest.mark.benchmark(group="population objective (80 x nine) on long records: time per reading")
+@pytest.mark.parametrize("rows", [10_000, 100_000, 1_000_000])
+def test_population_objective_scaling(benchmark, rows):
+    """One population of 80 on records of 1e4..1e6 readings: the (80, n) intermediate is computed in
+    blocks, so the time per reading should stay flat (linear in n) and the memory per call bounded."""
+    rng = np.random.default_rng(rows)
+    obj = ScalarObjective(rng.normal(size=(rows, 3)) * 30000.0, 50000.0, "nine")
+    pop = np.column_stack([rng.uniform(-0.1, 0.1, (POPULATION, 3)), rng.uniform(0.9, 1.1, (POPULATION, 3)),
+                           rng.uniform(-5000.0, 5000.0, (POPULATION, 3))])
+    obj.values(pop)
+    benchmark.pedantic(obj.values, args=(pop,), rounds=5, iterations=1, warmup_rounds=1)
+    benchmark.extra_info.update(rows=rows)
