@@ -199,7 +199,8 @@ def _bar(items, desc: str, progress: bool, **kw):
 
 
 def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = True) -> list[Path]:
-    from magbench.benchmarks.campaign import Campaign, MethodSpec, run_campaign
+    from magbench.benchmarks.campaign import Campaign, MethodSpec, clear_outputs, run_campaign
+    from magbench.benchmarks.comparison import write_comparison
     from magbench.benchmarks.figures import make_figures
     from magbench.benchmarks.report import write_report
     from magbench.calibrators import available
@@ -209,13 +210,16 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
     trials = 3 if quick else 50
     methods = tuple(MethodSpec(m) for m in sorted(available()))
     camp_dir = out / "campaign"
+    clear_outputs(camp_dir)  # no stale figure or table of an earlier reproduction stays behind
     run_campaign(Campaign(SCENARIOS, methods, trials=trials, seed=ROOT_SEED), camp_dir, jobs=jobs,
                  command=f"magbench reproduce{' --quick' if quick else ''}", progress=progress)
+    write_comparison(camp_dir)
     images: dict = {}
     make_figures(camp_dir, images=images, progress=progress)
     written += [camp_dir / "runs.csv", camp_dir / "summary.md", write_report(camp_dir, images=images)]
 
     lsq_dir = out / "lsq_sphere9_1000"
+    clear_outputs(lsq_dir)
     run_campaign(Campaign(("sphere9",), (MethodSpec("lsq"),), trials=30 if quick else 1000, seed=ROOT_SEED, traces=False),
                  lsq_dir, jobs=jobs, command="magbench compare --scenarios sphere9 --methods lsq --trials 1000 "
                  f"--seed {ROOT_SEED} --jobs {jobs}", progress=progress)
