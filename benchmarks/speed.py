@@ -76,6 +76,7 @@ def report(raw: Path, out: Path) -> str:
     lines += [f"| {t} | {m} | {'yes' if ok else 'no'} |" for t, m, ok in targets]
     lines += _quality_lines(bench)
     lines += _scaling_lines(bench)
+    lines += _process_lines(bench)
     lines += ["", "Every calibrator evaluates its population in one call of the shared objective "
               "(calibrators/objective.py: the quadric form, one matrix product and one square root per "
               "population). The peers get the very same objective and search box; what differs is the "
@@ -132,6 +133,27 @@ def _scaling_lines(bench: dict) -> list[str]:
              "2 MiB, so memory per call is bounded.", "",
              "| readings | median per population | per reading | per reading / at 1e4 |", "|---|---|---|---|"]
     lines += [f"| {n:,} | {t * 1e3:.1f} ms | {t / n * 1e9:.0f} ns | {t / n / base:.2f} |" for n, t in rows]
+    return lines
+
+
+PROCESS_TARGETS = (("test_process_help", "magbench --help", 0.3),
+                   ("test_process_calibrate_300", "magbench calibrate, 300 points, lsq", 0.8),
+                   ("test_process_lsq_1000_trials", "magbench compare: 1000 lsq trials, --jobs 2", 5.0))
+
+
+def _process_lines(bench: dict) -> list[str]:
+    """Whole processes against their targets, beside the interpreter-plus-numpy baseline."""
+    base = bench.get("test_process_baseline_python_numpy")
+    if base is None:
+        return []
+    b = base["stats"]["median"]
+    lines = ["", "## Whole processes", "", f"Baseline in the same run: `python -c 'import numpy'` {b:.3f} s.", "",
+             "| command | median | target | met | over the baseline |", "|---|---|---|---|---|"]
+    for name, label, target in PROCESS_TARGETS:
+        if name in bench:
+            t = bench[name]["stats"]["median"]
+            lines.append(f"| {label} | {t:.3f} s | <= {target:g} s | {'yes' if t <= target else 'no'} | "
+                         f"{t / b:.1f}x |")
     return lines
 
 

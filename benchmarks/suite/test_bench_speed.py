@@ -4,6 +4,8 @@ Run with ``python -m magbench.benchmarks.speed`` (writes results/speed.md and re
 Peers (PyGAD, mealpy) are development-only: ``pip install pygad && pip install --no-deps mealpy opfunu``
 (mealpy's metadata pins numpy<=1.26, which NLopt 2.11 cannot use; it runs on numpy 2).
 """
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -234,3 +236,43 @@ def test_population_objective_scaling(benchmark, rows):
     obj.values(pop)
     benchmark.pedantic(obj.values, args=(pop,), rounds=5, iterations=1, warmup_rounds=1)
     benchmark.extra_info.update(rows=rows)
+
+
+# -- whole processes ----------------------------------------------------------------------------------------
+# What a user waits for, measured as whole processes; the baseline in the same run is the interpreter
+# starting and importing numpy (the floor no command can go below).
+
+def _process(benchmark, args, rounds=5):
+    cmd = [sys.executable, *args]
+    subprocess.run(cmd, capture_output=True, check=False)  # warm the file cache
+    benchmark.pedantic(lambda: subprocess.run(cmd, capture_output=True, check=False), rounds=rounds, iterations=1)
+
+
+@pytest.mark.benchmark(group="whole processes")
+def test_process_baseline_python_numpy(benchmark):
+    _process(benchmark, ["-c", "import numpy"])
+
+
+@pytest.mark.benchmark(group="whole processes")
+def test_process_help(benchmark):
+    _process(benchmark, ["-m", "magbench", "--help"])
+
+
+@pytest.mark.benchmark(group="whole processes")
+def test_process_calibrate_300(benchmark, tmp_path):
+    path = tmp_path / "s.csv"
+    subprocess.run([sys.executable, "-m", "magbench", "simulate", "--scenario", "sphere9", "--out", str(path)],
+                   capture_output=True, check=True)
+    _process(benchmark, ["-m", "magbench", "calibrate", str(path), "--method", "lsq"])
+
+
+@pytest.mark.benchmark(group="whole processes")
+def test_process_lsq_1000_trials(benchmark, tmp_path):
+    out = tmp_path / "c"
+
+    def run():
+        subprocess.run([sys.executable, "-m", "magbench", "compare", "--scenarios", "sphere9", "--methods", "lsq",
+                        "--trials", "1000", "--jobs", "2", "--out", str(out), "--force", "--quiet", "--no-figures"],
+                       capture_output=True, check=True)
+
+    benchmark.pedantic(run, rounds=3, iterations=1)
