@@ -205,11 +205,21 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
     from magbench.benchmarks.report import write_report
     from magbench.calibrators import available
 
+    from tqdm import tqdm
+
     out.mkdir(parents=True, exist_ok=True)
     written = []
     trials = 3 if quick else 50
+    phases = tqdm(total=4 if quick else 8, desc="reproduce", unit="phase", disable=not progress, file=sys.stderr,
+                  position=1, leave=True, bar_format="{desc}: {n}/{total} phases {bar} [{elapsed}]")
+
+    def phase(name: str) -> None:
+        phases.set_description(f"reproduce: {name}")
+        phases.update(1)
+
     methods = tuple(MethodSpec(m) for m in sorted(available()))
     camp_dir = out / "campaign"
+    phase("campaign")
     clear_outputs(camp_dir)  # no stale figure or table of an earlier reproduction stays behind
     run_campaign(Campaign(SCENARIOS, methods, trials=trials, seed=ROOT_SEED), camp_dir, jobs=jobs,
                  command=f"magbench reproduce{' --quick' if quick else ''}", progress=progress)
@@ -219,19 +229,23 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
     written += [camp_dir / "runs.csv", camp_dir / "summary.md", write_report(camp_dir, images=images)]
 
     lsq_dir = out / "lsq_sphere9_1000"
+    phase("1000 lsq trials")
     clear_outputs(lsq_dir)
     run_campaign(Campaign(("sphere9",), (MethodSpec("lsq"),), trials=30 if quick else 1000, seed=ROOT_SEED, traces=False),
                  lsq_dir, jobs=jobs, command="magbench compare --scenarios sphere9 --methods lsq --trials 1000 "
                  f"--seed {ROOT_SEED} --jobs {jobs}", progress=progress)
     written.append(lsq_dir / "summary.md")
     written.append(lu2014_tables(camp_dir, out / "lu2014_tables.md"))
+    phase("diagnosis of the real recordings and the blind check")
     written.append(diagnosis_reports(out, blind_n=14 if quick else 70, progress=progress))
     if not quick:
         from magbench.benchmarks import quality, speed
         from magbench.benchmarks.claims import write_claims
 
+        phase("quality study")
         quality.write(out, 50, 10)
         written.append(out / "quality.md")
+        phase("claims")
         written.append(write_claims(out))
         try:
             import mealpy  # noqa: F401
@@ -239,7 +253,11 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
         except ImportError:
             print("speed.md kept: the peers (pygad, mealpy) are not installed", file=sys.stderr)
         else:
+            phase("speed benchmarks")
             speed.report(speed.run(out), out / "speed.md")
             written.append(out / "speed.md")
+        phase("benchmark suite")
         written.append(_benchmark_suite(out))
+    phase("done")
+    phases.close()
     return written
