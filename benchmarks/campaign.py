@@ -116,11 +116,11 @@ class Campaign:
             if spec.name not in cals:
                 raise InputError(f"unknown calibrator {spec.name!r}; known: {', '.join(sorted(cals))}")
         root = np.random.SeedSequence(self.seed)
-        for s_idx, (scenario, s_seq) in enumerate(zip(self.scenarios, root.spawn(len(self.scenarios)))):
+        for scenario, s_seq in zip(self.scenarios, root.spawn(len(self.scenarios))):
             model = get_scenario(scenario).model
             for trial, t_seq in enumerate(s_seq.spawn(self.trials)):
                 data_seed, val_seed = (int(v) for v in t_seq.generate_state(2))
-                for m_idx, (spec, m_seq) in enumerate(zip(self.methods, t_seq.spawn(len(self.methods)))):
+                for spec, m_seq in zip(self.methods, t_seq.spawn(len(self.methods))):
                     if model not in cals[spec.name].supported_models:
                         if trial == 0:
                             skipped.append({"scenario": scenario, "configuration": spec.label,

@@ -281,7 +281,6 @@ def _table_format(cells: list[str]) -> str:
 
 def _latex_table(summary: pd.DataFrame, cols: list[Column], caption: str, label: str) -> str:
     header = [("scenario", ""), ("calibrator", "")]
-    values: list[list[str]] = [[], []]
     spans = []  # (first column, last column) of a median + IQR pair, 1-based
     for c in cols:
         title = c.tex_title or _tex_escape(c.title)

@@ -63,7 +63,7 @@ class AntColony(Calibrator):
         order = np.argsort(f)
         archive, f = archive[order], f[order]
         best = [f[0]]
-        for it in range(self.iterations):
+        for _ in range(self.iterations):
             chosen = np.searchsorted(cum, rng.random(m) * cum[-1], side="right")
             centres = archive[chosen]  # (m, p)
             sigma = self.xi * np.abs(archive[None, :, :] - centres[:, None, :]).sum(axis=1) / (k - 1)  # eq. 9

@@ -13,7 +13,7 @@ import numpy as np
 
 from magbench.simulate.sensor import PARAM_NAMES
 
-from .objective import ScalarObjective, correction_matrices
+from .objective import ScalarObjective
 
 # Standard deviations per nT of noise *for one point's worth of information* (the Cramér-Rao standard
 # deviation times sqrt(n)) above which the attitudes are called ill-conditioned (warning) or degenerate
@@ -23,14 +23,6 @@ from .objective import ScalarObjective, correction_matrices
 WARN_PER_POINT = {"angle": 1e-3, "scale": 1e-3, "offset": 1e-3}
 REFUSE_PER_POINT = {"angle": 0.05, "scale": 0.05, "offset": 0.05}
 COND_REFUSE = 1e10
-
-
-def noise_weights(objective: ScalarObjective, x: np.ndarray) -> np.ndarray:
-    """|M^T u_i|² for each sample: the residual variance per unit raw-axis noise variance."""
-    mat, o = correction_matrices(np.asarray(x, dtype=float)[None, :], objective.model)
-    c = (objective.raw_nT - o[0]) @ mat[0].T
-    u = c / np.linalg.norm(c, axis=1, keepdims=True)
-    return np.sum((u @ mat[0]) ** 2, axis=1)
 
 
 def fisher_information(objective: ScalarObjective, x: np.ndarray, noise_nT: float) -> np.ndarray:

@@ -10,7 +10,7 @@ Two forward conventions, both named:
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
@@ -213,5 +213,3 @@ class SensorModel:
             raw = np.round(raw / self.quantization_nT) * self.quantization_nT
         return raw
 
-    def with_errors(self, **changes) -> "SensorModel":
-        return replace(self, errors=replace(self.errors, **changes))
