@@ -489,7 +489,12 @@ class TemperatureEffect(Effect):
             dtemp = temp - norm.temp0_C
             x = np.einsum("na,nak->nk", unit, cls._columns_for(u0, dtemp))
             x = np.column_stack([np.ones(len(x)), x] + lin)
-            coef, *_ = np.linalg.lstsq(x, r_base, rcond=None)
+            if len(x) > 100_000:  # long records: the normal equations (column-scaled), not a QR of n rows
+                sc = np.sqrt(np.clip(np.einsum("nk,nk->k", x, x), 1e-300, None))
+                xs = x / sc
+                coef = np.linalg.lstsq(xs.T @ xs, xs.T @ r_base, rcond=1e-12)[0] / sc
+            else:
+                coef, *_ = np.linalg.lstsq(x, r_base, rcond=None)
             sse = float(np.sum((r_base - x @ coef) ** 2))
             if best is None or sse < best[0] * (1 - 1e-9):
                 best = (sse, tau, temp)
@@ -576,7 +581,8 @@ class NonlinearityEffect(Effect):
 
     @staticmethod
     def basis(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return x * x - 1.0 / 3.0, x**3 - 0.6 * x
+        x2 = x * x
+        return x2 - 1.0 / 3.0, (x2 - 0.6) * x
 
     def readings(self, lin, ctx, rng):
         o = np.asarray(ctx["offset_nT"])

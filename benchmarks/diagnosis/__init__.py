@@ -25,6 +25,8 @@ from .scalar import diagnose_scalar
 from .scoring import candidate_effects
 from .vector import DEFAULT_FOLDS, Diagnosis
 
+BLAS_THREADS = 1
+
 __all__ = ["read_gravity", "Diagnosis", "blind_dataset", "blind_kinds", "candidate_effects", "diagnose", "diagnose_scalar",
            "diagnosis_figure", "diagnosis_text"]
 
@@ -33,9 +35,14 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
              progress: bool | None = None) -> dict:
     """Diagnose a vector ``Dataset`` or a scalar turntable ``ScalarSeries`` (``gravity``: optional (n, 3)
     accelerometer directions; ``progress``: a bar on stderr, by default for long records)."""
-    if isinstance(data, ScalarSeries):
-        return diagnose_scalar(data, folds=folds, seed=seed)
-    return Diagnosis(data, base, folds, seed, gravity=gravity, progress=progress).run()
+    from threadpoolctl import threadpool_limits
+
+    # one BLAS thread: every product here is a tall-skinny block (65536 x <= 50); a second thread gains
+    # nothing, and on a loaded machine spin-waiting BLAS threads made the Gram products up to 100x slower
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        if isinstance(data, ScalarSeries):
+            return diagnose_scalar(data, folds=folds, seed=seed)
+        return Diagnosis(data, base, folds, seed, gravity=gravity, progress=progress).run()
 
 
 def read_gravity(path) -> "np.ndarray | None":

@@ -25,6 +25,8 @@ GN_ITERATIONS = 12
 GN_TOLERANCE = 1e-10
 TRIM_ROUNDS = 2
 STORE_J_BYTES = 200e6  # keep the Jacobian in memory (float32) below this size, else recompute it per pass
+FIT_ROWS = 200_000  # the Gauss-Newton fit of the tangent point uses at most this many rows (``fit_subset``)
+FIT_SEED = 17
 NINE_NAMES = ("alpha_rad", "beta_rad", "gamma_rad", "kx", "ky", "kz", "ox_nT", "oy_nT", "oz_nT")
 BASE_FREE = {"angles": (0, 1, 2), "nine": tuple(range(9))}
 PART_INDEX = {"scale": (3, 4, 5), "offset": (6, 7, 8)}
@@ -85,7 +87,6 @@ class ExtendedModel:
         self.names = names
         self.p = len(names)
         self.default = np.concatenate([np.asarray(NEUTRAL, dtype=float), np.zeros(self.p - 9)])
-        self._cache = None
 
     # -- rows ---------------------------------------------------------------------------------
     def blocks(self):
@@ -139,16 +140,33 @@ class ExtendedModel:
     def free_indices(self, names) -> list[int]:
         return sorted({i for nm in ["base", *names] for i in self.groups[nm]})
 
-    def fit(self, x_start: np.ndarray, free: list[int], keep: np.ndarray | None = None) -> np.ndarray:
-        """Gauss-Newton (step halving) on the rows ``keep`` for the ``free`` parameters."""
+    def fit_subset(self) -> np.ndarray | None:
+        """The rows the Gauss-Newton fit of the tangent point uses: all (None) up to FIT_ROWS, else a seeded
+        random FIT_ROWS of them.  Statistically harmless: the point only has to be close to the optimum,
+        since every sub-model is then solved on all rows in its tangent space (one more Gauss-Newton step,
+        whose linearization error is second order in a distance of order noise / sqrt(FIT_ROWS))."""
+        n = len(self.d)
+        if n <= FIT_ROWS:
+            return None
+        return np.sort(np.random.default_rng(FIT_SEED).choice(n, FIT_ROWS, replace=False))
+
+    def _fit_blocks(self, rows):
+        """(rows of a block, its effect columns), the columns computed once (they do not depend on x)."""
+        if rows is None:
+            return [(sl, self.columns(sl)) for sl in self.blocks()]
+        return [(rows[s:s + BLOCK_ROWS], self.columns(rows[s:s + BLOCK_ROWS])) for s in range(0, len(rows), BLOCK_ROWS)]
+
+    def fit(self, x_start: np.ndarray, free: list[int], keep: np.ndarray | None = None, blocks=None) -> np.ndarray:
+        """Gauss-Newton (step halving) on the rows ``keep`` (a mask over all rows) for the ``free`` parameters."""
+        blocks = self._fit_blocks(None) if blocks is None else blocks
         x = x_start.copy()
         sse_old = None
         for _ in range(GN_ITERATIONS):
             a = np.zeros((len(free), len(free)))
             bvec = np.zeros(len(free))
             sse = 0.0
-            for sl in self.blocks():
-                r, jac = self.residual_jacobian(x, sl)
+            for sl, cols in blocks:
+                r, jac = self.residual_jacobian(x, sl, cols)
                 if keep is not None:
                     r, jac = r[keep[sl]], jac[keep[sl]]
                 jf = jac[:, free]
@@ -169,63 +187,65 @@ class ExtendedModel:
                 break
         return x
 
-    def fit_robust(self, x_start: np.ndarray, free: list[int]) -> tuple[np.ndarray, np.ndarray]:
-        """The fit with samples beyond SPIKE_SIGMA robust sigma trimmed (TRIM_ROUNDS times); (x, spike mask)."""
-        x = self.fit(x_start, free)
-        spikes = np.zeros(len(self.d), bool)
+    def fit_robust(self, x_start: np.ndarray, free: list[int]) -> tuple[np.ndarray, np.ndarray | None]:
+        """The fit with samples beyond SPIKE_SIGMA robust sigma trimmed (TRIM_ROUNDS times); (x, spike mask).
+        On a subset of the rows (``fit_subset``) the mask is None: the tangent finds the spikes of all rows."""
+        rows = self.fit_subset()
+        blocks = self._fit_blocks(rows)
+        x = self.fit(x_start, free, blocks=blocks)
+        n = len(self.d)
+        spikes = np.zeros(n, bool)
+        sub = np.arange(n) if rows is None else rows
         for _ in range(TRIM_ROUNDS):
-            r = self.residuals(x)
-            new = OutlierEffect.spike_mask(r)
-            if not new.any() or (~new).sum() < 2 * len(free) or np.array_equal(new, spikes):
+            r = np.concatenate([self.residual_jacobian(x, sl, cols)[0] for sl, cols in blocks])
+            new = np.zeros(n, bool)
+            new[sub] = OutlierEffect.spike_mask(r)
+            if not new.any() or (~new[sub]).sum() < 2 * len(free) or np.array_equal(new, spikes):
                 spikes = new
                 break
             spikes = new
-            x = self.fit(x, free, keep=~spikes)
-        return x, spikes
-
-    # -- the tangent space ----------------------------------------------------------------------
-    def tangent(self, x: np.ndarray):
-        """Yield (sl, r, J) at x for every block (J kept in memory when small)."""
-        n = len(self.d)
-        if self._cache is not None and np.array_equal(self._cache[0], x):
-            r_all, j_all = self._cache[1], self._cache[2]
-            for sl in self.blocks():
-                yield sl, r_all[sl], j_all[sl].astype(float)
-            return
-        store = n * self.p * 4 <= STORE_J_BYTES
-        if store:
-            r_all, j_all = np.empty(n), np.empty((n, self.p), np.float32)
-        for sl in self.blocks():
-            r, jac = self.residual_jacobian(x, sl)
-            if store:
-                r_all[sl], j_all[sl] = r, jac
-            yield sl, r, jac
-        if store:
-            self._cache = (x.copy(), r_all, j_all)
-
+            x = self.fit(x, free, keep=~spikes, blocks=blocks)
+        return x, (spikes if rows is None else None)
 
 class Tangent:
     """Per-fold Gram matrices of [J, r] at the full fit x*, for all samples and for the spikes alone;
     every sub-model's fold fits and held-out residuals from them."""
 
-    def __init__(self, model: ExtendedModel, x: np.ndarray, fold: np.ndarray, k: int, spikes: np.ndarray):
-        self.model, self.x, self.fold, self.k, self.spikes = model, x, fold, k, spikes
+    def __init__(self, model: ExtendedModel, x: np.ndarray, fold: np.ndarray, k: int, spikes: np.ndarray | None):
+        """Rows are visited fold by fold (each fold's rows in blocks), so each block adds to one fold's
+        Gram matrix; r and J are kept (J in float32) when small.  ``spikes`` None: the samples beyond
+        SPIKE_SIGMA robust sigma of the residual at x."""
+        self.model, self.x, self.fold, self.k = model, x, fold, k
         p1 = model.p + 1
+        n = len(model.d)
         self.gram = np.zeros((k, p1, p1))
         self.gram_spk = np.zeros((k, p1, p1))
-        for sl, r, jac in model.tangent(x):
+        self._rows = [(f, idx[s:s + BLOCK_ROWS]) for f in range(k) for idx in [np.flatnonzero(fold == f)]
+                      for s in range(0, len(idx), BLOCK_ROWS)]
+        self._store = n * model.p * 4 <= STORE_J_BYTES
+        self._j = []
+        self.r = np.empty(n)
+        for f, idx in self._rows:
+            r, jac = model.residual_jacobian(x, idx)
+            self.r[idx] = r
+            if self._store:
+                self._j.append(jac.astype(np.float32))
             jr = np.column_stack([jac, r])
-            fl = fold[sl]
-            sp = spikes[sl]
+            self.gram[f] += jr.T @ jr
+        self.spikes = OutlierEffect.spike_mask(self.r) if spikes is None else spikes
+        sp = np.flatnonzero(self.spikes)
+        if len(sp):
+            r, jac = model.residual_jacobian(x, sp)
+            jr = np.column_stack([jac, r])
             for f in range(k):
-                m = fl == f
-                if m.any():
-                    z = jr[m]
-                    self.gram[f] += z.T @ z
-                    ms = m & sp
-                    if ms.any():
-                        zs = jr[ms]
-                        self.gram_spk[f] += zs.T @ zs
+                z = jr[fold[sp] == f]
+                self.gram_spk[f] += z.T @ z
+
+    def _blocks(self):
+        """(fold, rows, r, J) of every block at x."""
+        for i, (f, idx) in enumerate(self._rows):
+            jac = self._j[i] if self._store else self.model.residual_jacobian(self.x, idx)[1]
+            yield f, idx, self.r[idx], jac
 
     def _shift(self, free: list[int]) -> np.ndarray:
         """c: the left-out parameters moved from x* to their neutral values (zeros on the free ones)."""
@@ -253,11 +273,10 @@ class Tangent:
         number of spikes so explained."""
         free, c, deltas = self.fold_steps(names, robust)
         out = np.empty(len(self.model.d))
-        for sl, r, jac in self.model.tangent(self.x):
-            y = r + jac @ c
-            fl = self.fold[sl]
-            step = np.einsum("nk,nk->n", jac[:, free], deltas[fl])
-            out[sl] = y + step
+        shift = np.tile(c, (self.k, 1))  # y + J_F delta_f = r + J (c + delta_f on the free entries)
+        shift[:, free] += deltas
+        for f, idx, r, jac in self._blocks():
+            out[idx] = r + jac @ shift[f]
         n_spk = 0
         if robust:
             out[self.spikes] = 0.0
