@@ -669,7 +669,19 @@ class LagEffect(Effect):
 
     @classmethod
     def prepare(cls, d, norm, r_base, unit):
-        d.extra["draw_dt"] = time_derivative(d.t_s, d.raw_nT)
+        """The time derivative of the readings, with samples that are spikes in the base residual replaced
+        by the interpolation of their neighbours in time first (a spike would otherwise corrupt the
+        derivative of the samples on either side of it)."""
+        raw = d.raw_nT
+        spikes = OutlierEffect.spike_mask(r_base)
+        if spikes.any() and (~spikes).sum() >= 3:
+            order = np.argsort(d.t_s, kind="stable")
+            ts, good = d.t_s[order], ~spikes[order]
+            raw = raw.copy()
+            bad = order[~good]
+            for a in range(3):
+                raw[bad, a] = np.interp(d.t_s[bad], ts[good], d.raw_nT[order[good], a])
+        d.extra["draw_dt"] = time_derivative(d.t_s, raw)
         d.extra["dref_dt"] = time_derivative(d.t_s, d.f_ref_nT)
         return {}
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from magbench.simulate.effects import Columns, robust_sigma
+from magbench.simulate.effects import SPIKE_SIGMA, Columns, robust_sigma
 
 KNN_NEIGHBOURS = 6
 MAD_SE = 1.166  # standard error of the MAD scale: 1.166 sigma / sqrt(m) for Gaussian data
@@ -47,10 +47,18 @@ def _interval(sigma: float, m: int) -> tuple[float, float, float]:
 
 
 def time_difference_floor(r_in_order: np.ndarray) -> dict:
-    """Floor from second differences in time order, checked against third differences."""
+    """Floor from second differences in time order, checked against third differences; differences that
+    touch a spike (a sample beyond SPIKE_SIGMA robust sigma) are left out, since each spike would otherwise
+    inflate three (four) of them."""
     n = len(r_in_order)
+    spk = np.abs(r_in_order - np.median(r_in_order)) > SPIKE_SIGMA * robust_sigma(r_in_order)
     d2 = np.diff(r_in_order, 2)
     d3 = np.diff(r_in_order, 3)
+    if spk.any() and (~spk).sum() > 10:
+        touch2 = np.convolve(spk, np.ones(3), mode="valid") > 0
+        touch3 = np.convolve(spk, np.ones(4), mode="valid") > 0
+        d2, d3 = d2[~touch2], d3[~touch3]
+        n = int((~spk).sum())
     s2 = robust_sigma(d2) / np.sqrt(D2_VAR)
     s3 = robust_sigma(d3) / np.sqrt(D3_VAR) if len(d3) else s2
     se, lo, hi = _interval(s2, int(INDEPENDENT_SHARE * n))

@@ -33,6 +33,18 @@ def paired_z(base_resid: np.ndarray, resid: np.ndarray) -> float:
     return float(np.mean(diff) / (sd / np.sqrt(len(diff))))
 
 
+def spike_z(n_spikes: int, n: int, sigma: float = 5.0) -> float:
+    """z of a count of samples beyond ``sigma`` robust sigma against Gaussian noise (Poisson tail of
+    n P(|z| > sigma)).  The test for spikes: their evidence is their number, while the paired z of squared
+    residuals cannot exceed about sqrt(number of spikes) however large they are."""
+    from scipy.stats import norm, poisson
+
+    if n_spikes <= 0:
+        return 0.0
+    p = float(poisson.sf(n_spikes - 1, n * 2.0 * norm.sf(sigma)))
+    return float(norm.isf(max(p, 1e-300)))
+
+
 def shrink_pct(rms_base: float, rms_effect: float, floor: float) -> float:
     """The share (%) of the gap between the base RMS and the noise floor that the effect removes."""
     gap = rms_base - floor

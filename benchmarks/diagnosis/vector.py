@@ -22,7 +22,7 @@ import numpy as np
 from magbench.calibrators import make
 from magbench.errors import InputError
 from magbench.simulate.dataset import Dataset
-from magbench.simulate.effects import EFFECTS, Columns, Normalization
+from magbench.simulate.effects import EFFECTS, SPIKE_SIGMA, Columns, Normalization
 from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
 from .floor import vector_floor
@@ -30,7 +30,7 @@ from .localize import folds, localize
 from .model import BASE_FREE, ExtendedModel, Tangent
 from .resimulate import resimulate
 from .scoring import (MIN_SIGNIFICANT_SHRINK_PCT, POWER_MAX_OF_FLOOR, Z_SIGNIFICANT, coverage_pct,
-                      min_detectable_nT, paired_z, remainder, rms, shrink_interval, shrink_pct, testable)
+                      min_detectable_nT, paired_z, remainder, rms, shrink_interval, shrink_pct, spike_z, testable)
 from .verdict import verdict
 
 DEFAULT_FOLDS = 5
@@ -105,6 +105,7 @@ class Diagnosis:
         self.progress.step("base calibration")
         fl = vector_floor(unit, d, r_all, self.rows_in_time_order)
         floor, floor_se = fl["noise_floor_nT"], fl["floor_se_nT"]
+        self.floor_se = floor_se
         n_base = len(BASE_FREE[self.base])
         effects_ok, untested, not_applicable = testable(self.base, d, unit, n_base, k)
         self.effect_info = {cls.name: cls.prepare(d, self.norm, r_all, unit) for cls in effects_ok}
@@ -192,11 +193,20 @@ class Diagnosis:
         current = base_res
         trail = []
         candidates = list(every)
+        n_train = n * (self.k - 1) // self.k
         while candidates and len(selected) < MAX_EFFECTS:
+            if selected:  # a further effect only while what is left stays significantly above the noise
+                left_over = remainder(current, floor, self.floor_se, len(self.model.free_indices(selected)), n_train)
+                if not left_over["remainder_significant"]:  # spikes keep their own (count) test
+                    candidates = [c for c in candidates if EFFECTS[c].robust]
+                    if not candidates:
+                        trail.append({"after": "+".join(selected), "stop": "remainder consistent with the noise "
+                                      f"floor (z {left_over['remainder_z']:.1f})", "candidates": {}})
+                        break
             scored = []
             for name in candidates:
                 res, n_spk = self.heldout(selected + [name])
-                z = paired_z(current, res)
+                z = spike_z(n_spk, n, SPIKE_SIGMA) if EFFECTS[name].robust else paired_z(current, res)
                 step = shrink_pct(rms_base, rms(res), floor) - shrink_pct(rms_base, rms(current), floor)
                 left = 100.0 - shrink_pct(rms_base, rms(current), floor)  # the share of the gap still open
                 ok = z > Z_SIGNIFICANT and (step >= MIN_SIGNIFICANT_SHRINK_PCT or step >= MIN_STEP_OF_REMAINING * left)
