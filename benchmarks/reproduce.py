@@ -33,7 +33,7 @@ PAPER_TEXT_RMS = (411.82, 49.38)  # seed 000, section 3 text
 
 def paper_table2() -> pd.DataFrame:
     """Seed 000's Table 2 as shipped in simulate/data (provenance beside it)."""
-    with resources.files("simulate").joinpath("data/lu2014_table2.csv").open("r", encoding="utf-8") as fh:
+    with resources.files("magbench.simulate").joinpath("data/lu2014_table2.csv").open("r", encoding="utf-8") as fh:
         return pd.read_csv(fh, comment="#")
 
 
