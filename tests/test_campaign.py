@@ -102,3 +102,14 @@ def test_compare_command_writes_tables_figures_and_report(tmp_path):
     # a second campaign into the same directory is refused, the first one kept
     assert main(["compare", "--scenarios", "lu2014", "--methods", "lsq", "--out", str(out), "--quiet"]) == 2
     assert (out / "report.html").read_text() == html
+
+
+def test_lu2014_tables_from_a_campaign(tmp_path):
+    """reproduce's seed 000 tables read the shipped Table 2 through the package and a campaign's runs."""
+    from magbench.benchmarks.campaign import Campaign, MethodSpec, run_campaign
+    from magbench.benchmarks.reproduce import lu2014_tables, paper_table2
+
+    assert len(paper_table2()) == 35
+    run_campaign(Campaign(("lu2014",), (MethodSpec("lsq"),), trials=2, seed=3), tmp_path, progress=False)
+    text = lu2014_tables(tmp_path, tmp_path / "lu.md").read_text()
+    assert "Table 1" in text and "Table 2" in text and "lsq" in text
