@@ -131,12 +131,16 @@ def diagnosis_reports(out: Path, blind_n: int = 70, progress: bool = False) -> P
     t2 = json.loads((folder / "lu2014_table2.json").read_text())
     h = t2["localization"]["heading_harmonics"]
     eff = {e["name"]: e for e in t2["effects"]}
+    geo = t2.get("geometry", {})
     finding = (f"Seed 000's Table 2 (the paper's own calibration of real FGM-2000 data) leaves "
                f"{t2['rms_fit_nT']:.1f} nT RMS: {h['2_per_rev_nT']:.1f} nT at two cycles per revolution, "
                f"{h['1_per_rev_nT']:.1f} nT at one, {h['3_per_rev_nT']:.1f} nT at three and {h['4_per_rev_nT']:.1f} nT at "
                f"four; {h['rms_beyond_nT']:.1f} nT lies beyond four harmonics (the noise floor from second differences "
-               f"is {t2['noise_floor_nT']:.1f} nT). Two cycles per revolution on a level turntable is the signature of "
-               f"unequal x/y scale factors (which the 3-angle model has no parameter for): the `scale` effect removes "
+               f"is {t2['noise_floor_nT']:.1f} nT). Two cycles per revolution is shared by "
+               f"{', '.join(geo.get('harmonic_causes', {}).get('2_per_rev', [])) or 'several causes'} (the series cannot "
+               f"tell apart {'; '.join(geo.get('cannot_tell_apart', [])) or 'any of them'}); "
+               f"the fitted geometry reproduces 'before' to {geo.get('rms_misfit_before_nT', float('nan')):.1f} nT and "
+               f"'after' to {geo.get('rms_misfit_after_nT', float('nan')):.1f} nT RMS. The `scale` effect removes "
                f"{eff['scale']['shrink_pct']:.0f} % of the gap on held-out headings (held-out RMS "
                f"{t2['rms_base_nT']:.1f} -> {eff['scale']['rms_heldout_nT']:.1f} nT), offset and scale together "
                f"{t2['offset_and_scale_together']['shrink_pct']:.0f} % "

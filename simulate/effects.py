@@ -107,6 +107,28 @@ def time_derivative(t_s: np.ndarray, x: np.ndarray) -> np.ndarray:
     return out
 
 
+def second_derivative_without_self(t_s: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """d^2 x / d t^2 at each sample from the slopes of its outer neighbours (i-2, i-1) and (i+1, i+2), in
+    time order: sample i itself is not used, so its noise cannot leak into a design column that is then
+    fitted to its own residual (the nested central difference would carry -x_i / (2 dt^2)).  The first and
+    last two samples take the nearest computed value."""
+    order = np.argsort(t_s, kind="stable")
+    ts = t_s[order] + np.arange(len(t_s)) * 1e-12 * max(float(np.ptp(t_s)), 1.0)
+    xs = np.asarray(x, dtype=float)[order]
+    out = np.zeros_like(xs)
+    if len(ts) >= 5:
+        slope = np.diff(xs, axis=0) / np.diff(ts)[:, None] if xs.ndim == 2 else np.diff(xs) / np.diff(ts)
+        mid = 0.5 * (ts[1:] + ts[:-1])
+        num = slope[3:] - slope[:-3]  # slope (i+1, i+2) minus slope (i-2, i-1), for i = 2 .. n-3
+        den = mid[3:] - mid[:-3]
+        inner = num / (den[:, None] if xs.ndim == 2 else den)
+        out[2:-2] = inner
+        out[:2], out[-2:] = inner[0], inner[-1]
+    res = np.empty_like(out)
+    res[order] = out
+    return res
+
+
 # ---------------------------------------------------------------------------------------------- data
 @dataclass(frozen=True)
 class Column:
@@ -521,7 +543,7 @@ class FieldDriftEffect(Effect):
     name: ClassVar[str] = "field_drift"
     needs: ClassVar[tuple[str, ...]] = ("t",)
     unseen_by_reference: ClassVar[bool] = True
-    DEGREE: ClassVar[int] = 8  # Legendre polynomials of the time in the fitted form
+    DEGREE: ClassVar[int] = 12  # Legendre polynomials of the time in the fitted form
     SCALAR_DEGREE: ClassVar[int] = 3  # a cubic in time on a short turntable series
     fit_params: ClassVar[tuple[str, ...]] = tuple(f"drift_L{j}_nT" for j in range(1, DEGREE + 1))
     RANDOM_AMPLITUDE_NT: ClassVar[tuple[float, float]] = (40.0, 80.0)
@@ -651,7 +673,10 @@ class LagEffect(Effect):
 
     name: ClassVar[str] = "lag"
     needs: ClassVar[tuple[str, ...]] = ("t",)
-    fit_params: ClassVar[tuple[str, ...]] = ("lag_x_s", "lag_y_s", "lag_z_s", "lag_ref_s")
+    fit_params: ClassVar[tuple[str, ...]] = ("lag_x_s", "lag_y_s", "lag_z_s", "lag_ref_s",
+                                             "lag2_x_s2", "lag2_y_s2", "lag2_z_s2")
+    """lag_j and the second-order terms lag_j^2 (fitted freely, so the form stays linear): a shift of a
+    smooth signal is x(t - s) = x - s x' + s^2 x'' / 2 + ..."""
     RANDOM_LAG_S: ClassVar[float] = 0.05
     lag_s: tuple[float, float, float] = (0.05, 0.0, -0.03)
 
@@ -682,16 +707,19 @@ class LagEffect(Effect):
             for a in range(3):
                 raw[bad, a] = np.interp(d.t_s[bad], ts[good], d.raw_nT[order[good], a])
         d.extra["draw_dt"] = time_derivative(d.t_s, raw)
+        d.extra["draw_dt2"] = second_derivative_without_self(d.t_s, raw)
         d.extra["dref_dt"] = time_derivative(d.t_s, d.f_ref_nT)
         return {}
 
     @classmethod
     def fit_columns(cls, u0, d, norm):
         du = d.extra["draw_dt"] if "draw_dt" in d.extra else time_derivative(d.t_s, d.raw_nT)
-        g = np.zeros((len(u0), 3, 4))
+        du2 = d.extra["draw_dt2"] if "draw_dt2" in d.extra else second_derivative_without_self(d.t_s, d.raw_nT)
+        g = np.zeros((len(u0), 3, 7))
         for a in range(3):
             g[:, a, a] = -du[:, a]
-        h = np.zeros((len(u0), 4))
+            g[:, a, 4 + a] = 0.5 * du2[:, a]
+        h = np.zeros((len(u0), 7))
         h[:, 3] = -(d.extra["dref_dt"] if "dref_dt" in d.extra else time_derivative(d.t_s, d.f_ref_nT))
         return g, h
 

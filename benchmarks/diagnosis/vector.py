@@ -29,7 +29,7 @@ from .floor import vector_floor
 from .localize import folds, localize
 from .model import BASE_FREE, ExtendedModel, Tangent
 from .resimulate import resimulate
-from .scoring import (MIN_SIGNIFICANT_SHRINK_PCT, POWER_MAX_OF_FLOOR, Z_SIGNIFICANT, coverage_pct,
+from .scoring import (MIN_SIGNIFICANT_SHRINK_PCT, POWER_MAX_OF_FLOOR, REMAINDER_Z, Z_SIGNIFICANT, coverage_pct,
                       min_detectable_nT, paired_z, remainder, rms, shrink_interval, shrink_pct, spike_z, testable)
 from .verdict import verdict
 
@@ -194,10 +194,12 @@ class Diagnosis:
         trail = []
         candidates = list(every)
         n_train = n * (self.k - 1) // self.k
+        settled = False  # what is left is consistent with the floor: "a share of what is left" means nothing
         while candidates and len(selected) < MAX_EFFECTS:
             if selected:  # a further effect only while what is left stays significantly above the noise
                 left_over = remainder(current, floor, self.floor_se, len(self.model.free_indices(selected)), n_train)
-                if not left_over["remainder_significant"]:  # spikes keep their own (count) test
+                if not left_over["remainder_z"] > REMAINDER_Z:  # spikes keep their own (count) test
+                    settled = True
                     candidates = [c for c in candidates if EFFECTS[c].robust]
                     if not candidates:
                         trail.append({"after": "+".join(selected), "stop": "remainder consistent with the noise "
@@ -209,7 +211,8 @@ class Diagnosis:
                 z = spike_z(n_spk, n, SPIKE_SIGMA) if EFFECTS[name].robust else paired_z(current, res)
                 step = shrink_pct(rms_base, rms(res), floor) - shrink_pct(rms_base, rms(current), floor)
                 left = 100.0 - shrink_pct(rms_base, rms(current), floor)  # the share of the gap still open
-                ok = z > Z_SIGNIFICANT and (step >= MIN_SIGNIFICANT_SHRINK_PCT or step >= MIN_STEP_OF_REMAINING * left)
+                ok = z > Z_SIGNIFICANT and (step >= MIN_SIGNIFICANT_SHRINK_PCT
+                                            or (not settled and step >= MIN_STEP_OF_REMAINING * left))
                 if EFFECTS[name].robust:
                     ok = ok and EFFECTS[name].enough(n_spk, n)
                 scored.append((rms(res), name, z, step, ok, res))
