@@ -191,11 +191,10 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     field_nT = float(np.median(objective.f_ref_nT))
     if not improved:
         rejections.append("the calibration is no better than none (the solver's answer was worse than the start)")
-    rejections += physical_range(x, objective.model, *physical_box)
     r = objective.residuals(x)
     mask = outlier_mask(r, field_nT, limits)
     n_out = int(mask.sum())
-    if n_out:
+    if n_out:  # first: outliers are a cause, an estimate out of range is often their symptom
         threshold = limits.outlier_sigmas * max(robust_sigma(r), 1e-9 * field_nT)
         what = (f"{n_out} of {len(r)} points are outliers (residual beyond {limits.outlier_sigmas:g} robust sigma "
                 f"= {threshold:.3g} nT; worst {np.max(np.abs(r[mask])):.3g} nT)")
@@ -203,6 +202,7 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
             warnings.append(what + ": screened by the robust method")
         else:
             rejections.append(what + ": remove them or use --method ransac")
+    rejections += physical_range(x, objective.model, *physical_box)
     n, p = int((~mask).sum()), len(x)
     info["n_outliers"] = n_out
     if n <= p:
