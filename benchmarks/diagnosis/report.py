@@ -1,18 +1,19 @@
 """The outputs of a diagnosis besides its JSON: the human table and the residual figure."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from magbench.calibrators import make
 from magbench.simulate.dataset import ScalarSeries
-from magbench.simulate.effects import effect_names
 from magbench.simulate.sensor import MODELS
 
 from .scalar import scalar_residual, together_columns
 from .vector import Diagnosis
 
 FIGURE_SIZE_IN = (8, 4.5)
-FIGURE_DPI = 110
+FIGURE_DPI = 200
 
 
 def _table(result: dict, source: str) -> list[str]:
@@ -111,16 +112,26 @@ def _plot_scalar(ax, series: ScalarSeries) -> str:
     return "turntable heading (deg)"
 
 
+def _time_is_an_index(data) -> bool:
+    """True when the file's ``t`` is a sample index rather than seconds: its provenance says so, or it
+    is exactly 0, 1, 2, ..."""
+    note = " ".join(str(v) for k, v in getattr(data, "meta", {}).items() if k.startswith("t_note")).lower()
+    t = np.asarray(data.t_s)
+    return "index" in note or (len(t) > 1 and np.array_equal(t, np.arange(len(t), dtype=float)))
+
+
 def _plot_vector(ax, data, result: dict) -> str:
     d = Diagnosis(data, result["base_model"] if result["base_model"] in MODELS else "nine")
     fit = make("lsq", model=d.base).fit(data)
     r = np.linalg.norm(fit.correct(np.asarray(data.raw_nT)), axis=1) - np.asarray(data.f_ref_nT)
     if data.heading_deg is not None:
         x, label = np.asarray(data.heading_deg), "heading (deg)"
-    elif data.t_s is not None:
+    elif data.t_s is not None and not _time_is_an_index(data):
         x, label = np.asarray(data.t_s), "time (s)"
-    else:
-        x, label = np.arange(len(r)), "sample"
+    else:  # no heading and no clock: where the reading points in the sensor frame
+        b = fit.correct(np.asarray(data.raw_nT))
+        x = np.degrees(np.arccos(np.clip(b[:, 2] / np.linalg.norm(b, axis=1), -1.0, 1.0)))
+        label = "angle of the corrected field from the sensor's z axis (deg)"
     ax.plot(x, r, ".", ms=2, label=f"base model ({result['base_model']})")
     if result.get("selected"):
         d.run()
@@ -129,19 +140,27 @@ def _plot_vector(ax, data, result: dict) -> str:
 
 
 def diagnosis_figure(data, result: dict, path) -> None:
-    """Residual before and after the winning effect, against heading (turntable) or time or sample."""
+    """Residual before and after the selected effects, titled with the file, against a physical axis
+    (turntable heading, time in seconds, or the direction of the reading where the file has neither a
+    heading nor a real clock), with the noise floor as a grey band."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=FIGURE_SIZE_IN)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(111)
+    floor = result.get("noise_floor_nT")
+    if floor is not None and np.isfinite(floor):
+        lo, hi = (result.get("floor_interval_nT") or [floor, floor])[:2]
+        ax.axhspan(-floor, floor, color="0.85", zorder=0,
+                   label=f"noise floor ±{floor:.3g} nT (95 % interval {lo:.3g}..{hi:.3g})")
     label = _plot_scalar(ax, data) if isinstance(data, ScalarSeries) else _plot_vector(ax, data, result)
     ax.axhline(0.0, color="k", lw=0.8)
     ax.set_xlabel(label)
     ax.set_ylabel("total-field residual (nT)")
-    ax.set_title(f"verdict: {result['verdict']}  (noise floor {result['noise_floor_nT']:.2f} nT)")
-    ax.legend(loc="best", fontsize=8)
+    source = Path(str(getattr(data, "meta", {}).get("source_file", "") or "")).name or "data"
+    ax.set_title(f"{source}: verdict {result['verdict']}", fontsize=10)
+    ax.legend(loc="upper right", fontsize=7)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=FIGURE_DPI, metadata={"Software": None})
+    fig.savefig(path, dpi=FIGURE_DPI, metadata={"Software": None} if str(path).lower().endswith(".png") else None)
