@@ -395,6 +395,8 @@ def cmd_demo(args) -> int:
             "evals": [evaluations_label(m, n) for m, n in zip(part.get("evaluation_mode", pd.Series("counted", index=part.index)),
                                                               part.get("n_evaluations", pd.Series(np.nan, index=part.index)))],
             "ms": part.get("runtime_s", np.nan) * 1e3,
+            "accepted": ["-" if not isinstance(a, (bool, np.bool_)) else ("yes" if a else "REJECTED")
+                         for a in part.get("accepted", pd.Series(None, index=part.index, dtype=object))],
         })
         if "scale_err_max" in part and part["scale_err_max"].notna().any():
             table.insert(4, "d_scale", part["scale_err_max"])
@@ -404,7 +406,8 @@ def cmd_demo(args) -> int:
             lines.append(f"  {r['method']}: not run: {r['error']}")
         lines.append("")
     lines.append("d_*: estimate minus truth (angles in arc-seconds); rms: total-field residual against the "
-                 "reference before and after calibration.")
+                 "reference before and after calibration; accepted: whether the calibration passes its acceptance "
+                 "checks (magbench calibrate names the causes of a rejection).")
     _emit(args, {}, "\n".join(lines))
     return EXIT_OK
 
