@@ -123,25 +123,23 @@ def load_dataset(args, require_vector: bool = True):
     return data
 
 
-def _seed(text: str) -> int:
-    """argparse type of every --seed: a non-negative integer (numpy's SeedSequence and nlopt.srand need one)."""
+def _integer(text: str, minimum: int, why: str) -> int:
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{value} is negative; seeds are non-negative integers")
+    if value < minimum:
+        raise argparse.ArgumentTypeError(f"{value} {why}")
     return value
+
+
+def _seed(text: str) -> int:
+    """argparse type of every --seed: a non-negative integer (numpy's SeedSequence and nlopt.srand need one)."""
+    return _integer(text, 0, "is negative; seeds are non-negative integers")
 
 
 def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} must be at least 1")
-    return value
+    return _integer(text, 1, "must be at least 1")
 
 
 def _printable(text: str) -> str:

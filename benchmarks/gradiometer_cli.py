@@ -18,16 +18,6 @@ def _cmd_gradiometer(args) -> int:
     return 0
 
 
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{value} is negative; seeds are non-negative integers")
-    return value
-
-
 def add_gradiometer_command(subparsers) -> argparse.ArgumentParser:
     """Add ``gradiometer`` (seed 001's experiment) to an argparse subparsers object; ``func(args)`` prints
     the table (or one JSON object with ``--json``) and returns 0; bad values raise ``InputError``."""
@@ -36,6 +26,8 @@ def add_gradiometer_command(subparsers) -> argparse.ArgumentParser:
         description="Simulate seed 001's gradiometer (two tri-axial fluxgates on one rigid body, 24 parameters) "
                     "in a field fluctuating in time, calibrate it by single-sensor ellipsoid fits and by the "
                     "paper's three 6-gene GAs, and report the per-axis gradient residual (paper: 1.85 nT).")
+    from magbench.benchmarks.cli import _seed  # the one seed type of the command line
+
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--points", type=int, default=paper.GRADIOMETER_POINTS,
                    help=f"number of attitudes in the record (default {paper.GRADIOMETER_POINTS})")
