@@ -17,7 +17,7 @@ from typing import ClassVar
 import numpy as np
 
 from magbench.errors import InputError
-from magbench.simulate.dataset import Dataset
+from magbench.simulate.dataset import Dataset, readonly_copy
 from magbench.simulate.sensor import FREE, MODELS, PARAM_NAMES, ErrorParams
 
 from .acceptance import DEFAULT_LIMITS, AcceptanceLimits, assess, reference_problems
@@ -160,9 +160,9 @@ class Problem:
                  rng: np.random.Generator, seed: int | None, start=None):
         self._evaluator = evaluator
         self.model = model
-        self.x0 = _readonly(x0)
-        self.lower = _readonly(lower)
-        self.upper = _readonly(upper)
+        self.x0 = readonly_copy(x0)
+        self.lower = readonly_copy(lower)
+        self.upper = readonly_copy(upper)
         self.rng = rng
         self.seed = seed
         self._start = start
@@ -237,14 +237,8 @@ class ReadingsProblem(Problem):
 
     def __init__(self, evaluator, model, x0, lower, upper, rng, seed, raw_nT, f_ref_nT, start=None):
         super().__init__(evaluator, model, x0, lower, upper, rng, seed, start)
-        self.raw_nT = _readonly(raw_nT)
-        self.f_ref_nT = _readonly(f_ref_nT)
-
-
-def _readonly(a) -> np.ndarray:
-    arr = np.array(a, dtype=float, copy=True)
-    arr.setflags(write=False)
-    return arr
+        self.raw_nT = readonly_copy(raw_nT)
+        self.f_ref_nT = readonly_copy(f_ref_nT)
 
 
 @dataclass(frozen=True)

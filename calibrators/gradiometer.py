@@ -37,6 +37,7 @@ from typing import ClassVar
 import numpy as np
 
 from magbench.errors import InputError
+from magbench.simulate.dataset import readonly_copy
 from magbench.simulate.gradiometer import GradiometerParams, check_int, check_nonneg
 from magbench.simulate.sensor import ul_factor
 
@@ -87,12 +88,6 @@ number of attitudes in the fitness and the neighbourhood."""
 # The calibration and the simple ones
 # --------------------------------------------------------------------------------------------------
 
-def _readonly(a) -> np.ndarray:
-    a = np.array(a, dtype=float, copy=True)
-    a.setflags(write=False)
-    return a
-
-
 @dataclass(frozen=True)
 class GradientCalibration:
     """M1, M2, B1h, B2h of eq. 10: ``B_ir = M_i (B_im - B_ih)``."""
@@ -106,7 +101,7 @@ class GradientCalibration:
 
     def __post_init__(self):
         for name in ("m1", "m2", "h1_nT", "h2_nT"):
-            object.__setattr__(self, name, _readonly(getattr(self, name)))
+            object.__setattr__(self, name, readonly_copy(getattr(self, name)))
 
     def corrected(self, raw1_nT, raw2_nT) -> tuple[np.ndarray, np.ndarray]:
         """Eq. 10: both sensors' readings (n, 3) in the common frame."""

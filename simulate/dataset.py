@@ -23,7 +23,9 @@ FIELD_COLUMNS = ("bx", "by", "bz", "f_ref", "f_meas", "f_meas_before", "f_meas_a
 from magbench.errors import InputError  # noqa: E402  (re-exported: magbench.simulate.InputError)
 
 
-def _frozen(a, dtype=float, ndim=None, name="array"):
+def readonly_copy(a, dtype=float, ndim=None, name="array"):
+    """A read-only copy of ``a`` (None stays None); ``ndim`` is checked when given.  The one way the project
+    freezes an array it keeps (datasets, results, the views a calibrator gets)."""
     if a is None:
         return None
     arr = np.array(a, dtype=dtype, copy=True)
@@ -47,9 +49,9 @@ class Truth:
     raw_without_effects_nT: np.ndarray | None = None  # the same readings (same noise) with no effect on
 
     def __post_init__(self):
-        object.__setattr__(self, "attitude_quat", _frozen(self.attitude_quat, ndim=2, name="attitude_quat"))
+        object.__setattr__(self, "attitude_quat", readonly_copy(self.attitude_quat, ndim=2, name="attitude_quat"))
         object.__setattr__(self, "raw_without_effects_nT",
-                           _frozen(self.raw_without_effects_nT, ndim=2, name="raw_without_effects_nT"))
+                           readonly_copy(self.raw_without_effects_nT, ndim=2, name="raw_without_effects_nT"))
 
     def as_dict(self) -> dict:
         s = self.sensor
@@ -86,7 +88,7 @@ class Dataset:
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        raw = _frozen(self.raw_nT, ndim=2, name="raw_nT")
+        raw = readonly_copy(self.raw_nT, ndim=2, name="raw_nT")
         if raw.shape[1] != 3:
             raise InputError(f"raw_nT must have 3 columns (bx, by, bz), got {raw.shape[1]}")
         object.__setattr__(self, "raw_nT", raw)
@@ -98,7 +100,7 @@ class Dataset:
             arr = np.asarray(value, dtype=float)
             if arr.ndim == 0:
                 arr = np.full(n, float(arr))
-            arr = _frozen(arr, ndim=1, name=name)
+            arr = readonly_copy(arr, ndim=1, name=name)
             if arr.shape[0] != n:
                 raise InputError(f"{name} has {arr.shape[0]} rows but raw_nT has {n}")
             object.__setattr__(self, name, arr)

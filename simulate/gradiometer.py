@@ -43,6 +43,7 @@ from magbench import paper
 from magbench.errors import InputError
 
 from .attitude import full_sphere, tumble
+from .dataset import readonly_copy
 from .field import ConstantField, VaryingField
 
 DEFAULT_FIELD = ConstantField.from_angles(50_000.0, 50.0, -5.0)
@@ -201,12 +202,6 @@ class GradiometerParams:
                 "alignment_deg": list(self.alignment_deg), "m1": self.m1.tolist(), "m2": self.m2.tolist()}
 
 
-def _readonly(a) -> np.ndarray:
-    a = np.array(a, dtype=float, copy=True)
-    a.setflags(write=False)
-    return a
-
-
 @dataclass(frozen=True)
 class GradiometerDataset:
     """A simulated record: both sensors' readings at the same times (read-only arrays), with the ground
@@ -225,7 +220,7 @@ class GradiometerDataset:
 
     def __post_init__(self):
         for name in ("t_s", "raw1_nT", "raw2_nT", "field_body_nT"):
-            object.__setattr__(self, name, _readonly(getattr(self, name)))
+            object.__setattr__(self, name, readonly_copy(getattr(self, name)))
 
     def __len__(self) -> int:
         return len(self.t_s)
