@@ -495,7 +495,8 @@ def _compare_outputs(args, runs, out: Path, progress: bool) -> int:
     """After the runs: the comparison, figures and report, then the summary (or one JSON object)."""
     attrs = runs.attrs
     figures = not args.no_figures and (not attrs.get("already_complete") or not (out / "report.html").is_file())
-    if not attrs.get("already_complete"):
+    comparison = len(runs) and runs["configuration"].nunique() >= 2  # a comparison needs two methods
+    if comparison and not attrs.get("already_complete"):
         from magbench.benchmarks.comparison import write_comparison
 
         write_comparison(out, figures=not args.no_figures, formats=tuple(args.format), dpi=args.dpi)
@@ -509,7 +510,8 @@ def _compare_outputs(args, runs, out: Path, progress: bool) -> int:
     failed = int((runs["error"] != "").sum())
     obj = {"out": str(out), "n_runs": len(runs), "n_failed": failed, "complete": True,
            "n_new": int(attrs.get("n_new", len(runs))), "n_resumed": int(attrs.get("n_resumed", 0)),
-           "summary": str(out / "summary.md"), "comparison": str(out / "comparison.md"),
+           "summary": str(out / "summary.md"),
+           "comparison": str(out / "comparison.md") if (out / "comparison.md").is_file() else None,
            "report": str(out / "report.html") if (out / "report.html").is_file() and not args.no_figures else None}
     if attrs.get("already_complete"):
         note = (f"\ncampaign in {out} was already complete ({len(runs)} runs, {failed} failed): nothing new to run"
