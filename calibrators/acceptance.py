@@ -78,12 +78,14 @@ def robust_sigma(residuals_nT: np.ndarray) -> float:
     return float(MAD_TO_SIGMA * np.median(np.abs(r - np.median(r))))
 
 
-def outlier_mask(residuals_nT: np.ndarray, field_nT: float, limits: AcceptanceLimits = DEFAULT_LIMITS) -> np.ndarray:
+def outlier_mask(residuals_nT: np.ndarray, field_nT: float,
+                 limits: AcceptanceLimits = DEFAULT_LIMITS) -> tuple[np.ndarray, float]:
     """Points whose residual lies more than ``outlier_sigmas`` robust standard deviations from the median
-    (the robust sigma floored at 1e-9 of the field, so that exact data have no outliers)."""
+    (the robust sigma floored at 1e-9 of the field, so that exact data have no outliers), and that
+    threshold in nT."""
     r = np.asarray(residuals_nT, dtype=float)
-    sigma = max(robust_sigma(r), 1e-9 * field_nT)
-    return np.abs(r - np.median(r)) > limits.outlier_sigmas * sigma
+    threshold = limits.outlier_sigmas * max(robust_sigma(r), 1e-9 * field_nT)
+    return np.abs(r - np.median(r)) > threshold, threshold
 
 
 def identifiability(objective: ScalarObjective, x: np.ndarray, noise_nT: float, field_nT: float,
@@ -113,17 +115,19 @@ def physical_range(x: np.ndarray, model: str, physical_lower: np.ndarray, physic
 
 
 def reference_fit(objective: ScalarObjective, x: np.ndarray, physical_box: tuple[np.ndarray, np.ndarray],
-                  max_iter: int = REFERENCE_MAX_ITER) -> tuple[np.ndarray, float]:
+                  rms_start: float | None = None, max_iter: int = REFERENCE_MAX_ITER) -> tuple[np.ndarray, float]:
     """The judge's own optimum: Levenberg-Marquardt inside the physical box on the normal equations
     (analytic Jacobian, bounded memory), polished from the calibrator's answer, and its residual RMS.
     Outside the counter: it measures the answer, it is not part of the contest.  From an answer already
-    at the optimum it stops after one or two passes over the data."""
+    at the optimum it stops after one or two passes over the data.  ``rms_start``: the residual RMS at
+    ``x`` on this objective when the caller has it (else it is computed)."""
     lo, hi = physical_box
     start = np.clip(x, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
     n = objective.raw_nT.shape[0]
     with np.errstate(all="ignore"):
         x_ref, cost, _ = lm_normal(objective.normal_equations, start, lo, hi, tol=1e-10, max_iter=max_iter)
-    rms_start = float(np.sqrt(np.mean(objective.residuals(x) ** 2)))
+    if rms_start is None:
+        rms_start = float(np.sqrt(np.mean(objective.residuals(x) ** 2)))
     rms_ref = float(np.sqrt(cost / n))
     return (x_ref, rms_ref) if rms_ref <= rms_start else (np.asarray(x, dtype=float), rms_start)
 
@@ -138,12 +142,13 @@ def least_covered_direction(raw_nT: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, field_nT: float,
-                   limits: AcceptanceLimits = DEFAULT_LIMITS) -> list[str]:
+                   limits: AcceptanceLimits = DEFAULT_LIMITS, base_ss: float | None = None) -> list[str]:
     """Profile-likelihood check of the offset along the least-covered direction, where near-planar data
     admit the 'far-centre' family of solutions that a local (Cramér-Rao) bound does not see: the offset
     is moved by the tolerance along that direction (both ways), every other parameter refitted, and the
     increase of the sum of squares is compared with ``profile_chi2`` noise variances (a likelihood-ratio
-    test).  A rejection when the data hardly tell the two apart."""
+    test).  A rejection when the data hardly tell the two apart.  ``base_ss``: the sum of squares at ``x``
+    when the caller has it (else it is computed)."""
     names = PARAM_NAMES[objective.model]
     if "ox_nT" not in names:
         return []
@@ -155,7 +160,7 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
     transform = np.zeros((p, p - 1))
     transform[:io, :io] = np.eye(io)
     transform[io:io + 3, io:io + 2] = basis[:, 1:3]
-    base = float(np.sum(objective.residuals(x) ** 2))
+    base = float(np.sum(objective.residuals(x) ** 2)) if base_ss is None else base_ss
     increases = []
     for sign in (1.0, -1.0):
         fixed = np.array(x, dtype=float)
@@ -192,10 +197,9 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     if not improved:
         rejections.append("the calibration is no better than none (the solver's answer was worse than the start)")
     r = objective.residuals(x)
-    mask = outlier_mask(r, field_nT, limits)
+    mask, threshold = outlier_mask(r, field_nT, limits)
     n_out = int(mask.sum())
     if n_out:  # first: outliers are a cause, an estimate out of range is often their symptom
-        threshold = limits.outlier_sigmas * max(robust_sigma(r), 1e-9 * field_nT)
         what = (f"{n_out} of {len(r)} points are outliers (residual beyond {limits.outlier_sigmas:g} robust sigma "
                 f"= {threshold:.3g} nT; worst {np.max(np.abs(r[mask])):.3g} nT)")
         if robust:
@@ -209,8 +213,8 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
         return rejections + [f"only {n} points are left after the outlier screening for {p} parameters"], warnings
     inliers = objective if not n_out else ScalarObjective(objective.raw_nT[~mask], objective.f_ref_nT[~mask],
                                                           objective.model)
-    x_ref, rms_ref = reference_fit(inliers, x, physical_box)
     rms_x = float(np.sqrt(np.mean(r[~mask] ** 2)))
+    x_ref, rms_ref = reference_fit(inliers, x, physical_box, rms_start=rms_x)
     floor = limits.fitness_floor_fraction * field_nT
     if rms_x > limits.fitness_ratio * rms_ref + floor:
         why = ("a closed-form fit does not minimize the total-field error (it assumes one constant field "
@@ -221,7 +225,7 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     noise = rms_ref * np.sqrt(n / (n - p))
     info["noise_nT"], info["inliers"] = float(noise), inliers
     rejections += identifiability(inliers, x_ref, noise, field_nT, limits)
-    rejections += profile_offset(inliers, x_ref, noise, field_nT, limits)
+    rejections += profile_offset(inliers, x_ref, noise, field_nT, limits, base_ss=n * rms_ref ** 2)
     return rejections, warnings
 
 

@@ -446,11 +446,7 @@ class Calibrator:
         lower, upper = search_bounds(model, dataset.f_ref_nT, **self.search_box())
         x0 = identity_vector(model)
         rng = np.random.default_rng(self.seed)
-        start = None
-        if model == "nine":
-            start = partial(_ellipsoid_start, dataset.raw_nT, dataset.f_ref_nT)
-        elif model != "angles":
-            start = partial(_algebraic_start, dataset.raw_nT, dataset.f_ref_nT, model)
+        start = None if model == "angles" else partial(_algebraic_start, dataset.raw_nT, dataset.f_ref_nT, model)
         if self.closed_form:
             problem = ReadingsProblem(evaluator, model, x0, lower, upper, rng, self.seed, dataset.raw_nT,
                                       dataset.f_ref_nT, start)
@@ -595,17 +591,11 @@ def _solver_point(x, p: int) -> tuple[np.ndarray, str]:
 
 
 def _algebraic_start(raw_nT: np.ndarray, f_ref_nT: np.ndarray, model: str) -> np.ndarray | None:
-    """The closed-form start of the ``offset`` (sphere) and ``diag`` (axis-aligned ellipsoid) models."""
+    """The closed-form start of a model: the ellipsoid (``nine``), the axis-aligned ellipsoid (``diag``),
+    the sphere (``offset``), or None where the readings fit no such shape."""
     from .inputs import algebraic_vector
 
     return algebraic_vector(raw_nT, f_ref_nT, model)
 
 
-def _ellipsoid_start(raw_nT: np.ndarray, f_ref_nT: np.ndarray) -> np.ndarray | None:
-    """The closed-form ellipsoid fit as a ``nine`` vector, or None where the readings fit no ellipsoid."""
-    from .ellipsoid import ellipsoid_params
 
-    try:
-        return ellipsoid_params(raw_nT, f_ref_nT).to_vector("nine")
-    except (InputError, np.linalg.LinAlgError):
-        return None
