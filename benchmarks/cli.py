@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from magbench.errors import InputError
+from magbench.simulate.dataset import writable_path
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_REJECTED = 0, 1, 2, 3
 EXIT_STATUS_HELP = """exit status:
@@ -225,12 +226,7 @@ def cmd_simulate(args) -> int:
     if args.truth and Path(args.truth).resolve() == out.resolve():
         raise InputError(f"--out and --truth name the same file ({out}): the truth would overwrite the data")
     for path in filter(None, [out, Path(args.truth) if args.truth else None]):
-        if path.exists() and not args.force:
-            raise InputError(f"{path} exists; refusing to overwrite it (use --force)")
-        if not path.parent.exists():
-            raise InputError(f"directory {path.parent} does not exist")
-        if path.is_dir():
-            raise InputError(f"{path} is a directory, not a file")
+        writable_path(path, args.force)
     data = scenario.build(args.seed)
     data.to_csv(out)
     if args.truth:
@@ -269,13 +265,7 @@ def _save_target(args):
     path = export_path(args.save, args.export or "json")
     if Path(args.file).exists() and path.exists() and path.resolve() == Path(args.file).resolve():
         raise InputError(f"--save {path} is the input file: give another name")
-    if path.is_dir():
-        raise InputError(f"{path} is a directory, not a file")
-    if not path.parent.exists():
-        raise InputError(f"directory {path.parent} does not exist")
-    if path.exists() and not args.force:
-        raise InputError(f"{path} exists; refusing to overwrite it (use --force)")
-    return path
+    return writable_path(path, args.force)
 
 
 def cmd_calibrate(args) -> int:

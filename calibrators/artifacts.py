@@ -398,13 +398,9 @@ def export_text(cal: Calibration, fmt: str, path: Path) -> str | None:
 def export(cal: Calibration, path, fmt: str = "json", force: bool = False) -> Path:
     """Write ``cal`` to PATH (extension added when it has none) in ``fmt``; refuses to overwrite an
     existing file unless ``force``.  Returns the path written."""
-    path = export_path(path, fmt)
-    if path.is_dir():
-        raise InputError(f"{path} is a directory, not a file")
-    if not path.parent.exists():
-        raise InputError(f"directory {path.parent} does not exist")
-    if path.exists() and not force:
-        raise InputError(f"{path} exists; refusing to overwrite it (use --force)")
+    from magbench.simulate.dataset import writable_path
+
+    path = writable_path(export_path(path, fmt), force)
     text = export_text(cal, fmt, path)
     if text is None:
         from scipy.io import savemat
@@ -428,19 +424,12 @@ def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = Fa
     two lines added after them (``# calibration:`` and ``# cal_units:``).  Refuses (``InputError``) an
     ``out`` that is ``src`` or exists (unless ``force``), a file that already has those columns, and
     readings whose magnitude does not fit the calibration's reference (wrong ``units``)."""
-    from magbench.simulate.dataset import UNIT_FACTORS_NT, _file_head, _header, read_csv
+    from magbench.simulate.dataset import UNIT_FACTORS_NT, _file_head, _header, read_csv, writable_path
 
     src, out = Path(src), Path(out)
-    if out.exists() and src.exists() and (out.resolve() == src.resolve() or out.samefile(src)):
+    if out.resolve() == src.resolve() or (out.exists() and src.exists() and out.samefile(src)):
         raise InputError(f"--out {out} is the input file: give another name (the input is never changed)")
-    if out.resolve() == src.resolve():
-        raise InputError(f"--out {out} is the input file: give another name (the input is never changed)")
-    if out.is_dir():
-        raise InputError(f"{out} is a directory, not a file")
-    if not out.parent.exists():
-        raise InputError(f"directory {out.parent} does not exist")
-    if out.exists() and not force:
-        raise InputError(f"{out} exists; refusing to overwrite it (use --force)")
+    writable_path(out, force)
     field = cal.field_nT if math.isfinite(cal.field_nT) and cal.field_nT > 0 else None
     data = read_csv(src, units=units, require_vector=True, expected_field_nT=field)
     _, skipped, header_line = _file_head(src)

@@ -184,6 +184,20 @@ ENCODINGS = ("utf-8-sig",)
 """UTF-8, with or without a byte-order mark (CONTRACT section 2)."""
 
 
+def writable_path(path, force: bool = False) -> Path:
+    """``path`` as a file a command may write: refused (``InputError``) when it is a directory, when its
+    directory does not exist, or when it exists and ``force`` is not given.  The one check every command
+    makes before writing an output."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path} is a directory, not a file")
+    if not path.parent.exists():
+        raise InputError(f"directory {path.parent} does not exist")
+    if path.exists() and not force:
+        raise InputError(f"{path} exists; refusing to overwrite it (use --force)")
+    return path
+
+
 def _file_head(path: Path) -> tuple[dict, int, str]:
     """The metadata of the ``#`` lines before the header, the number of lines before the header, and the
     header line; refuses what is not a readable UTF-8 text file."""
