@@ -60,7 +60,7 @@ def normalize(raw_nT: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     mu = raw.mean(axis=0)
     s = float(np.mean(np.linalg.norm(raw - mu, axis=1)))
     if not s > 0:
-        raise InputError("all readings are identical: no ellipsoid can be fitted")
+        raise InputError("all readings are identical: no ellipsoid or sphere can be fitted to them")
     return (raw - mu) / s, mu, s
 
 

@@ -21,6 +21,8 @@ import numpy as np
 from magbench.errors import InputError
 from magbench.simulate.dataset import UNIT_FACTORS_NT, Dataset
 
+from .ellipsoid import normalize
+
 FIELD_AUTO_NOTE = ("field magnitude estimated from the readings (--field auto, as magcal's expmfs): the overall "
                    "gain (absolute scale of the corrected field) is relative to this estimate, not to a reference; "
                    "angles, scale ratios and offsets are determined as with a reference")
@@ -99,20 +101,12 @@ def _from_frame(frame, factor: float) -> Dataset:
 
 
 # ------------------------------------------------------------------------------- algebraic fits
-def _normalized(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    mu = raw.mean(axis=0)
-    s = float(np.mean(np.linalg.norm(raw - mu, axis=1)))
-    if not s > 0:
-        raise InputError("all readings are identical: the field magnitude cannot be estimated")
-    return (raw - mu) / s, mu, s
-
-
 def sphere_fit(raw_nT: np.ndarray) -> tuple[np.ndarray, float]:
     """Centre and radius of the least-squares sphere ``|r - c|² = R²`` (linear in c and R² - |c|²)."""
     raw = np.asarray(raw_nT, dtype=float)
     if raw.shape[0] < 4:
         raise InputError(f"a sphere fit needs at least 4 points, got {raw.shape[0]}")
-    x, mu, s = _normalized(raw)
+    x, mu, s = normalize(raw)
     design = np.column_stack([2 * x, np.ones(len(x))])
     sol, *_ = np.linalg.lstsq(design, np.sum(x * x, axis=1), rcond=None)
     c, k = sol[:3], sol[3]
@@ -128,7 +122,7 @@ def axis_ellipsoid_fit(raw_nT: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     raw = np.asarray(raw_nT, dtype=float)
     if raw.shape[0] < 7:
         raise InputError(f"an axis-aligned ellipsoid fit needs at least 7 points, got {raw.shape[0]}")
-    x, mu, s = _normalized(raw)
+    x, mu, s = normalize(raw)
     design = np.column_stack([x * x, x])
     sol, *_ = np.linalg.lstsq(design, np.ones(len(x)), rcond=None)
     quad, lin = sol[:3], sol[3:]
