@@ -21,11 +21,16 @@ def _iqr(v: pd.Series) -> float:
     return float(v.quantile(0.75) - v.quantile(0.25)) if len(v) else np.nan
 
 
+def successful(part: pd.DataFrame) -> pd.DataFrame:
+    """The runs without an error whose calibrator reported success: what the medians are taken over."""
+    return part[(part["error"] == "") & part.get("success", pd.Series(True, index=part.index)).fillna(False).astype(bool)]
+
+
 def summarize(runs: pd.DataFrame) -> pd.DataFrame:
     """One row per (scenario, configuration), in the order they appear in ``runs``."""
     out = []
     for (scenario, conf), part in runs.groupby(["scenario", "configuration"], sort=False):
-        ok = part[(part["error"] == "") & part.get("success", pd.Series(True, index=part.index)).fillna(False).astype(bool)]
+        ok = successful(part)
         modes = part["evaluation_mode"].dropna() if "evaluation_mode" in part else pd.Series(dtype=object)
         row = {"scenario": scenario, "configuration": conf, "model": part["model"].iloc[0], "n_runs": len(part),
                "evaluation_mode": modes.iloc[0] if len(modes) else "counted",
@@ -89,7 +94,7 @@ def add_intervals(summary: pd.DataFrame, runs: pd.DataFrame) -> pd.DataFrame:
     summary = summary.copy()
     for i, row in summary.iterrows():
         part = runs[(runs["scenario"] == row["scenario"]) & (runs["configuration"] == row["configuration"])]
-        ok = part[(part["error"] == "") & part.get("success", pd.Series(True, index=part.index)).fillna(False).astype(bool)]
+        ok = successful(part)
         summary.loc[i, "n_ok"] = len(ok)
         for a in ANGLES:
             if f"efficiency_{a}" in summary and np.isfinite(row.get(f"efficiency_{a}", np.nan)):
