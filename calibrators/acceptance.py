@@ -23,13 +23,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from magbench.simulate.effects import robust_sigma
 from magbench.simulate.sensor import PARAM_NAMES
 
 from .fisher import crb_std
 from .objective import ScalarObjective, lm_normal
 
-MAD_TO_SIGMA = 1.4826
-"""Median absolute deviation to standard deviation for Gaussian noise."""
 PROFILE_ATOL = 0.02
 """The profile refit stops once an iteration lowers the sum of squares by less than this many noise
 variances (the test compares the increase with 9 of them)."""
@@ -70,12 +69,6 @@ class AcceptanceLimits:
 
 
 DEFAULT_LIMITS = AcceptanceLimits()
-
-
-def robust_sigma(residuals_nT: np.ndarray) -> float:
-    """MAD-based standard deviation of the residuals (insensitive to a few large errors)."""
-    r = np.asarray(residuals_nT, dtype=float)
-    return float(MAD_TO_SIGMA * np.median(np.abs(r - np.median(r))))
 
 
 def outlier_mask(residuals_nT: np.ndarray, field_nT: float,
