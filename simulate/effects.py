@@ -93,6 +93,18 @@ def first_order_lag(t_s: np.ndarray, x: np.ndarray, tau_s: float) -> np.ndarray:
     return res
 
 
+def _lstsq_sse(x: np.ndarray, y: np.ndarray) -> float:
+    """Residual sum of squares of the least-squares fit of y on the columns of x (column-scaled normal
+    equations above 100,000 rows, a QR-free solve that keeps memory at the size of x)."""
+    if len(x) > 100_000:
+        sc = np.sqrt(np.clip(np.einsum("nk,nk->k", x, x), 1e-300, None))
+        xs = x / sc
+        coef = np.linalg.lstsq(xs.T @ xs, xs.T @ y, rcond=1e-12)[0] / sc
+    else:
+        coef = np.linalg.lstsq(x, y, rcond=None)[0]
+    return float(np.sum((y - x @ coef) ** 2))
+
+
 def time_derivative(t_s: np.ndarray, x: np.ndarray) -> np.ndarray:
     """d x / d t along time order (central differences; x may be (n,) or (n, k))."""
     order = np.argsort(t_s, kind="stable")
@@ -107,26 +119,32 @@ def time_derivative(t_s: np.ndarray, x: np.ndarray) -> np.ndarray:
     return out
 
 
-def second_derivative_without_self(t_s: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """d^2 x / d t^2 at each sample from the slopes of its outer neighbours (i-2, i-1) and (i+1, i+2), in
-    time order: sample i itself is not used, so its noise cannot leak into a design column that is then
-    fitted to its own residual (the nested central difference would carry -x_i / (2 dt^2)).  The first and
-    last two samples take the nearest computed value."""
-    order = np.argsort(t_s, kind="stable")
-    ts = t_s[order] + np.arange(len(t_s)) * 1e-12 * max(float(np.ptp(t_s)), 1.0)
-    xs = np.asarray(x, dtype=float)[order]
-    out = np.zeros_like(xs)
-    if len(ts) >= 5:
-        slope = np.diff(xs, axis=0) / np.diff(ts)[:, None] if xs.ndim == 2 else np.diff(xs) / np.diff(ts)
-        mid = 0.5 * (ts[1:] + ts[:-1])
-        num = slope[3:] - slope[:-3]  # slope (i+1, i+2) minus slope (i-2, i-1), for i = 2 .. n-3
-        den = mid[3:] - mid[:-3]
-        inner = num / (den[:, None] if xs.ndim == 2 else den)
-        out[2:-2] = inner
-        out[:2], out[-2:] = inner[0], inner[-1]
-    res = np.empty_like(out)
-    res[order] = out
-    return res
+def local_derivatives(t_s: np.ndarray, x: np.ndarray, half_window: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """(d x / d t, d^2 x / d t^2) at each sample from a least-squares quadratic in time through its
+    2 * half_window nearest neighbours in time order (a shifted window at the ends), sample i itself left
+    out so that its noise cannot leak into a design column fitted to its own residual.  On irregular
+    sampling this is what keeps the derivative usable: a central difference across two samples a
+    millisecond apart divides their noise by that millisecond.  x may be (n,) or (n, k)."""
+    xs_in = np.asarray(x, dtype=float)
+    flat = xs_in.ndim == 1
+    xv = xs_in[:, None] if flat else xs_in
+    n = len(t_s)
+    w = 2 * half_window
+    d1, d2 = np.zeros_like(xv), np.zeros_like(xv)
+    if n > w and np.ptp(t_s) > 0:
+        order = np.argsort(t_s, kind="stable")
+        ts, xo = t_s[order].astype(float), xv[order]
+        start = np.clip(np.arange(n) - half_window, 0, n - 1 - w)
+        idx = start[:, None] + np.arange(w + 1)[None, :]
+        idx = idx[idx != np.arange(n)[:, None]].reshape(n, w)  # every window holds i once: drop it
+        scale = float(np.median(np.diff(ts))) or float(np.ptp(ts)) / n
+        dt = (ts[idx] - ts[:, None]) / scale
+        basis = np.stack([np.ones_like(dt), dt, 0.5 * dt**2], axis=2)  # (n, w, 3)
+        a = np.einsum("nwi,nwj->nij", basis, basis) + 1e-9 * np.eye(3)
+        b = np.einsum("nwi,nwk->nik", basis, xo[idx])
+        coef = np.linalg.solve(a, b)  # (n, 3, k)
+        d1[order], d2[order] = coef[:, 1] / scale, coef[:, 2] / scale**2
+    return (d1[:, 0], d2[:, 0]) if flat else (d1, d2)
 
 
 # ---------------------------------------------------------------------------------------------- data
@@ -321,9 +339,10 @@ class Effect:
         return np.zeros(len(cls.fit_params))
 
     @classmethod
-    def prepare(cls, d: Columns, norm: Normalization, r_base: np.ndarray, unit: np.ndarray) -> dict:
+    def prepare(cls, d: Columns, norm: Normalization, r_base: np.ndarray, unit: np.ndarray,
+                spikes: np.ndarray | None = None) -> dict:
         """Derived inputs computed once on the whole record (stored in ``d.extra``) and what was chosen
-        there (returned, e.g. a fitted time constant)."""
+        there (returned, e.g. a fitted time constant); ``spikes``: samples known to be spikes, to be left out."""
         return {}
 
     @classmethod
@@ -454,8 +473,9 @@ class TemperatureEffect(Effect):
     optional: ClassVar[tuple[str, ...]] = ("t",)
     fit_params: ClassVar[tuple[str, ...]] = ("oTx_nT_per_C", "oTy_nT_per_C", "oTz_nT_per_C",
                                              "kTx_ppm_per_C", "kTy_ppm_per_C", "kTz_ppm_per_C")
-    LAG_GRID_OF_SPAN: ClassVar[tuple[float, ...]] = (0.0, 0.01, 0.03, 0.1, 0.3)
+    LAG_GRID_OF_SPAN: ClassVar[tuple[float, ...]] = (0.0, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
     """Thermal time constants tried, as shares of the record's time span (the best on the whole record)."""
+    LAG_REFINE_ROWS: ClassVar[int] = 200_000
     RAMP_RATE: ClassVar[float] = 3.0  # warm-up time constant: a third of the record
     RIPPLE_C: ClassVar[float] = 1.5
     RIPPLE_CYCLES: ClassVar[float] = 2.3
@@ -496,32 +516,47 @@ class TemperatureEffect(Effect):
         return g
 
     @classmethod
-    def prepare(cls, d, norm, r_base, unit):
-        """The thermal time constant: the one of LAG_GRID_OF_SPAN whose temperature columns (projected on
-        the field direction) explain most of the base residual on the whole record."""
-        taus = [0.0]
-        if d.t_s is not None and np.ptp(d.t_s) > 0:
-            taus = [f * float(np.ptp(d.t_s)) for f in cls.LAG_GRID_OF_SPAN]
-        u0 = unit * norm.f0_nT
+    def prepare(cls, d, norm, r_base, unit, spikes=None):
+        """The thermal time constant that lets the temperature columns (projected on the field direction,
+        beside the first-order freedom of the base correction) explain most of the base residual on the whole
+        record, spikes left out: the best of LAG_GRID_OF_SPAN, refined between its neighbours by a bounded
+        search on log(tau) (records up to LAG_REFINE_ROWS rows; a grid point alone leaves a remainder of
+        several noise sigmas when the true constant falls between two)."""
+        keep = ~OutlierEffect.spike_mask(r_base)
+        if spikes is not None:
+            keep &= ~spikes
+        timed = d.t_s is not None and np.ptp(d.t_s) > 0
+        span = float(np.ptp(d.t_s)) if timed else 0.0
+        u0 = unit[keep] * norm.f0_nT
         # the freedom of a 9-parameter correction, to first order: b_i u_j (i >= j) and b_j
-        lin = [unit[:, i] * u0[:, j] for i in range(3) for j in range(i + 1)] + [unit[:, j] for j in range(3)]
-        best = None
-        for tau in taus:
-            temp = first_order_lag(d.t_s, d.temp_C, tau) if tau > 0 else d.temp_C
-            dtemp = temp - norm.temp0_C
-            x = np.einsum("na,nak->nk", unit, cls._columns_for(u0, dtemp))
-            x = np.column_stack([np.ones(len(x)), x] + lin)
-            if len(x) > 100_000:  # long records: the normal equations (column-scaled), not a QR of n rows
-                sc = np.sqrt(np.clip(np.einsum("nk,nk->k", x, x), 1e-300, None))
-                xs = x / sc
-                coef = np.linalg.lstsq(xs.T @ xs, xs.T @ r_base, rcond=1e-12)[0] / sc
-            else:
-                coef, *_ = np.linalg.lstsq(x, r_base, rcond=None)
-            sse = float(np.sum((r_base - x @ coef) ** 2))
-            if best is None or sse < best[0] * (1 - 1e-9):
-                best = (sse, tau, temp)
-        d.extra["temp_eff_C"] = best[2]
-        return {"thermal_time_constant_s": best[1]}
+        lin = [unit[keep, i] * u0[:, j] for i in range(3) for j in range(i + 1)] + [unit[keep, j] for j in range(3)]
+        lin = np.column_stack([np.ones(len(u0))] + lin)
+        r = r_base[keep]
+        cache: dict[float, tuple[float, np.ndarray]] = {}
+
+        def sse(share: float) -> float:
+            if share not in cache:
+                temp = first_order_lag(d.t_s, d.temp_C, share * span) if share > 0 else d.temp_C
+                x = np.einsum("na,nak->nk", unit[keep], cls._columns_for(u0, temp[keep] - norm.temp0_C))
+                cache[share] = (_lstsq_sse(np.column_stack([x, lin]), r), temp)
+            return cache[share][0]
+
+        grid = list(cls.LAG_GRID_OF_SPAN) if timed else [0.0]
+        scores = [sse(g) for g in grid]
+        i = int(np.argmin(scores))
+        best = grid[i]
+        if timed and len(d) <= cls.LAG_REFINE_ROWS and len(grid) > 1:
+            from scipy.optimize import minimize_scalar
+
+            lo = np.log(grid[i - 1] if i > 1 else grid[1] / 3.0)
+            hi = np.log(grid[i + 1] if i + 1 < len(grid) else grid[-1] * 3.0)
+            opt = minimize_scalar(lambda v: sse(float(np.exp(v))), bounds=(lo, hi), method="bounded",
+                                  options={"xatol": 0.02})
+            share = float(np.exp(opt.x))
+            if sse(share) < scores[i] * (1 - 1e-9):
+                best = share
+        d.extra["temp_eff_C"] = cache[best][1]
+        return {"thermal_time_constant_s": best * span}
 
     @classmethod
     def fit_columns(cls, u0, d, norm):
@@ -582,17 +617,22 @@ class FieldDriftEffect(Effect):
 @register_effect
 @dataclass(frozen=True)
 class NonlinearityEffect(Effect):
-    """Per-axis quadratic and cubic response, x = (lin - o) / F: raw_j = lin_j + F q_j (x_j^2 - 1/3) +
-    F c_j (x_j^3 - 3 x_j / 5). Both terms are orthogonal on the sphere to a constant and to x itself, so the
-    fitted form cannot absorb an offset, a scale or a change of field magnitude along the reading (a
-    physical u^3 response is this plus a scale change)."""
+    """Per-axis quadratic, cubic and quintic response, x = (lin - o) / F:
+    raw_j = lin_j + F (q_j P2(x_j) + c_j P3(x_j) + s_j P5(x_j)), with the Legendre polynomials
+    P2 = x^2 - 1/3, P3 = x^3 - 3 x / 5, P5 = x^5 - 10 x^3 / 9 + 5 x / 21 (monic).  A component of a uniformly
+    distributed direction is uniform on [-1, 1], so every term is orthogonal on the sphere to a constant, to
+    x itself and to the others: the fitted form cannot absorb an offset, a scale or a change of field
+    magnitude along the reading (a physical u^3 response is P3 plus a scale change).  The quintic is soft
+    saturation's next order: tanh(s x) / s - x = -s^2 x^3 / 3 + 2 s^4 x^5 / 15 - ..., whose x^5 share is
+    several noise sigmas at s >= 2 where a cubic alone leaves it as a remainder."""
 
     name: ClassVar[str] = "nonlinearity"
-    fit_params: ClassVar[tuple[str, ...]] = ("qx", "qy", "qz", "cx", "cy", "cz")
+    fit_params: ClassVar[tuple[str, ...]] = ("qx", "qy", "qz", "cx", "cy", "cz", "sx", "sy", "sz")
     heading_harmonics: ClassVar[tuple[int, ...]] = (3, 4)  # quadratic: 1 and 3 cycles/rev; cubic: 2 and 4
     RANDOM_SIZE: ClassVar[float] = 1e-3
     quadratic: tuple[float, float, float] = (8e-4, -6e-4, 5e-4)
     cubic: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    quintic: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @classmethod
     def random(cls, rng, strength=1.0):
@@ -602,28 +642,28 @@ class NonlinearityEffect(Effect):
         return cls(tuple(q), tuple(c))
 
     @staticmethod
-    def basis(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def basis(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         x2 = x * x
-        return x2 - 1.0 / 3.0, (x2 - 0.6) * x
+        return x2 - 1.0 / 3.0, (x2 - 0.6) * x, ((x2 - 10.0 / 9.0) * x2 + 5.0 / 21.0) * x
 
     def readings(self, lin, ctx, rng):
         o = np.asarray(ctx["offset_nT"])
         f = float(ctx["f_nT"])
-        q2, c3 = self.basis((lin - o) / f)
-        return lin + f * (np.asarray(self.quadratic) * q2 + np.asarray(self.cubic) * c3)
+        q2, c3, s5 = self.basis((lin - o) / f)
+        return lin + f * (np.asarray(self.quadratic) * q2 + np.asarray(self.cubic) * c3 + np.asarray(self.quintic) * s5)
 
     @classmethod
     def fit_columns(cls, u0, d, norm):
-        q2, c3 = cls.basis(u0 / norm.f0_nT)
-        g = np.zeros((len(u0), 3, 6))
+        terms = cls.basis(u0 / norm.f0_nT)
+        g = np.zeros((len(u0), 3, 9))
         for a in range(3):
-            g[:, a, a] = norm.f0_nT * q2[:, a]
-            g[:, a, 3 + a] = norm.f0_nT * c3[:, a]
+            for k, term in enumerate(terms):
+                g[:, a, 3 * k + a] = norm.f0_nT * term[:, a]
         return g, None
 
     @classmethod
     def from_fit(cls, e, norm, info=None):
-        return cls(tuple(map(float, e[:3])), tuple(map(float, e[3:6])))
+        return cls(tuple(map(float, e[:3])), tuple(map(float, e[3:6])), tuple(map(float, e[6:9])))
 
 
 @register_effect
@@ -693,12 +733,12 @@ class LagEffect(Effect):
         return out
 
     @classmethod
-    def prepare(cls, d, norm, r_base, unit):
-        """The time derivative of the readings, with samples that are spikes in the base residual replaced
-        by the interpolation of their neighbours in time first (a spike would otherwise corrupt the
-        derivative of the samples on either side of it)."""
+    def prepare(cls, d, norm, r_base, unit, spikes=None):
+        """The time derivative of the readings, with samples that are spikes (given, or in the base
+        residual) replaced by the interpolation of their neighbours in time first (a spike would otherwise
+        corrupt the derivative of the samples on either side of it)."""
         raw = d.raw_nT
-        spikes = OutlierEffect.spike_mask(r_base)
+        spikes = OutlierEffect.spike_mask(r_base) | (False if spikes is None else spikes)
         if spikes.any() and (~spikes).sum() >= 3:
             order = np.argsort(d.t_s, kind="stable")
             ts, good = d.t_s[order], ~spikes[order]
@@ -706,21 +746,21 @@ class LagEffect(Effect):
             bad = order[~good]
             for a in range(3):
                 raw[bad, a] = np.interp(d.t_s[bad], ts[good], d.raw_nT[order[good], a])
-        d.extra["draw_dt"] = time_derivative(d.t_s, raw)
-        d.extra["draw_dt2"] = second_derivative_without_self(d.t_s, raw)
-        d.extra["dref_dt"] = time_derivative(d.t_s, d.f_ref_nT)
+        d.extra["draw_dt"], d.extra["draw_dt2"] = local_derivatives(d.t_s, raw)
+        d.extra["dref_dt"] = local_derivatives(d.t_s, d.f_ref_nT)[0]
         return {}
 
     @classmethod
     def fit_columns(cls, u0, d, norm):
-        du = d.extra["draw_dt"] if "draw_dt" in d.extra else time_derivative(d.t_s, d.raw_nT)
-        du2 = d.extra["draw_dt2"] if "draw_dt2" in d.extra else second_derivative_without_self(d.t_s, d.raw_nT)
+        if "draw_dt" not in d.extra:
+            d.extra["draw_dt"], d.extra["draw_dt2"] = local_derivatives(d.t_s, d.raw_nT)
+        du, du2 = d.extra["draw_dt"], d.extra["draw_dt2"]
         g = np.zeros((len(u0), 3, 7))
         for a in range(3):
             g[:, a, a] = -du[:, a]
             g[:, a, 4 + a] = 0.5 * du2[:, a]
         h = np.zeros((len(u0), 7))
-        h[:, 3] = -(d.extra["dref_dt"] if "dref_dt" in d.extra else time_derivative(d.t_s, d.f_ref_nT))
+        h[:, 3] = -(d.extra["dref_dt"] if "dref_dt" in d.extra else local_derivatives(d.t_s, d.f_ref_nT)[0])
         return g, h
 
     @classmethod

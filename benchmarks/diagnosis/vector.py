@@ -22,7 +22,7 @@ import numpy as np
 from magbench.calibrators import make
 from magbench.errors import InputError
 from magbench.simulate.dataset import Dataset
-from magbench.simulate.effects import EFFECTS, SPIKE_SIGMA, Columns, Normalization
+from magbench.simulate.effects import EFFECTS, SPIKE_SIGMA, Columns, Normalization, OutlierEffect, robust_sigma
 from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
 from .floor import vector_floor
@@ -38,6 +38,7 @@ MIN_POINTS_BEYOND_PARAMETERS = 10
 MAX_EFFECTS = 4
 SELECTION_PASSES = 3
 MIN_STEP_OF_REMAINING = 0.25  # ... or a quarter of what the effects before it left
+ROBUST_START_MODELS = {"nine": ("ransac",)}  # a robust base start where the calibrator estimates the base model
 TANGENT_TOLERANCE = 0.05  # a later tangent point must reproduce the base fit's RMS within 5 %
 SHRINK_FLAG = ("above 100 %: the held-out RMS with the effect is below the noise-floor estimate, so the floor "
                "(its interval is given) is too high for these data or the remainder is smaller than its error")
@@ -86,14 +87,29 @@ class Diagnosis:
         self.progress = Progress(n >= self.PROGRESS_ROWS if progress is None else progress, 6)
 
     def base_residual(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The ``lsq`` base calibration: its nine-vector, the scalar residual and the corrected field directions."""
-        fit = make("lsq", model=self.base).fit(self.dataset)
+        """The base calibration: its nine-vector, the scalar residual and the corrected field directions.
+        ``lsq``; when its residual has samples beyond SPIKE_SIGMA robust sigma, also ``ransac`` (seed 003),
+        and the one whose residual has the smaller robust scatter: a few spikes of thousands of nT pull a
+        least-squares fit on narrow attitude coverage to a far-centre solution (scales of 2, offsets of
+        10^5 nT) that no trimming from there recovers."""
+        fits = [make("lsq", model=self.base).fit(self.dataset)]
+        r = [self._scalar_residual(fits[0])]
+        if OutlierEffect.spike_mask(r[0]).any() and "ransac" in ROBUST_START_MODELS.get(self.base, ()):
+            try:
+                fits.append(make("ransac", model=self.base, seed=self.seed).fit(self.dataset))
+                r.append(self._scalar_residual(fits[-1]))
+            except (InputError, ValueError, np.linalg.LinAlgError):  # no consensus set: keep lsq
+                pass
+        best = min(range(len(fits)), key=lambda i: robust_sigma(r[i]))
+        fit, res = fits[best], r[best]
+        self.base_method = ("lsq", "ransac")[best]
         corrected = fit.correct(self.columns.raw_nT)
-        nb = np.linalg.norm(corrected, axis=1)
-        r = nb - self.columns.f_ref_nT
         x9 = np.array([fit.params.alpha_rad, fit.params.beta_rad, fit.params.gamma_rad, *fit.params.scale,
                        *fit.params.offset_nT], dtype=float)
-        return x9, r, corrected / nb[:, None]
+        return x9, res, corrected / np.linalg.norm(corrected, axis=1)[:, None]
+
+    def _scalar_residual(self, fit) -> np.ndarray:
+        return np.linalg.norm(fit.correct(self.columns.raw_nT), axis=1) - self.columns.f_ref_nT
 
     def heldout(self, names: list[str]) -> tuple[np.ndarray, int]:
         return self.tangent.heldout(names, "outliers" in names)
@@ -117,9 +133,13 @@ class Diagnosis:
         n_train = n * (k - 1) // k
         selected, seen = [], []
         state = None
+        spikes = self._spikes(model, x_lin, every)
+        if spikes.any():  # derived inputs (thermal time constant, derivatives) again, the spikes left out
+            self.effect_info = {cls.name: cls.prepare(d, self.norm, r_all, unit, spikes) for cls in effects_ok}
+            model.info = self.effect_info
         for _ in range(SELECTION_PASSES):  # the tangent space at the base fit, then at the selected model's fit
             free = model.free_indices(selected)
-            x_try, spikes = model.fit_robust(x_lin, free) if n >= 3 * len(free) else (x_lin, np.zeros(n, bool))
+            x_try = model.fit(x_lin, free, keep=~spikes) if n >= 3 * len(free) else x_lin
             tangent = Tangent(model, x_try, fold, k, spikes)
             if state is not None and abs(tangent.fit_rms([]) / rms(r_all) - 1.0) > TANGENT_TOLERANCE:
                 break  # too far from the base fit for the base model's tangent to hold: keep the last pass
@@ -161,7 +181,7 @@ class Diagnosis:
         powered = mdn <= POWER_MAX_OF_FLOOR * floor
         result = verdict(order, rem["remainder_significant"], powered, untested)
         x_sel = self.tangent.full_fit(selected, "outliers" in selected)
-        out = {"kind": "vector", "base_model": self.base, "n_points": n, "rms_fit_nT": rms(r_all),
+        out = {"kind": "vector", "base_model": self.base, "base_fit": self.base_method, "n_points": n, "rms_fit_nT": rms(r_all),
                "rms_base_nT": rms_base, "noise_floor_nT": floor, **{k_: v for k_, v in fl.items() if k_ != "noise_floor_nT"},
                "verdict": result, "effects": entries, "selected": order,
                "rms_selected_heldout_nT": rms(current), **rem,
@@ -186,6 +206,18 @@ class Diagnosis:
             if rs is not None:
                 out["resimulation"] = rs
         return out
+
+    @staticmethod
+    def _spikes(model: ExtendedModel, x_lin: np.ndarray, every: list[str]) -> np.ndarray:
+        """The spike mask, judged against the model with every testable effect free (trimmed fit): a
+        structured residual (temperature, lag, drift) would inflate the robust sigma of the base fit's
+        residual and hide spikes of tens of noise sigmas.  The base model alone when the record is too short
+        for the full model."""
+        for names in (every, []):
+            free = model.free_indices(names)
+            if len(model.d) >= 3 * len(free):
+                return model.fit_robust(x_lin, free)[1]
+        return np.zeros(len(model.d), bool)
 
     def _select(self, every, base_res, rms_base, floor, n):
         """Forward selection (module docstring, step 4): (selected, its held-out residual, the trail)."""
@@ -225,7 +257,30 @@ class Diagnosis:
             selected.append(best[1])
             current = best[5]
             candidates.remove(best[1])
+        selected, current = self._prune(selected, current, trail)
         return selected, current, trail
+
+    def _prune(self, selected, current, trail):
+        """Backward elimination after the forward steps: an effect whose own held-out contribution (the
+        selected set with and without it) is no longer significant, once later effects explain what it took
+        early, leaves the set, the weakest first (spikes keep their count test)."""
+        while len(selected) > 1:
+            weakest = None
+            for name in selected:
+                if EFFECTS[name].robust:
+                    continue
+                without, _ = self.heldout([s for s in selected if s != name])
+                z = paired_z(without, current)
+                if z <= Z_SIGNIFICANT and (weakest is None or z < weakest[1]):
+                    weakest = (name, z, without)
+            if weakest is None:
+                break
+            selected = [s for s in selected if s != weakest[0]]
+            current = weakest[2]
+            trail.append({"after": "+".join(selected), "dropped": weakest[0],
+                          "stop": f"{weakest[0]} dropped: its own held-out contribution is not significant "
+                                  f"(z {weakest[1]:.1f})", "candidates": {}})
+        return selected, current
 
     def _entry(self, name, with_res, without_res, base_res, own, alone, floor, floor_se, selected, z, i) -> dict:
         cls = EFFECTS[name]
