@@ -1,32 +1,21 @@
 """Genetic algorithms: the adaptive binary GA of seed 000 (``aga``), a plain real-coded GA (``ga``)
 and seed 002's real-coded elitist GA (``rga``).
 
-Every generation is evaluated in one call of the shared counted objective; selection, crossover
-and mutation act on the whole population as arrays (no Python loop over individuals).
+Every generation is evaluated in one call of the shared counted objective.  The real-coded GAs'
+selection, crossover and mutation act on the whole population as arrays (no Python loop over
+individuals); the AGA draws all of a generation's uniforms in one call and breeds it in one compiled
+kernel (``_gakernel``: numba, or the same steps in numpy where numba is missing, with identical results).
 """
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
 from magbench.errors import InputError
 
+from . import _gakernel
+from ._gakernel import adaptive_probability  # noqa: F401  (seed 000's eq. 4-5, part of this module's API)
 from .base import Calibrator, Problem, SolveOutput, population_box
 from .registry import register
-
-
-def adaptive_probability(f: np.ndarray, f_max: float, f_avg: float, p1: float, p2: float) -> np.ndarray:
-    """Seed 000, eq. 4 and 5: ``p = p1 - (p1 - p2)(f - f_avg)/(f_max - f_avg)`` for ``f >= f_avg``, else p1.
-
-    When every individual has the same fitness (f_max == f_avg) the formula is 0/0; the paper's rule (1)
-    of section 2.1 ("when the individuals' fitness becomes uniform or sticks at a local optimum, raise
-    Pc and Pm") decides it: ``p = p1`` for all.
-    """
-    spread = f_max - f_avg
-    if spread <= 0:
-        return np.full(np.shape(f), p1)
-    return np.where(f >= f_avg, p1 - (p1 - p2) * (f - f_avg) / spread, p1)
 
 
 @register
@@ -36,10 +25,12 @@ class AdaptiveGA(Calibrator):
     Step 1: binary coding, ``bits`` per parameter over [-0.1, 0.1] rad (eq. 6, 7), population M = 80.
     Step 2: fitness G = 1/(1 + F) (eq. 8), F the mean squared total-field error of eq. 3.
     Step 3: roulette-wheel selection with P_i = G_i / (M mean G) (eq. 9), M spins.
-    Step 4: random pairing, single-point crossover with the adaptive Pc of eq. 4 (f' = the larger
-    fitness of the pair).  Step 5: mutation with the adaptive Pm of eq. 5 (f = the individual's fitness
-    before crossover); ``mutation="single_bit"`` flips one random bit of a mutated individual ("单基因位
-    的二进制变异"), ``"per_bit"`` flips each bit with probability Pm.  Step 6: at k = k_max, stop when
+    Step 4: random pairing (spin k with spin M/2 + k: the spins are independent), single-point
+    crossover with the adaptive Pc of eq. 4 (f' = the larger fitness of the pair).  Step 5: mutation
+    with the adaptive Pm of eq. 5 (f = the individual's fitness before crossover);
+    ``mutation="single_bit"`` flips one random bit of a mutated individual ("单基因位的二进制变异"),
+    ``"per_bit"`` flips each bit with probability Pm.  A uniform population has f_max == f_avg exactly
+    and gets Pc = pc1, Pm = pm1 (``adaptive_probability``).  Step 6: at k = k_max, stop when
     |mean G(k) - mean G(k-1)| < delta_g, else double k_max (up to ``max_generations``).  Step 7: the
     best individual of all generations is returned.
 
@@ -88,17 +79,31 @@ class AdaptiveGA(Calibrator):
             raise InputError("aga: population must be an even number >= 2")
         if self.mutation not in ("single_bit", "per_bit"):
             raise InputError("aga: mutation must be 'single_bit' or 'per_bit'")
-        rng, lo, hi = problem.rng, problem.lower, problem.upper
-        layout = _BitLayout.of(len(lo), self.bits)
-        step = (hi - lo) / (2**self.bits - 1)  # eq. 6
-        m = self.population
-        pop = rng.integers(0, 2**self.bits, size=(m, len(lo)), dtype=np.int64)  # step 1: random bit strings
+        if not 1 <= self.bits <= 62:
+            raise InputError("aga: bits must be between 1 and 62 (one int64 per gene)")
+        if not 0 <= self.elitism <= self.population:
+            raise InputError("aga: elitism must be between 0 and population")
+        rng, m, nb = problem.rng, self.population, int(self.bits)
+        lo = np.array(problem.lower, dtype=float)  # writable and contiguous: one kernel signature
+        step = (problem.upper - lo) / (2**nb - 1)  # eq. 6
+        per_bit = self.mutation == "per_bit"
+        settings = (nb, float(self.pc1), float(self.pc2), float(self.pm1), float(self.pm2), per_bit,
+                    int(self.elitism))
+        kernel = _gakernel.generation_kernel()  # compiled on the first AGA run (numba), cached on disk
+        n_uniforms = _gakernel.uniforms_needed(m, len(lo) * nb, per_bit)
+        pop = rng.integers(0, 2**nb, size=(m, len(lo)), dtype=np.int64)  # step 1: random bit strings
+        x = lo + pop * step  # eq. 7
+        nxt = np.empty_like(pop)
         k, k_max, g_prev = 1, self.k_max, None
         best_g, mean_g = [], []
         stop = "max_generations"
         while True:
-            g = 1.0 / (1.0 + problem.values(lo + pop * step))  # eq. 7, eq. 8 (step 2)
-            g_avg, g_max = g.sum() / m, g.max()
+            f = problem.values(x)  # F of eq. 3 for the population: the one counted evaluation
+            # steps 2-5: fitness (eq. 8), roulette, adaptive crossover and mutation, decoding of the next
+            # generation, from this generation's uniforms (drawn before the stop test: the last
+            # generation's draw and offspring are unused)
+            x = np.empty_like(x)
+            g_avg, g_max = kernel(f, pop, rng.random(n_uniforms), lo, step, *settings, nxt, x)
             best_g.append(g_max)
             mean_g.append(g_avg)
             if k >= k_max:  # step 6
@@ -109,7 +114,7 @@ class AdaptiveGA(Calibrator):
                     break
                 k_max *= 2
             g_prev = g_avg
-            pop = self._next_generation(pop, g, g_max, g_avg, layout, rng)
+            pop, nxt = nxt, pop
             k += 1
         # step 7: the best individual of all generations (kept by the shared counter)
         x_best = problem.best_x
@@ -122,61 +127,6 @@ class AdaptiveGA(Calibrator):
                            message=f"{k} generations; stop: {stop}", nit=k,
                            extra={"generations": k, "best_fitness": best_g, "mean_fitness": mean_g,
                                   "resolution": step.tolist()})
-
-    def _next_generation(self, pop: np.ndarray, g: np.ndarray, g_max: float, g_avg: float, layout: "_BitLayout",
-                         rng: np.random.Generator) -> np.ndarray:
-        """Steps 3-5 of seed 000 section 2.2 on the whole population: roulette selection (eq. 9), random
-        pairing with single-point crossover at the adaptive Pc (eq. 4), mutation at the adaptive Pm
-        (eq. 5); then the optional elitism (not in the paper)."""
-        m, half, length = len(pop), len(pop) // 2, layout.length
-        u = rng.random(4 * m)  # this generation's uniform draws, in one call
-        # step 3: roulette wheel, eq. 9 (u < 1, so the pointer always lands inside the wheel)
-        cum = np.cumsum(g)
-        idx = np.searchsorted(cum, u[:m] * cum[-1], side="right")
-        mates, g_mates = pop[idx], g[idx]
-        # step 4: random pairs, single-point crossover at a random cut 1..length-1 with the Pc of eq. 4
-        order = np.argsort(u[m:2 * m])
-        a, b = order[:half], order[half:]
-        pa, pb = mates[a], mates[b]
-        pc = adaptive_probability(np.maximum(g_mates[a], g_mates[b]), g_max, g_avg, self.pc1, self.pc2)
-        cross = u[2 * m:2 * m + half] < pc
-        cut = np.where(cross, 1 + (u[2 * m + half:3 * m] * (length - 1)).astype(np.int64), length)
-        diff = (pa ^ pb) & layout.swap_masks[cut]
-        child = np.concatenate([pa ^ diff, pb ^ diff])
-        # step 5: mutation with the Pm of eq. 5 (fitness of the individual before crossover)
-        pm = adaptive_probability(np.concatenate([g_mates[a], g_mates[b]]), g_max, g_avg, self.pm1, self.pm2)
-        if self.mutation == "single_bit":
-            rows = np.flatnonzero(u[3 * m:] < pm)
-            pos = rng.integers(0, length, size=rows.size)
-            child[rows, layout.gene_of[pos]] ^= 1 << layout.bit_of[pos]
-        else:
-            p, nb = pop.shape[1], length // pop.shape[1]
-            flips = rng.random((m, length)) < pm[:, None]
-            child ^= (flips.reshape(m, p, nb) << np.arange(nb - 1, -1, -1)).sum(axis=2)
-        if self.elitism:  # not in the paper: the best individuals replace the first children
-            child[:self.elitism] = pop[np.argpartition(-g, self.elitism - 1)[:self.elitism]]
-        return child
-
-
-@dataclass(frozen=True)
-class _BitLayout:
-    """Where each position of seed 000's bit string (eq. 7) lies.  The string s = (s_alpha, s_beta, ...)
-    is held as one nb-bit integer per gene, most significant bit first; crossover and mutation act on
-    bit positions exactly as on the string, with integer masks instead of (m, length) bit arrays."""
-
-    length: int
-    gene_of: np.ndarray  # gene of each string position
-    bit_of: np.ndarray  # significance of each string position within its gene
-    swap_masks: np.ndarray  # (length + 1, p): the bits of each gene that a cut at c swaps
-
-    @classmethod
-    def of(cls, p: int, nb: int) -> "_BitLayout":
-        length = p * nb
-        # a cut at c swaps the string positions >= c: in gene j (positions j*nb .. j*nb+nb-1, MSB first)
-        # its lowest clip((j+1)*nb - c, 0, nb) bits; c = length means no crossover
-        gene_end = (np.arange(p) + 1) * nb
-        swap_masks = (1 << np.clip(gene_end[None, :] - np.arange(length + 1)[:, None], 0, nb)) - 1
-        return cls(length, np.arange(length) // nb, nb - 1 - np.arange(length) % nb, swap_masks)
 
 
 @register
