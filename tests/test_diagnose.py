@@ -6,32 +6,10 @@ import sys
 from dataclasses import replace
 from importlib import resources
 
-import numpy as np
-import pytest
 
 from magbench.benchmarks.diagnosis import diagnose
-from magbench.benchmarks.diagnosis.blind import blind_dataset, category, classify
 from magbench.simulate.effects import OutlierEffect, TemperatureEffect
 from magbench.simulate.scenarios import get_scenario
-
-
-@pytest.fixture(scope="module")
-def blind():
-    out = []
-    for i in range(19):
-        label, base, data = blind_dataset(i)
-        out.append((label, diagnose(data, base=base)["verdict"]))
-    return out
-
-
-def test_blind_clean_cases_give_none_and_singles_are_mostly_right(blind):
-    outcomes = [(label, v, classify(label, v)) for label, v in blind]
-    clean = [o for o in outcomes if category(o[0]) == "clean"]
-    assert all(o[2] == "right" for o in clean), clean
-    singles = [o for o in outcomes if category(o[0]) == "single"]
-    assert sum(o[2] == "right" for o in singles) >= len(singles) // 2, singles
-    outside = [o for o in outcomes if category(o[0]) == "outside the library"]
-    assert all(o[2] != "wrong" for o in outside), outside
 
 
 def test_two_effects_at_once_are_both_named():

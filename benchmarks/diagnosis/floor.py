@@ -1,9 +1,10 @@
 """The noise floor, estimated independently of the structured residual: from differences of samples
 close in time (a smooth structured residual cancels in them), with its own interval.
 
-* vector data with a time column (or rows in acquisition order): the robust scatter of the second
-  differences r_i - 2 r_(i+1) + r_(i+2) in time order, / sqrt(6) (white noise); the third differences
-  (/ sqrt(20)) check that structure does not leak into them;
+* vector data with a time column (or rows in acquisition order): the robust scatter of the errors of
+  linear interpolation between the time neighbours, r_i - (w r_(i-1) + (1 - w) r_(i+1)), scaled to white
+  noise (the second differences / sqrt(6) on even sampling, exact for a line at any spacing); the errors
+  of cubic interpolation from four neighbours check that structure does not leak into them;
 * without any order the samples can be trusted in: the k-NN scatter in attitude, an upper bound (flagged).
 
 The interval is +-1.96 standard errors of the MAD-based scale (1.166 sigma / sqrt(m), m the number of
@@ -17,7 +18,6 @@ from magbench.simulate.effects import SPIKE_SIGMA, Columns, robust_sigma
 
 KNN_NEIGHBOURS = 6
 MAD_SE = 1.166  # standard error of the MAD scale: 1.166 sigma / sqrt(m) for Gaussian data
-D2_VAR, D3_VAR = 6.0, 20.0
 INDEPENDENT_SHARE = 1.0 / 3.0  # overlapping second differences: about a third of them independent
 LEAK_Z = 3.0
 
@@ -46,36 +46,65 @@ def _interval(sigma: float, m: int) -> tuple[float, float, float]:
     return se, max(sigma - 1.96 * se, 0.0), sigma + 1.96 * se
 
 
-def time_difference_floor(r_in_order: np.ndarray) -> dict:
-    """Floor from second differences in time order, checked against third differences; differences that
-    touch a spike (a sample beyond SPIKE_SIGMA robust sigma) are left out, since each spike would otherwise
-    inflate three (four) of them."""
+def _interpolation_errors(r: np.ndarray, t: np.ndarray | None, order: int) -> np.ndarray:
+    """r_i minus its Lagrange interpolation at t_i from its neighbours in time order (order 1: i-1 and i+1,
+    exact for a line; order 3: i-2, i-1, i+1, i+2, exact for a cubic), divided by sqrt(1 + sum of squared
+    weights) so that white noise of sigma gives sigma.  On even sampling order 1 is the classical second
+    difference / 2; on irregular sampling it still cancels a smooth structure, which the plain second
+    difference (built for even spacing) leaks into the floor in proportion to the spacing's unevenness."""
+    n = len(r)
+    t = np.arange(n, dtype=float) if t is None else t + np.arange(n) * 1e-9 * max(float(np.ptp(t)), 1.0)
+    offs = (-1, 1) if order == 1 else (-2, -1, 1, 2)
+    lo, hi = -min(offs), n - max(offs)
+    if hi - lo < 1:
+        return np.zeros(0)
+    i = np.arange(lo, hi)
+    nodes = [t[i + o] for o in offs]
+    weights = []
+    for a, ta in enumerate(nodes):
+        w = np.ones(len(i))
+        for b, tb in enumerate(nodes):
+            if a != b:
+                w = w * (t[i] - tb) / (ta - tb)
+        weights.append(w)
+    pred = sum(w * r[i + o] for w, o in zip(weights, offs))
+    return (r[i] - pred) / np.sqrt(1.0 + sum(w * w for w in weights))
+
+
+def time_difference_floor(r_in_order: np.ndarray, t_in_order: np.ndarray | None = None) -> dict:
+    """Floor from the errors of linear interpolation between time neighbours (``_interpolation_errors``;
+    the second differences on even sampling), checked against cubic interpolation from four neighbours;
+    errors that touch a spike (a sample beyond SPIKE_SIGMA robust sigma) are left out, since each spike
+    would otherwise inflate three (five) of them."""
     n = len(r_in_order)
     spk = np.abs(r_in_order - np.median(r_in_order)) > SPIKE_SIGMA * robust_sigma(r_in_order)
-    d2 = np.diff(r_in_order, 2)
-    d3 = np.diff(r_in_order, 3)
+    e1 = _interpolation_errors(r_in_order, t_in_order, 1)
+    e3 = _interpolation_errors(r_in_order, t_in_order, 3)
     if spk.any() and (~spk).sum() > 10:
-        touch2 = np.convolve(spk, np.ones(3), mode="valid") > 0
-        touch3 = np.convolve(spk, np.ones(4), mode="valid") > 0
-        d2, d3 = d2[~touch2], d3[~touch3]
+        touch1 = np.convolve(spk, np.ones(3), mode="valid") > 0
+        touch3 = np.convolve(spk, np.ones(5), mode="valid") > 0
+        e1, e3 = e1[~touch1], e3[~touch3]
         n = int((~spk).sum())
-    s2 = robust_sigma(d2) / np.sqrt(D2_VAR)
-    s3 = robust_sigma(d3) / np.sqrt(D3_VAR) if len(d3) else s2
-    se, lo, hi = _interval(s2, int(INDEPENDENT_SHARE * n))
-    leak = bool(s2 - s3 > LEAK_Z * se)  # structure left in the second differences inflates them
-    sigma = min(s2, s3) if leak else s2
+    s1 = robust_sigma(e1)
+    s3 = robust_sigma(e3) if len(e3) else s1
+    se, lo, hi = _interval(s1, int(INDEPENDENT_SHARE * n))
+    leak = bool(s1 - s3 > LEAK_Z * se)  # structure left in the two-neighbour errors inflates them
+    sigma = min(s1, s3) if leak else s1
     se, lo, hi = _interval(sigma, int(INDEPENDENT_SHARE * n))
     return {"noise_floor_nT": float(sigma), "floor_se_nT": float(se), "floor_interval_nT": [float(lo), float(hi)],
-            "floor_method": "third differences in time order (second ones carry structure)" if leak
-            else "second differences in time order", "floor_is_upper_bound": False,
-            "floor_second_diff_nT": float(s2), "floor_third_diff_nT": float(s3)}
+            "floor_method": "cubic interpolation from four time neighbours (the two-neighbour one carries "
+                            "structure)" if leak else "linear interpolation between time neighbours "
+                                                       "(second differences on even sampling)",
+            "floor_is_upper_bound": False,
+            "floor_second_diff_nT": float(s1), "floor_third_diff_nT": float(s3)}
 
 
 def vector_floor(unit: np.ndarray, d: Columns, r: np.ndarray, rows_in_time_order: bool = False) -> dict:
     """The floor of a vector record (module docstring)."""
     n = len(r)
     if d.t_s is not None and np.ptp(d.t_s) > 0:
-        return time_difference_floor(r[np.argsort(d.t_s, kind="stable")])
+        order = np.argsort(d.t_s, kind="stable")
+        return time_difference_floor(r[order], d.t_s[order])
     if rows_in_time_order:
         out = time_difference_floor(r)
         out["floor_method"] += " (row order taken as time order)"

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from magbench.simulate.effects import Columns, Effect, library_effects
+from magbench.simulate.effects import Columns, Effect, library_effects, robust_sigma
+
+from .floor import MAD_SE
 
 Z_SIGNIFICANT = 3.0
 MIN_SIGNIFICANT_SHRINK_PCT = 10.0  # a selected effect removes at least this share of the gap on held-out data
@@ -73,18 +75,32 @@ def shrink_interval(base: np.ndarray, without: np.ndarray, with_: np.ndarray, fl
     return [float(lo), float(hi)]
 
 
-def remainder(resid: np.ndarray, floor: float, floor_se: float, n_params: int, n_train: int) -> dict:
+def remainder(resid: np.ndarray, floor: float, floor_se: float, n_params: int, n_train: int,
+              robust: bool = False) -> dict:
     """What is left above the noise: RMS in nT (held-out mean square minus the floor's square, the latter
-    inflated by the fit's own held-out variance 1 + p / n_train) and whether it is significant."""
-    n = len(resid)
-    mse = float(np.mean(resid**2))
+    inflated by the fit's own held-out variance 1 + p / n_train) and whether it is significant.
+
+    ``robust`` (the outliers effect selected, its spikes set to 0 in ``resid``): the mean square is
+    replaced by the square of the MAD scale of the other samples.  Once the record is found to carry
+    heavy-tailed errors, the ones below the spike threshold (a Student-t burst has them at every size) are
+    part of that effect, not a remainder; a structured remainder still widens the bulk and is still seen."""
+    if robust:
+        kept = resid[resid != 0.0]
+        scale = robust_sigma(kept) if len(kept) > 2 else 0.0
+        n, mse = len(kept), scale * scale
+        se_mse = 2.0 * MAD_SE * mse / np.sqrt(max(n, 1))
+    else:
+        n = len(resid)
+        mse = float(np.mean(resid**2))
+        se_mse = np.sqrt(np.var(resid**2) / n)
     expected = floor**2 * (1.0 + n_params / max(n_train, 1))
     excess = mse - expected
-    se = np.sqrt(np.var(resid**2) / n + (2 * floor * floor_se) ** 2)
+    se = np.sqrt(se_mse**2 + (2 * floor * floor_se) ** 2)
     z = excess / se if se > 0 else 0.0
     rem = float(np.sqrt(max(excess, 0.0)))
     return {"remainder_nT": rem, "remainder_z": float(z),
-            "remainder_significant": bool(z > REMAINDER_Z and rem > REMAINDER_MIN_OF_FLOOR * floor)}
+            "remainder_significant": bool(z > REMAINDER_Z and rem > REMAINDER_MIN_OF_FLOOR * floor),
+            "remainder_measure": "MAD scale (heavy-tailed errors found)" if robust else "mean square"}
 
 
 def min_detectable_nT(floor: float, n: int) -> float:

@@ -152,7 +152,6 @@ class Diagnosis:
                 break
             seen.append(list(selected))
         selected, current, trail, base_res, rms_base, x_lin = state
-        gap = rms_base - floor
         self.progress.step("extended fit, selection")
         self.r_star = model.residuals(x_lin) if selected else r_all
         self.progress.step("fold Gram matrices")
@@ -176,7 +175,7 @@ class Diagnosis:
         self.progress.step("contributions")
 
         n_params = len(self.tangent.model.free_indices(selected))
-        rem = remainder(current, floor, floor_se, n_params, n_train)
+        rem = remainder(current, floor, floor_se, n_params, n_train, robust="outliers" in selected)
         mdn = min_detectable_nT(floor, n)
         powered = mdn <= POWER_MAX_OF_FLOOR * floor
         result = verdict(order, rem["remainder_significant"], powered, untested)
@@ -229,7 +228,8 @@ class Diagnosis:
         settled = False  # what is left is consistent with the floor: "a share of what is left" means nothing
         while candidates and len(selected) < MAX_EFFECTS:
             if selected:  # a further effect only while what is left stays significantly above the noise
-                left_over = remainder(current, floor, self.floor_se, len(self.model.free_indices(selected)), n_train)
+                left_over = remainder(current, floor, self.floor_se, len(self.model.free_indices(selected)), n_train,
+                                      robust="outliers" in selected)
                 if not left_over["remainder_z"] > REMAINDER_Z:  # spikes keep their own (count) test
                     settled = True
                     candidates = [c for c in candidates if EFFECTS[c].robust]
