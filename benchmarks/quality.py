@@ -26,34 +26,60 @@ SPHERE_METHODS = [("ga", {}), ("rga", {}), ("aco", {}), ("nlopt", {}), ("nlopt",
                   ("aga", {}), ("aga-lm", {}), ("ellipsoid", {})]
 
 
-def lu2014_study(n_seeds: int) -> pd.DataFrame:
-    rows = []
-    for seed in range(n_seeds):
-        data = simulate("lu2014", seed)
-        for method in ("aga", "aga-lm", "lsq"):
-            rows.append(run_one(data, method, "angles", seed=seed, scenario="lu2014"))
-    return pd.DataFrame(rows)
+def _lu2014_seed(seed: int) -> list[dict]:
+    data = simulate("lu2014", seed)
+    return [run_one(data, method, "angles", seed=seed, scenario="lu2014") for method in ("aga", "aga-lm", "lsq")]
 
 
-def sphere_study(n_seeds: int) -> pd.DataFrame:
-    rows = []
-    for seed in range(n_seeds):
-        data = simulate("sphere9", seed)
-        ref = run_one(data, "lsq", "nine", seed=seed, scenario="sphere9")
-        ref["configuration"] = "lsq"
-        ref["rms_ratio_to_lsq"] = 1.0
-        rows.append(ref)
-        for method, params in SPHERE_METHODS:
-            row = run_one(data, method, "nine", seed=seed, scenario="sphere9", **params)
-            row["configuration"] = method + "".join(f" {k}={v}" for k, v in params.items())
-            row["rms_ratio_to_lsq"] = row.get("rms_after_nT", np.nan) / ref["rms_after_nT"]
-            rows.append(row)
-    return pd.DataFrame(rows)
+def _sphere_seed(seed: int) -> list[dict]:
+    data = simulate("sphere9", seed)
+    ref = run_one(data, "lsq", "nine", seed=seed, scenario="sphere9")
+    ref["configuration"] = "lsq"
+    ref["rms_ratio_to_lsq"] = 1.0
+    rows = [ref]
+    for method, params in SPHERE_METHODS:
+        row = run_one(data, method, "nine", seed=seed, scenario="sphere9", **params)
+        row["configuration"] = method + "".join(f" {k}={v}" for k, v in params.items())
+        row["rms_ratio_to_lsq"] = row.get("rms_after_nT", np.nan) / ref["rms_after_nT"]
+        rows.append(row)
+    return rows
 
 
-def write(out_dir: Path, n_lu: int, n_sphere: int) -> str:
-    lu = lu2014_study(n_lu)
-    sp = sphere_study(n_sphere)
+def _one_seed(task: tuple[str, int]) -> list[dict]:
+    """One seed of one study, with one BLAS thread (as a campaign's workers run)."""
+    from threadpoolctl import threadpool_limits
+
+    study, seed = task
+    with threadpool_limits(limits=1):
+        return (_lu2014_seed if study == "lu2014" else _sphere_seed)(seed)
+
+
+def _studies(n_lu: int, n_sphere: int, jobs: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Both studies, seed by seed, in ``jobs`` worker processes (the rows and their order do not depend on
+    ``jobs``; only the runtimes measured do, as in a campaign)."""
+    tasks = [("sphere9", s) for s in range(n_sphere)] + [("lu2014", s) for s in range(n_lu)]  # longest first
+    if jobs > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            results = list(pool.map(_one_seed, tasks))
+    else:
+        results = [(_lu2014_seed if study == "lu2014" else _sphere_seed)(seed) for study, seed in tasks]
+    lu = [r for (study, _), rows in zip(tasks, results) if study == "lu2014" for r in rows]
+    sp = [r for (study, _), rows in zip(tasks, results) if study == "sphere9" for r in rows]
+    return pd.DataFrame(lu), pd.DataFrame(sp)
+
+
+def lu2014_study(n_seeds: int, jobs: int = 1) -> pd.DataFrame:
+    return _studies(n_seeds, 0, jobs)[0]
+
+
+def sphere_study(n_seeds: int, jobs: int = 1) -> pd.DataFrame:
+    return _studies(0, n_seeds, jobs)[1]
+
+
+def write(out_dir: Path, n_lu: int, n_sphere: int, jobs: int = 1) -> str:
+    lu, sp = _studies(n_lu, n_sphere, jobs)
     out_dir.mkdir(parents=True, exist_ok=True)
     pd.concat([lu.assign(study="lu2014_angles"), sp.assign(study="sphere9_optimum")]).to_csv(
         out_dir / "quality.csv", index=False, float_format="%.9g")
@@ -98,8 +124,9 @@ def main(argv=None) -> int:
     p.add_argument("--seeds-lu", type=int, default=50)
     p.add_argument("--seeds-sphere", type=int, default=10)
     p.add_argument("--out", default="results", help="output directory (default: results)")
+    p.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     a = p.parse_args(argv)
-    print(write(Path(a.out), a.seeds_lu, a.seeds_sphere))
+    print(write(Path(a.out), a.seeds_lu, a.seeds_sphere, jobs=a.jobs))
     return 0
 
 

@@ -8,6 +8,7 @@
 - results/diagnosis/: the sim-to-real diagnosis of the real recordings and a blind check;
 - results/claims.md: one row per headline claim of every seed paper, with our reproduction;
 - results/benchmarks/: the pytest-benchmark suite over every calibrator, saved for later comparison.
+- results/reproduce_timing.md: the wall time of each phase of the reproduction (also printed on stderr).
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import io
 import json
 import subprocess
 import sys
+import time
 from collections import Counter
 from importlib import resources
 from pathlib import Path
@@ -218,6 +220,54 @@ def _bar(items, desc: str, progress: bool, **kw):
     return tqdm(items, desc=desc, disable=not progress, file=sys.stderr, leave=False, dynamic_ncols=True, **kw)
 
 
+class PhaseClock:
+    """Wall time of each phase of ``reproduce`` (``time.perf_counter``): ``start(name)`` ends the running
+    phase and starts the next, ``stop()`` ends the last; ``seconds`` keeps them in order."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+        self._name: str | None = None
+        self._t0 = 0.0
+        self._begin = time.perf_counter()
+
+    def start(self, name: str) -> None:
+        self.stop()
+        self._name, self._t0 = name, time.perf_counter()
+
+    def stop(self) -> None:
+        if self._name is not None:
+            self.seconds[self._name] = self.seconds.get(self._name, 0.0) + time.perf_counter() - self._t0
+            self._name = None
+
+    @property
+    def total(self) -> float:
+        return time.perf_counter() - self._begin
+
+    def lines(self) -> list[str]:
+        total = self.total
+        rows = [f"| {name} | {s:.1f} | {100 * s / total:.0f} % |" for name, s in self.seconds.items()]
+        return ["| phase | wall s | share |", "|---|---|---|", *rows, f"| total | {total:.1f} | 100 % |"]
+
+
+def write_timing(clock: PhaseClock, out: Path, jobs: int, quick: bool) -> Path:
+    """results/reproduce_timing.md: the wall time of each phase of this reproduction (the machine, jobs,
+    load average), so that the time the whole takes is measured by the tool itself."""
+    import os
+    import platform
+
+    try:
+        load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
+    except OSError:
+        load = "n/a"
+    path = out / "reproduce_timing.md"
+    text = ["# Wall time of `magbench reproduce`", "",
+            f"Made by `magbench reproduce{' --quick' if quick else ''} --jobs {jobs}` on {platform.machine()} "
+            f"({os.cpu_count()} cores), Python {platform.python_version()}; load average at the end {load}. "
+            "Wall times depend on what else the machine runs.", "", *clock.lines()]
+    path.write_text("\n".join(text) + "\n", encoding="utf-8")
+    return path
+
+
 def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = True) -> list[Path]:
     from magbench.benchmarks.campaign import Campaign, MethodSpec, clear_outputs, run_campaign
     from magbench.benchmarks.comparison import write_comparison
@@ -233,51 +283,64 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
     phases = tqdm(total=4 if quick else 8, desc="reproduce", unit="phase", disable=not progress, file=sys.stderr,
                   position=1, leave=True, bar_format="{desc}: {n}/{total} phases {bar} [{elapsed}]")
 
+    clock = PhaseClock()
+
     def phase(name: str) -> None:
         phases.set_description(f"reproduce: {name}")
         phases.update(1)
+        clock.start(name)
 
-    methods = tuple(MethodSpec(m) for m in sorted(available()))
-    camp_dir = out / "campaign"
-    phase("campaign")
-    clear_outputs(camp_dir)  # no stale figure or table of an earlier reproduction stays behind
-    run_campaign(Campaign(SCENARIOS, methods, trials=trials, seed=ROOT_SEED), camp_dir, jobs=jobs,
-                 command=f"magbench reproduce{' --quick' if quick else ''}", progress=progress)
-    write_comparison(camp_dir)
-    images: dict = {}
-    make_figures(camp_dir, images=images, progress=progress)
-    written += [camp_dir / "runs.csv", camp_dir / "summary.md", write_report(camp_dir, images=images)]
+    try:
+        methods = tuple(MethodSpec(m) for m in sorted(available()))
+        camp_dir = out / "campaign"
+        phase("campaign")
+        clear_outputs(camp_dir)  # no stale figure or table of an earlier reproduction stays behind
+        run_campaign(Campaign(SCENARIOS, methods, trials=trials, seed=ROOT_SEED), camp_dir, jobs=jobs,
+                     command=f"magbench reproduce{' --quick' if quick else ''}", progress=progress)
+        clock.start("campaign: comparison, figures, report")
+        write_comparison(camp_dir)
+        images: dict = {}
+        make_figures(camp_dir, images=images, progress=progress)
+        written += [camp_dir / "runs.csv", camp_dir / "summary.md", write_report(camp_dir, images=images)]
 
-    lsq_dir = out / "lsq_sphere9_1000"
-    phase("1000 lsq trials")
-    clear_outputs(lsq_dir)
-    run_campaign(Campaign(("sphere9",), (MethodSpec("lsq"),), trials=30 if quick else 1000, seed=ROOT_SEED, traces=False),
-                 lsq_dir, jobs=jobs, command="magbench compare --scenarios sphere9 --methods lsq --trials 1000 "
-                 f"--seed {ROOT_SEED} --jobs {jobs}", progress=progress)
-    written.append(lsq_dir / "summary.md")
-    written.append(lu2014_tables(camp_dir, out / "lu2014_tables.md"))
-    phase("diagnosis of the real recordings and the blind check")
-    written.append(diagnosis_reports(out, blind_n=14 if quick else 70, progress=progress))
-    if not quick:
-        from magbench.benchmarks import quality, speed
-        from magbench.benchmarks.claims import write_claims
+        lsq_dir = out / "lsq_sphere9_1000"
+        phase("1000 lsq trials")
+        clear_outputs(lsq_dir)
+        run_campaign(Campaign(("sphere9",), (MethodSpec("lsq"),), trials=30 if quick else 1000, seed=ROOT_SEED,
+                              traces=False), lsq_dir, jobs=jobs,
+                     command=f"magbench compare --scenarios sphere9 --methods lsq --trials 1000 --seed {ROOT_SEED} "
+                     f"--jobs {jobs}", progress=progress)
+        written.append(lsq_dir / "summary.md")
+        clock.start("seed 000 tables")
+        written.append(lu2014_tables(camp_dir, out / "lu2014_tables.md"))
+        phase("diagnosis of the real recordings and the blind check")
+        written.append(diagnosis_reports(out, blind_n=14 if quick else 70, progress=progress))
+        if not quick:
+            from magbench.benchmarks import quality, speed
+            from magbench.benchmarks.claims import write_claims
 
-        phase("quality study")
-        quality.write(out, 50, 10)
-        written.append(out / "quality.md")
-        phase("claims")
-        written.append(write_claims(out))
-        try:
-            import mealpy  # noqa: F401
-            import pygad  # noqa: F401
-        except ImportError:
-            print("speed.md kept: the peers (pygad, mealpy) are not installed", file=sys.stderr)
-        else:
-            phase("speed benchmarks")
-            speed.report(speed.run(out), out / "speed.md")
-            written.append(out / "speed.md")
-        phase("benchmark suite")
-        written.append(_benchmark_suite(out))
-    phase("done")
-    phases.close()
+            phase("quality study")
+            quality.write(out, 50, 10, jobs=jobs)
+            written.append(out / "quality.md")
+            phase("claims")
+            written.append(write_claims(out))
+            try:
+                import mealpy  # noqa: F401
+                import pygad  # noqa: F401
+            except ImportError:
+                print("speed.md kept: the peers (pygad, mealpy) are not installed", file=sys.stderr)
+            else:
+                phase("speed benchmarks")
+                speed.report(speed.run(out), out / "speed.md")
+                written.append(out / "speed.md")
+            phase("benchmark suite")
+            written.append(_benchmark_suite(out))
+        phases.set_description("reproduce: done")
+        phases.update(1)
+    finally:  # the phases measured so far are reported even when one fails
+        clock.stop()
+        phases.close()
+        timing = write_timing(clock, out, jobs, quick)
+        print("magbench reproduce: wall time per phase", *clock.lines(), sep="\n", file=sys.stderr)
+    written.append(timing)
     return written
