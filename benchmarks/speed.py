@@ -95,8 +95,10 @@ def _time_to_target(b: dict) -> float | None:
 
 def _quality_lines(bench: dict) -> list[str]:
     """Time to equal quality: each method's time to a residual within 1.01 x lsq's optimum."""
-    pairs = (("ga", "test_quality_ga_magbench", "PyGAD (vectorized fitness, up to 10,000 generations)",
-              "test_quality_pygad"),
+    pygad_info = bench.get("test_quality_pygad", {}).get("extra_info", {})
+    pygad_generations = pygad_info.get("max_generations") or pygad_info.get("generations")  # the limit it was given
+    pygad_limit = f"up to {pygad_generations:,} generations" if pygad_generations else "limited generations"
+    pairs = (("ga", "test_quality_ga_magbench", f"PyGAD (vectorized fitness, {pygad_limit})", "test_quality_pygad"),
              ("aco", "test_quality_aco_magbench", "mealpy OriginalACOR (same settings)", "test_quality_mealpy"))
     if not any(ours in bench for _, ours, _, _ in pairs):
         return []
