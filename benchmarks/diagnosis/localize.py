@@ -130,10 +130,15 @@ def localize(r: np.ndarray, unit: np.ndarray, d: Columns, heading_deg, k: int, s
         loc["gravity_direction_explained_pct"] = cv_explained(lambda sl: spherical_design(g[sl], 2), r, fold, k)
     if heading_deg is not None:
         loc["heading_harmonics"] = harmonics(heading_deg, r)
-    s = robust_sigma(r)
-    loc["excess_kurtosis"] = float(np.mean((r - r.mean()) ** 4) / max(np.var(r), 1e-300) ** 2 - 3.0)
-    loc[f"beyond_{SPIKE_SIGMA:g}_robust_sigma_pct"] = float(100.0 * np.mean(np.abs(r - np.median(r)) > SPIKE_SIGMA * s))
+    loc.update(tails(r))
     return {k_: v for k_, v in loc.items() if v is not None}
+
+
+def tails(r: np.ndarray) -> dict:
+    """The residual's tails: excess kurtosis and the share beyond SPIKE_SIGMA robust sigma."""
+    s = robust_sigma(r)
+    return {"excess_kurtosis": float(np.mean((r - r.mean()) ** 4) / max(np.var(r), 1e-300) ** 2 - 3.0),
+            f"beyond_{SPIKE_SIGMA:g}_robust_sigma_pct": float(100.0 * np.mean(np.abs(r - np.median(r)) > SPIKE_SIGMA * s))}
 
 
 def residual_spectrum(r: np.ndarray, heading_deg, t_s) -> dict:

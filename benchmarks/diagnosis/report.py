@@ -33,7 +33,10 @@ def _table(result: dict, source: str) -> list[str]:
         lines.append("  (!) " + next(e["shrink_flag"] for e in result["effects"] if e.get("shrink_flag")))
     if "remainder_nT" in result:
         lines.append(f"  remainder after the selected effects: {result['remainder_nT']:.3f} nT "
-                     f"(z {result['remainder_z']:.1f}, {'significant' if result['remainder_significant'] else 'not significant'})")
+                     f"(z {result['remainder_z']:.1f}, {'significant' if result['remainder_significant'] else 'not significant'}"
+                     f"{'; ' + result['remainder_measure'] if result.get('remainder_measure', 'mean square') != 'mean square' else ''})")
+    if result.get("base_fit", "lsq") != "lsq":
+        lines.append(f"  base fit: {result['base_fit']} (spikes pulled the least-squares fit)")
     if "power" in result:
         lines.append(f"  power: {result['power']['statement']}")
     for name, why in result.get("not_tested", {}).items():

@@ -26,7 +26,7 @@ from magbench.simulate.effects import EFFECTS, SPIKE_SIGMA, Columns, Normalizati
 from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
 from .floor import vector_floor
-from .localize import folds, localize
+from .localize import folds, localize, tails
 from .model import BASE_FREE, ExtendedModel, Tangent
 from .resimulate import resimulate
 from .scoring import (MIN_SIGNIFICANT_SHRINK_PCT, POWER_MAX_OF_FLOOR, REMAINDER_Z, Z_SIGNIFICANT, coverage_pct,
@@ -191,7 +191,7 @@ class Diagnosis:
                "coverage_pct": coverage_pct(unit), "folds": k, "seed": self.seed,
                "effect_info": {nm: v for nm, v in self.effect_info.items() if v},
                "selection_trail": trail,
-               "localization": localize(r_all, unit, d, self.dataset.heading_deg, k, self.seed, self.gravity),
+               "localization": self._localize(r_all, unit),
                "base_params": dict(zip(PARAM_NAMES[self.base], map(float, x9[list(BASE_FREE[self.base])]))),
                "fitted_params": {self.model.names[i]: float(x_sel[i]) for i in self.model.free_indices(selected)}}
         if selected:
@@ -204,6 +204,20 @@ class Diagnosis:
                 rs = {"skipped": f"re-simulation refused: {exc}"}
             if rs is not None:
                 out["resimulation"] = rs
+        return out
+
+    def _localize(self, r_all: np.ndarray, unit: np.ndarray) -> dict:
+        """Where the base residual lies, on the samples that are not spikes (a spike of thousands of nT would
+        decide every explained fraction); the tails are described on every sample."""
+        d, spikes = self.columns, self.tangent.spikes
+        heading, gravity = self.dataset.heading_deg, self.gravity
+        if not spikes.any() or (~spikes).sum() < 2 * self.k:
+            return localize(r_all, unit, d, heading, self.k, self.seed, gravity)
+        keep = ~spikes
+        out = localize(r_all[keep], unit[keep], d.take(keep), None if heading is None else heading[keep], self.k,
+                       self.seed, None if gravity is None else gravity[keep])
+        out.update(tails(r_all))
+        out["spikes_left_out"] = int(spikes.sum())
         return out
 
     @staticmethod
