@@ -26,6 +26,7 @@ parameters, eq. 7); the return value is ``(mean G, max G)`` of the current gener
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 
@@ -226,3 +227,263 @@ def generation_kernel():
         return numba.njit(cache=True, nogil=True)(_generation_loops)
     except RuntimeError:  # no writable cache location: compile for this process only
         return numba.njit(nogil=True)(_generation_loops)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# The real-coded GAs (``RealGA``, ``ga``; seed 002's ``ElitistRealGA``, ``rga``): one generation's
+# selection, crossover, mutation, clipping to the box and elitism, as a deterministic function of the
+# population (genes normalized to [0, 1] over the box), its objective values and the generation's random
+# numbers, which ``real_ga`` draws in one ``rng.random`` call (laid out as ``real_uniform_layout`` says),
+# plus, for the Gaussian mutation, one ``rng.standard_normal`` call for the rows that mutate.  Written
+# twice, bit-identical (tests/test_realgakernel.py): ``real_generation_numpy`` and ``_real_generation_loops``
+# (compiled by ``real_generation_kernel``).
+#
+# Arguments of both versions: ``f`` (m,) the objective values of ``pop`` (m, p), the current population
+# in [0, 1]; ``u`` the generation's uniforms; ``z`` the standard normals of the mutated rows (Gaussian
+# mutation; row after row, p per row); ``selection`` (TOURNAMENT with ``tournament`` contestants, or
+# RANK_SUS), ``crossover`` (BLX with ``alpha``, or SCATTERED) applied to a pair with probability ``pc``,
+# ``mutation`` (NONUNIFORM or GAUSSIAN) with probability ``pm`` and ``shrink`` (NONUNIFORM: the exponent
+# (1 - t/T)^b; GAUSSIAN: the standard deviation at generation t), ``elitism`` the number of best
+# individuals copied into the last rows, ``lo``, ``span`` (p,) the box.  Outputs: ``out_pop`` (m, p) the
+# next generation in [0, 1], ``out_x`` (m, p) its parameters lo + out_pop * span.
+#
+# Order: the population is ranked once (stable sort of f, NaN last: the best is the smallest value, ties
+# the lower index); a tournament's winner is its best-ranked contestant, the elites are the first ranks.
+# ---------------------------------------------------------------------------------------------------------
+
+TOURNAMENT, RANK_SUS = 0, 1
+BLX, SCATTERED = 0, 1
+NONUNIFORM, GAUSSIAN = 0, 1
+
+
+def real_uniform_layout(m: int, p: int, selection: int, tournament: int, crossover: int,
+                        mutation: int) -> dict[str, slice]:
+    """Which of a generation's uniforms each step uses (m individuals of p genes; half = ceil(m/2) pairs
+    of parents, the second child of the last pair dropped when m is odd): selection (TOURNAMENT: k
+    contestants for each of the 2 half parents; RANK_SUS: the pointers' offset and one sort key per
+    parent for the shuffle), one crossover draw per pair, the crossover's draws (BLX: one blend factor per
+    gene of each child; SCATTERED: one pick per gene of each pair), and mutation's (NONUNIFORM: one per
+    gene; GAUSSIAN: one per child)."""
+    half = (m + 1) // 2
+    sizes = {"select": 2 * half * tournament} if selection == TOURNAMENT else {"offset": 1, "shuffle": 2 * half}
+    sizes["cross"] = half
+    sizes["blend" if crossover == BLX else "pick"] = m * p if crossover == BLX else half * p
+    sizes["mutate"] = m * p if mutation == NONUNIFORM else m
+    parts, start = {}, 0
+    for name, size in sizes.items():
+        parts[name] = slice(start, start + size)
+        start += size
+    return parts
+
+
+def real_uniforms_needed(m: int, p: int, selection: int, tournament: int, crossover: int, mutation: int) -> int:
+    """How many uniforms one generation draws (see ``real_uniform_layout``)."""
+    return max(s.stop for s in real_uniform_layout(m, p, selection, tournament, crossover, mutation).values())
+
+
+def _pow_each(r: np.ndarray, e: float) -> np.ndarray:
+    """``r ** e`` element by element with the C library's ``pow`` (as the compiled loops call it; numpy's
+    own vectorized power may differ in the last bit)."""
+    return np.array([math.pow(v, e) for v in r.tolist()], dtype=float)
+
+
+def real_generation_numpy(f, pop, u, z, selection, tournament, crossover, alpha, pc, mutation, pm, shrink,
+                          elitism, lo, span, out_pop, out_x):
+    """One generation of the real-coded GA (seed 002, section 3.3: selection, crossover, mutation and an
+    elite carried over), on whole arrays.  Arguments and outputs: the comment above ``TOURNAMENT``.
+
+    Selection: TOURNAMENT, the best-ranked of ``tournament`` individuals drawn with replacement; RANK_SUS,
+    rank scaling (weight 1/sqrt(rank)) and stochastic universal sampling (pointers (u0 + j)/n of the
+    cumulative weight, then shuffled by sorting n uniforms).  Parents k and half + k form pair k; the pair
+    crosses with probability ``pc`` (else the children are the parents, copied).  BLX-alpha (Eshelman &
+    Schaffer 1993): child = pa + (pb - pa) s, s = u (1 + 2 alpha) - alpha uniform in [-alpha, 1 + alpha].
+    SCATTERED: each gene of the first child from pa or pb at even odds, the second child the other one.
+    NONUNIFORM (Michalewicz 1992): a gene hit (w < pm) moves towards 0 (w/pm < 1/2) or 1 by the distance
+    times 1 - r^((1 - t/T)^b), with r = 2 w/pm (mod 1) the uniform left in the hit draw.  GAUSSIAN: a
+    child mutated (w < pm) gets sigma z added to each gene.  Then clipping to [0, 1], and the elites
+    (first ranks, best first) replace the last children.
+    """
+    m, p = pop.shape
+    half = (m + 1) // 2
+    n = 2 * half
+    parts = real_uniform_layout(m, p, selection, tournament, crossover, mutation)
+    order = np.argsort(f, kind="stable")
+    rank = np.empty(m, np.int64)
+    rank[order] = np.arange(m)
+    if selection == TOURNAMENT:
+        cand = np.minimum((u[parts["select"]] * m).astype(np.int64), m - 1).reshape(n, tournament)
+        if tournament == 2:
+            mates = np.where(rank[cand[:, 0]] < rank[cand[:, 1]], cand[:, 0], cand[:, 1])
+        else:
+            mates = cand[np.arange(n), np.argmin(rank[cand], axis=1)]
+    else:
+        cum = np.cumsum(1.0 / np.sqrt(rank + 1.0))
+        pointers = (u[parts["offset"]][0] + np.arange(n)) / n * cum[-1]
+        picked = np.minimum(np.searchsorted(cum, pointers, side="left"), m - 1)
+        mates = picked[np.argsort(u[parts["shuffle"]], kind="stable")]
+    pa, pb = pop[mates[:half]], pop[mates[half:]]
+    second = m - half  # the second children kept
+    cross = u[parts["cross"]] < pc
+    out_pop[:half] = pa
+    out_pop[half:] = pb[:second]
+    if crossover == BLX:
+        s = u[parts["blend"]].reshape(m, p) * (1.0 + 2.0 * alpha)
+        s -= alpha
+        d = pb - pa
+        s[:half] *= d
+        s[half:] *= d[:second]
+        s[:half] += pa
+        s[half:] += pa[:second]
+        rows = np.concatenate((cross, cross[:second]))
+        out_pop[rows] = s[rows]
+    else:
+        pick = u[parts["pick"]].reshape(half, p) < 0.5
+        swap = ~pick & cross[:, None]
+        out_pop[:half][swap] = pb[swap]
+        out_pop[half:][swap[:second]] = pa[:second][swap[:second]]
+    w = u[parts["mutate"]]
+    if mutation == NONUNIFORM:
+        q = min(pm, 1.0)
+        flat = out_pop.reshape(-1)
+        hit = np.flatnonzero(w < q)
+        v = w[hit] / q * 2.0
+        up = v >= 1.0
+        delta = 1.0 - _pow_each(v - up, shrink)
+        c = flat[hit]
+        flat[hit] = c + (up - c) * delta
+    else:
+        rows = np.flatnonzero(w < pm)
+        out_pop[rows] += shrink * z[:len(rows) * p].reshape(len(rows), p)
+    np.maximum(out_pop, 0.0, out=out_pop)
+    np.minimum(out_pop, 1.0, out=out_pop)
+    if elitism:
+        out_pop[m - elitism:] = pop[order[:elitism]]
+    np.multiply(out_pop, span, out=out_x)
+    out_x += lo
+
+
+def _real_generation_loops(f, pop, u, z, selection, tournament, crossover, alpha, pc, mutation, pm, shrink,
+                           elitism, lo, span, out_pop, out_x):
+    """``real_generation_numpy`` (seed 002 section 3.3's generation) as loops, for numba: the same
+    arithmetic in the same order, so the results are bit-identical."""
+    m, p = pop.shape
+    half = (m + 1) // 2
+    n = 2 * half
+    second = m - half
+    order = np.argsort(f, kind="mergesort")
+    rank = np.empty(m, np.int64)
+    for r in range(m):
+        rank[order[r]] = r
+    mates = np.empty(n, np.int64)
+    if selection == TOURNAMENT:
+        for i in range(n):
+            best = -1
+            for c in range(tournament):
+                a = min(int(u[i * tournament + c] * m), m - 1)
+                if best < 0 or rank[a] < rank[best]:
+                    best = a
+            mates[i] = best
+        at = n * tournament
+    else:
+        cum = np.empty(m)
+        total = 0.0
+        for i in range(m):
+            total += 1.0 / np.sqrt(rank[i] + 1.0)
+            cum[i] = total
+        picked = np.empty(n, np.int64)
+        a = 0
+        for j in range(n):  # the pointers increase: one sweep finds the first sector reaching each
+            v = (u[0] + j) / n * total
+            while a < m - 1 and cum[a] < v:
+                a += 1
+            picked[j] = a
+        shuffle = np.argsort(u[1:1 + n], kind="mergesort")
+        for j in range(n):
+            mates[j] = picked[shuffle[j]]
+        at = 1 + n
+    cross_at = at
+    at += half
+    scale = 1.0 + 2.0 * alpha
+    for k in range(half):
+        a, b = mates[k], mates[half + k]
+        crosses = u[cross_at + k] < pc
+        for j in range(p):
+            xa, xb = pop[a, j], pop[b, j]
+            c1, c2 = xa, xb
+            if crosses:
+                if crossover == BLX:
+                    d = xb - xa
+                    c1 = (u[at + k * p + j] * scale - alpha) * d + xa
+                    if k < second:
+                        c2 = (u[at + (half + k) * p + j] * scale - alpha) * d + xa
+                elif not u[at + k * p + j] < 0.5:
+                    c1, c2 = xb, xa
+            out_pop[k, j] = c1
+            if k < second:
+                out_pop[half + k, j] = c2
+    at += m * p if crossover == BLX else half * p
+    if mutation == NONUNIFORM:
+        q = min(pm, 1.0)
+        for i in range(m):
+            for j in range(p):
+                w = u[at + i * p + j]
+                if w < q:
+                    v = w / q * 2.0
+                    up = 1.0 if v >= 1.0 else 0.0
+                    delta = 1.0 - (v - up) ** shrink
+                    c = out_pop[i, j]
+                    out_pop[i, j] = c + (up - c) * delta
+    else:
+        row = 0
+        for i in range(m):
+            if u[at + i] < pm:
+                for j in range(p):
+                    out_pop[i, j] += shrink * z[row * p + j]
+                row += 1
+    for i in range(m):
+        for j in range(p):
+            c = out_pop[i, j]
+            if c < 0.0:
+                c = 0.0
+            if c > 1.0:
+                c = 1.0
+            out_pop[i, j] = c
+    for r in range(elitism):
+        for j in range(p):
+            out_pop[m - elitism + r, j] = pop[order[r], j]
+    for i in range(m):
+        for j in range(p):
+            out_x[i, j] = out_pop[i, j] * span[j] + lo[j]
+
+
+def _real_smoke(kernel) -> None:
+    """One tiny generation of every operator combination, with the argument types ``real_ga`` passes
+    (compiles the loops, or raises where numba cannot)."""
+    m, p = 4, 2
+    f, pop, lo, span = np.arange(m, dtype=float), np.full((m, p), 0.5), np.zeros(p), np.ones(p)
+    for selection in (TOURNAMENT, RANK_SUS):
+        for crossover in (BLX, SCATTERED):
+            for mutation in (NONUNIFORM, GAUSSIAN):
+                u = np.full(real_uniforms_needed(m, p, selection, 2, crossover, mutation), 0.25)
+                kernel(f, pop, u, np.zeros(m * p), selection, 2, crossover, 0.3, 0.9, mutation, 0.1, 0.5, 1,
+                       lo, span, np.empty((m, p)), np.empty((m, p)))
+
+
+@functools.cache
+def real_generation_kernel():
+    """The real-coded GA's kernel: ``_real_generation_loops`` compiled by numba (cached on disk where numba
+    finds a writable place, else compiled in memory), or ``real_generation_numpy`` when numba does not
+    import or cannot compile it (either gives the same numbers)."""
+    try:
+        import numba
+    except ImportError:
+        return real_generation_numpy
+    try:
+        try:
+            kernel = numba.njit(cache=True, nogil=True)(_real_generation_loops)
+        except RuntimeError:  # no writable cache location: compile for this process only
+            kernel = numba.njit(nogil=True)(_real_generation_loops)
+        _real_smoke(kernel)
+    except Exception:  # noqa: BLE001  (a numba that cannot compile here: the numpy version runs)
+        return real_generation_numpy
+    return kernel

@@ -1,10 +1,11 @@
 """Genetic algorithms: the adaptive binary GA of seed 000 (``aga``), a plain real-coded GA (``ga``)
 and seed 002's real-coded elitist GA (``rga``).
 
-Every generation is evaluated in one call of the shared counted objective.  The real-coded GAs'
-selection, crossover and mutation act on the whole population as arrays (no Python loop over
-individuals); the AGA draws all of a generation's uniforms in one call and breeds it in one compiled
-kernel (``_gakernel``: numba, or the same steps in numpy where numba is missing, with identical results).
+Every generation is evaluated in one call of the shared counted objective.  Each GA draws a generation's
+random numbers in one call (the Gaussian mutation of ``rga`` adds one call for its normals) and breeds
+it in one compiled kernel (``_gakernel``: numba, or the same steps in numpy where numba is missing or
+cannot compile, with identical results); other objects run by ``real_ga`` (seed 001's ``RowGA``) use
+their own array operators.
 """
 from __future__ import annotations
 
@@ -162,7 +163,10 @@ class RealGA(Calibrator):
     Genes are normalized to [0, 1] over the search box.  Tournament selection (size ``tournament``),
     blend crossover BLX-alpha with probability ``pc``, non-uniform mutation (Michalewicz 1992: the step
     shrinks as ``1 - r^((1 - t/T)^b)``) of each gene with probability ``pm``, and ``elitism`` best
-    individuals copied unchanged into the next generation (PyGAD's default keeps 1).
+    individuals copied unchanged into the next generation (PyGAD's default keeps 1).  ``real_ga`` runs
+    these operators in ``_gakernel``'s kernel (the methods below are the array form other GAs reuse):
+    there the best is the smallest value (ties: the lower index; NaN last), and the mutation's r is the
+    uniform left in the hit draw w (r = 2 w/pm mod 1, the direction w/pm < 1/2).
     """
 
     name = "ga"
@@ -234,7 +238,9 @@ def real_ga(problem: Problem, ga) -> SolveOutput:
     ``_crossover``, ``_mutate``); ``problem`` the counted objective, the search box and the rng.
 
     Genes are normalized to [0, 1] over the box; each generation is evaluated in one counted call of
-    ``problem.values``.  Returns the best point the counter has seen.
+    ``problem.values``.  Returns the best point the counter has seen.  A ``RealGA`` whose operators are
+    ``RealGA``'s or ``ElitistRealGA``'s breeds each generation in one kernel call (``_gakernel``, seed 002
+    section 3.3) from one draw of uniforms; other objects run their own operators (``_operator_loop``).
     """
     if ga.population < 4:
         raise InputError(f"{ga.name}: population must be at least 4")
@@ -243,10 +249,64 @@ def real_ga(problem: Problem, ga) -> SolveOutput:
     rng, obj = problem.rng, problem
     lo, hi = problem.lower, problem.upper
     span = hi - lo
-    m, p, half = ga.population, len(lo), (ga.population + 1) // 2
-    u = rng.random((m, p))
+    u = rng.random((ga.population, len(lo)))
     x = lo + u * span
     f = obj.values(x)
+    operators = _kernel_operators(ga)
+    if operators is None:
+        _operator_loop(obj, ga, u, x, f, lo, span)
+    else:
+        _kernel_loop(obj, ga, operators, u, x, f, lo, span)
+    return SolveOutput(problem.best_x, status="max_generations", message=f"{ga.generations} generations",
+                       nit=ga.generations, extra={"generations": ga.generations})
+
+
+def _kernel_operators(ga) -> tuple[int, int, int] | None:
+    """(selection, crossover, mutation) codes of ``_gakernel`` for a ``RealGA`` whose operators the kernel
+    implements, else None."""
+    if not isinstance(ga, RealGA):
+        return None
+    kind = type(ga)
+    codes = ({RealGA._select: _gakernel.TOURNAMENT, ElitistRealGA._select: _gakernel.RANK_SUS}.get(kind._select),
+             {RealGA._crossover: _gakernel.BLX, ElitistRealGA._crossover: _gakernel.SCATTERED}.get(kind._crossover),
+             {RealGA._mutate: _gakernel.NONUNIFORM, ElitistRealGA._mutate: _gakernel.GAUSSIAN}.get(kind._mutate))
+    return None if None in codes else codes
+
+
+def _kernel_loop(obj, ga, operators, u, x, f, lo, span) -> None:
+    """Generations 1 .. T-1 bred by ``_gakernel``'s real-coded kernel: per generation one ``rng.random``
+    draw (``real_uniform_layout``) and, for the Gaussian mutation, one ``rng.standard_normal`` draw for the
+    rows that mutate; the mutation's shrink depends on t = generation / T."""
+    rng = obj.rng
+    selection, crossover, mutation = operators
+    m, p = u.shape
+    tournament = int(ga.tournament) if selection == _gakernel.TOURNAMENT else 1
+    if selection == _gakernel.TOURNAMENT and tournament < 1:
+        raise InputError(f"{ga.name}: tournament must be at least 1")
+    kernel = _gakernel.real_generation_kernel()  # numba compiled on the first run (cached on disk), or numpy
+    n_uniforms = _gakernel.real_uniforms_needed(m, p, selection, tournament, crossover, mutation)
+    mutate = _gakernel.real_uniform_layout(m, p, selection, tournament, crossover, mutation)["mutate"]
+    lo, span = np.array(lo, dtype=float), np.array(span, dtype=float)  # writable and contiguous: one signature
+    settings = (selection, tournament, crossover, float(ga.blx_alpha), float(ga.pc), mutation, float(ga.pm))
+    pm, elitism, no_normals = float(ga.pm), int(ga.elitism), np.empty(0)
+    u, children = np.ascontiguousarray(u, dtype=float), np.empty((m, p))
+    for gen in range(1, ga.generations):
+        t = gen / ga.generations
+        draw = rng.random(n_uniforms)
+        if mutation == _gakernel.GAUSSIAN:
+            z = rng.standard_normal(int(np.count_nonzero(draw[mutate] < pm)) * p)
+            shrink = float(ga.mutation_scale * (1.0 - t) ** ga.nonuniform_b)  # sigma at generation t
+        else:
+            z, shrink = no_normals, float((1.0 - t) ** ga.nonuniform_b)  # the non-uniform exponent
+        kernel(np.ascontiguousarray(f, dtype=float), u, draw, z, *settings, shrink, elitism, lo, span, children, x)
+        f = obj.values(x)
+        u, children = children, u
+
+
+def _operator_loop(obj, ga, u, x, f, lo, span) -> None:
+    """Generations 1 .. T-1 bred by ``ga``'s own ``_select``, ``_crossover`` and ``_mutate`` on arrays."""
+    rng = obj.rng
+    m, p, half = ga.population, len(lo), (ga.population + 1) // 2
     for gen in range(1, ga.generations):
         t = gen / ga.generations
         pa, pb = u[ga._select(f, 2 * half, rng)].reshape(2, half, p)
@@ -263,8 +323,6 @@ def real_ga(problem: Problem, ga) -> SolveOutput:
         x += lo
         f = obj.values(x)
         u = children
-    return SolveOutput(problem.best_x, status="max_generations", message=f"{ga.generations} generations",
-                       nit=ga.generations, extra={"generations": ga.generations})
 
 
 @register
