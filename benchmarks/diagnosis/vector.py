@@ -1,15 +1,19 @@
 """The diagnosis of a vector dataset (``magbench diagnose``, CONTRACT section 3):
 
-1. calibrate with the base model (``angles`` or ``nine``) by ``lsq``; localize its residual
-   (``localize``: held-out explained fractions);
-2. estimate the noise floor from differences of samples close in time, with an interval (``floor``);
-3. fit base + every testable library effect once on the whole record (``model.ExtendedModel``, spikes
-   trimmed) and build the per-fold tangent-space Gram matrices (``model.Tangent``);
+1. calibrate with the base model (``angles`` or ``nine``) by ``lsq`` (or ``ransac`` when spikes pull the
+   least-squares fit); localize its residual, spikes left out (``localize``: held-out explained fractions);
+2. estimate the noise floor from the errors of interpolating each sample from its time neighbours, with
+   an interval (``floor``);
+3. find the spikes against the model with every testable effect free (trimmed Levenberg-Marquardt fit,
+   ``model.ExtendedModel``), fit base + effects and build the per-fold tangent-space Gram matrices
+   (``model.Tangent``);
 4. forward selection: add, one at a time, the effect that lowers the held-out residual most, while it is
    significant (paired z > Z_SIGNIFICANT on held-out squared residuals; for spikes, enough of them) and
-   removes at least MIN_SIGNIFICANT_SHRINK_PCT of the gap;
+   removes at least MIN_SIGNIFICANT_SHRINK_PCT of the gap; then backward elimination of any effect whose
+   own contribution is no longer significant;
 5. each selected effect's own held-out contribution (the selected set with and without it) with a
-   bootstrap interval, the remainder in nT and its significance, the power of the tests;
+   bootstrap interval, the remainder in nT and its significance (a MAD scale once spikes are named), the
+   power of the tests;
 6. the verdict (``verdict``) and a re-simulation scored on folds not used to fit (``resimulate``).
 """
 from __future__ import annotations
