@@ -215,18 +215,34 @@ def _generation_loops(f, pop, u, lo, step, nb, pc1, pc2, pm1, pm2, per_bit, elit
     return g_avg, g_max
 
 
+def _smoke(kernel) -> None:
+    """One tiny generation with the argument types ``AdaptiveGA._solve`` passes (compiles the loops, or
+    raises where numba cannot)."""
+    m, p, nb = 4, 2, 3
+    for per_bit in (False, True):
+        kernel(np.arange(m, dtype=float), np.zeros((m, p), dtype=np.int64),
+               np.full(uniforms_needed(m, p * nb, per_bit), 0.25), np.zeros(p), np.ones(p), nb, 0.9, 0.6, 0.1,
+               0.001, per_bit, 1, np.empty((m, p), dtype=np.int64), np.empty((m, p)))
+
+
 @functools.cache
 def generation_kernel():
     """The kernel to run: ``_generation_loops`` compiled by numba (cached on disk where numba finds a
-    writable place, else compiled in memory), or ``generation_numpy`` when numba does not import."""
+    writable place, else compiled in memory), or ``generation_numpy`` when numba does not import or
+    cannot compile it (either gives the same numbers)."""
     try:
         import numba
     except ImportError:
         return generation_numpy
     try:
-        return numba.njit(cache=True, nogil=True)(_generation_loops)
-    except RuntimeError:  # no writable cache location: compile for this process only
-        return numba.njit(nogil=True)(_generation_loops)
+        try:
+            kernel = numba.njit(cache=True, nogil=True)(_generation_loops)
+        except RuntimeError:  # no writable cache location: compile for this process only
+            kernel = numba.njit(nogil=True)(_generation_loops)
+        _smoke(kernel)
+    except Exception:  # noqa: BLE001  (a numba that cannot compile here: the numpy version runs)
+        return generation_numpy
+    return kernel
 
 
 # ---------------------------------------------------------------------------------------------------------
