@@ -17,7 +17,7 @@ from magbench.benchmarks.campaign import (CHECKPOINT, RUNTIME_COLUMNS, Campaign,
 from magbench.benchmarks.cli import main
 
 # ~0.25 s per ga run: long enough to interrupt, short enough for seconds-long tests
-METHODS = ["lsq", "ga:generations=500"]
+METHODS = ["lsq", "ga:generations=4000"]  # long enough (~0.3 s a run) that an interrupt lands mid-campaign
 TRIALS = 12
 SEED = 7
 N_RUNS = len(METHODS) * TRIALS
