@@ -225,24 +225,29 @@ def _smoke(kernel) -> None:
                0.001, per_bit, 1, np.empty((m, p), dtype=np.int64), np.empty((m, p)))
 
 
-@functools.cache
-def generation_kernel():
-    """The kernel to run: ``_generation_loops`` compiled by numba (cached on disk where numba finds a
-    writable place, else compiled in memory), or ``generation_numpy`` when numba does not import or
-    cannot compile it (either gives the same numbers)."""
+def _compiled(loops, smoke, fallback):
+    """``loops`` compiled by numba (cached on disk where numba finds a writable place, else compiled in
+    memory) and checked by ``smoke``; ``fallback`` (the numpy version, same numbers) when numba does not
+    import or cannot compile it."""
     try:
         import numba
     except ImportError:
-        return generation_numpy
+        return fallback
     try:
         try:
-            kernel = numba.njit(cache=True, nogil=True)(_generation_loops)
+            kernel = numba.njit(cache=True, nogil=True)(loops)
         except RuntimeError:  # no writable cache location: compile for this process only
-            kernel = numba.njit(nogil=True)(_generation_loops)
-        _smoke(kernel)
+            kernel = numba.njit(nogil=True)(loops)
+        smoke(kernel)
     except Exception:  # noqa: BLE001  (a numba that cannot compile here: the numpy version runs)
-        return generation_numpy
+        return fallback
     return kernel
+
+
+@functools.cache
+def generation_kernel():
+    """The AGA's kernel: ``_generation_loops`` compiled, or ``generation_numpy`` (``_compiled``)."""
+    return _compiled(_generation_loops, _smoke, generation_numpy)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -487,19 +492,6 @@ def _real_smoke(kernel) -> None:
 
 @functools.cache
 def real_generation_kernel():
-    """The real-coded GA's kernel: ``_real_generation_loops`` compiled by numba (cached on disk where numba
-    finds a writable place, else compiled in memory), or ``real_generation_numpy`` when numba does not
-    import or cannot compile it (either gives the same numbers)."""
-    try:
-        import numba
-    except ImportError:
-        return real_generation_numpy
-    try:
-        try:
-            kernel = numba.njit(cache=True, nogil=True)(_real_generation_loops)
-        except RuntimeError:  # no writable cache location: compile for this process only
-            kernel = numba.njit(nogil=True)(_real_generation_loops)
-        _real_smoke(kernel)
-    except Exception:  # noqa: BLE001  (a numba that cannot compile here: the numpy version runs)
-        return real_generation_numpy
-    return kernel
+    """The real-coded GA's kernel: ``_real_generation_loops`` compiled, or ``real_generation_numpy``
+    (``_compiled``)."""
+    return _compiled(_real_generation_loops, _real_smoke, real_generation_numpy)
