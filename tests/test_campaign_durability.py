@@ -32,8 +32,10 @@ def start(args, tmp_path, name):
     """``python -m magbench ARGS`` in the background; stdout/stderr to files (a stray worker holding a pipe
     must not be able to block the test)."""
     stdout, stderr = open(tmp_path / f"{name}.out", "w"), open(tmp_path / f"{name}.err", "w")
+    # SIGINT back to its default in the child: a test run started in the background by a non-interactive
+    # shell inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler at all
     proc = subprocess.Popen([sys.executable, "-P", "-m", "magbench", *args], stdout=stdout, stderr=stderr,
-                            stdin=subprocess.DEVNULL)
+                            stdin=subprocess.DEVNULL, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     stdout.close()
     stderr.close()
     return proc
