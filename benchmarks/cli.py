@@ -268,6 +268,28 @@ def _save_target(args):
     return writable_path(path, args.force)
 
 
+def _calibration_lines(result, n_points: int) -> list[str]:
+    """The human-readable summary of a calibration result (``calibrate`` without --json)."""
+    p = result.params
+    lines = [f"{result.method} ({result.model} model), {n_points} points, {result.status}: {result.message}"]
+    if result.model_choice:
+        lines.append(f"  model auto -> {result.model}: {result.model_choice['reason']}")
+    if result.model in ("angles", "nine"):
+        lines.append(f"  alpha  {p.alpha_rad: .6e} rad   beta {p.beta_rad: .6e} rad   gamma {p.gamma_rad: .6e} rad")
+    if result.model in ("diag", "nine"):
+        lines.append("  scale  " + "  ".join(f"{k:.6f}" for k in p.scale)
+                     + "    offset " + "  ".join(f"{o:.2f}" for o in p.offset_nT) + " nT")
+    elif result.model == "offset":
+        lines.append("  offset " + "  ".join(f"{o:.2f}" for o in p.offset_nT) + " nT")
+    if result.uncertainty:
+        lines.append(f"  Cramér-Rao std at noise {result.noise_nT:.3g} nT: "
+                     + ", ".join(f"{k} {v:.2g}" for k, v in result.uncertainty.items()))
+    lines.append(f"  total-field RMS {result.rms_before_nT:.3f} -> {result.rms_after_nT:.3f} nT; "
+                 f"{_evaluations_text(result)}, "
+                 f"{result.runtime_s * 1e3:.1f} ms, seed {result.seed}")
+    return lines + [f"  warning: {w}" for w in result.warnings]
+
+
 def cmd_calibrate(args) -> int:
     from magbench.calibrators import make
 
@@ -292,24 +314,7 @@ def cmd_calibrate(args) -> int:
                          "the overall gain is relative to it\n")
     else:
         sys.stderr.write(f"magbench: reference {ref['median_nT']:.6g} nT (median) from {ref['source']}\n")
-    p = result.params
-    lines = [f"{result.method} ({result.model} model), {len(data)} points, {result.status}: {result.message}"]
-    if result.model_choice:
-        lines.append(f"  model auto -> {result.model}: {result.model_choice['reason']}")
-    if result.model in ("angles", "nine"):
-        lines.append(f"  alpha  {p.alpha_rad: .6e} rad   beta {p.beta_rad: .6e} rad   gamma {p.gamma_rad: .6e} rad")
-    if result.model in ("diag", "nine"):
-        lines.append("  scale  " + "  ".join(f"{k:.6f}" for k in p.scale)
-                     + "    offset " + "  ".join(f"{o:.2f}" for o in p.offset_nT) + " nT")
-    elif result.model == "offset":
-        lines.append("  offset " + "  ".join(f"{o:.2f}" for o in p.offset_nT) + " nT")
-    if result.uncertainty:
-        lines.append(f"  Cramér-Rao std at noise {result.noise_nT:.3g} nT: "
-                     + ", ".join(f"{k} {v:.2g}" for k, v in result.uncertainty.items()))
-    lines.append(f"  total-field RMS {result.rms_before_nT:.3f} -> {result.rms_after_nT:.3f} nT; "
-                 f"{_evaluations_text(result)}, "
-                 f"{result.runtime_s * 1e3:.1f} ms, seed {result.seed}")
-    lines += [f"  warning: {w}" for w in result.warnings]
+    lines = _calibration_lines(result, len(data))
     saved = None
     if target is not None and (result.accepted or args.accept_any):
         from magbench.calibrators.artifacts import export
