@@ -133,48 +133,16 @@ class Diagnosis:
         model = self.model = ExtendedModel(self.base, effects_ok, d, self.norm, x9[6:9], self.effect_info)
         x_lin = np.concatenate([x9, np.zeros(model.p - 9)])
         every = [cls.name for cls in effects_ok]
-        fold = folds(n, k, self.seed)
         n_train = n * (k - 1) // k
-        selected, seen = [], []
-        state = None
         spikes = self._spikes(model, x_lin, every)
         if spikes.any():  # derived inputs (thermal time constant, derivatives) again, the spikes left out
             self.effect_info = {cls.name: cls.prepare(d, self.norm, r_all, unit, spikes) for cls in effects_ok}
             model.info = self.effect_info
-        for _ in range(SELECTION_PASSES):  # the tangent space at the base fit, then at the selected model's fit
-            free = model.free_indices(selected)
-            x_try = model.fit(x_lin, free, keep=~spikes) if n >= 3 * len(free) else x_lin
-            tangent = Tangent(model, x_try, fold, k, spikes)
-            if state is not None and abs(tangent.fit_rms([]) / rms(r_all) - 1.0) > TANGENT_TOLERANCE:
-                break  # too far from the base fit for the base model's tangent to hold: keep the last pass
-            self.tangent, x_lin = tangent, x_try
-            base_res, _ = self.heldout([])
-            rms_base = rms(base_res)
-            selected, current, trail = self._select(every, base_res, rms_base, floor, n)
-            state = (selected, current, trail, base_res, rms_base, x_lin)
-            if selected in seen:
-                break
-            seen.append(list(selected))
-        selected, current, trail, base_res, rms_base, x_lin = state
+        selected, current, trail, base_res, rms_base, x_lin = self._passes(x_lin, every, spikes, r_all, floor)
         self.progress.step("extended fit, selection")
         self.r_star = model.residuals(x_lin) if selected else r_all
         self.progress.step("fold Gram matrices")
-
-        # each effect's own held-out contribution ----------------------------------------------------
-        entries = []
-        for i, name in enumerate(selected):
-            without, _ = self.heldout([s for s in selected if s != name])
-            alone, _ = self.heldout([name])
-            own = shrink_pct(rms_base, rms(current), floor) - shrink_pct(rms_base, rms(without), floor)
-            entries.append(self._entry(name, current, without, base_res, own, alone, floor, floor_se, True,
-                                       paired_z(without, current), i))
-        for name in [c for c in every if c not in selected]:
-            res, _ = self.heldout(selected + [name])
-            add = shrink_pct(rms_base, rms(current), floor) - shrink_pct(rms_base, rms(res), floor)
-            alone, _ = self.heldout([name])
-            entries.append(self._entry(name, res, current, base_res, -add, alone, floor, floor_se, False,
-                                       paired_z(current, res), len(entries)))
-        entries.sort(key=lambda e: (not e["selected"], -e["shrink_pct"] if e["selected"] else e["rms_heldout_nT"]))
+        entries = self._contributions(selected, every, current, base_res, rms_base, floor, floor_se)
         order = [e["name"] for e in entries if e["selected"]]
         self.progress.step("contributions")
 
@@ -209,6 +177,48 @@ class Diagnosis:
             if rs is not None:
                 out["resimulation"] = rs
         return out
+
+    def _passes(self, x_lin, every, spikes, r_all, floor):
+        """Forward selection in the tangent space at the base fit, then again at the selected model's fit
+        (SELECTION_PASSES at most, until the selection repeats or the tangent point drifts from the base
+        fit); (selected, held-out residual, trail, base held-out residual, its RMS, tangent point)."""
+        model, n, k = self.model, len(self.columns), self.k
+        fold = folds(n, k, self.seed)
+        selected, seen, state = [], [], None
+        for _ in range(SELECTION_PASSES):
+            free = model.free_indices(selected)
+            x_try = model.fit(x_lin, free, keep=~spikes) if n >= 3 * len(free) else x_lin
+            tangent = Tangent(model, x_try, fold, k, spikes)
+            if state is not None and abs(tangent.fit_rms([]) / rms(r_all) - 1.0) > TANGENT_TOLERANCE:
+                break  # too far from the base fit for the base model's tangent to hold: keep the last pass
+            self.tangent, x_lin = tangent, x_try
+            base_res, _ = self.heldout([])
+            rms_base = rms(base_res)
+            selected, current, trail = self._select(every, base_res, rms_base, floor, n)
+            state = (selected, current, trail, base_res, rms_base, x_lin)
+            if selected in seen:
+                break
+            seen.append(list(selected))
+        return state
+
+    def _contributions(self, selected, every, current, base_res, rms_base, floor, floor_se) -> list[dict]:
+        """Each selected effect's own held-out contribution (the selected set with and without it), and what
+        each effect left out would add; selected first, strongest first."""
+        entries = []
+        for i, name in enumerate(selected):
+            without, _ = self.heldout([s for s in selected if s != name])
+            alone, _ = self.heldout([name])
+            own = shrink_pct(rms_base, rms(current), floor) - shrink_pct(rms_base, rms(without), floor)
+            entries.append(self._entry(name, current, without, base_res, own, alone, floor, floor_se, True,
+                                       paired_z(without, current), i))
+        for name in [c for c in every if c not in selected]:
+            res, _ = self.heldout(selected + [name])
+            add = shrink_pct(rms_base, rms(current), floor) - shrink_pct(rms_base, rms(res), floor)
+            alone, _ = self.heldout([name])
+            entries.append(self._entry(name, res, current, base_res, -add, alone, floor, floor_se, False,
+                                       paired_z(current, res), len(entries)))
+        entries.sort(key=lambda e: (not e["selected"], -e["shrink_pct"] if e["selected"] else e["rms_heldout_nT"]))
+        return entries
 
     def _localize(self, r_all: np.ndarray, unit: np.ndarray) -> dict:
         """Where the base residual lies, on the samples that are not spikes (a spike of thousands of nT would
