@@ -33,10 +33,10 @@ def _panels(n: int):
 
 
 def _save(fig, path: Path, fmt: str, dpi: int) -> Path:
-    target = path.with_suffix(f".{fmt}")
-    fig.savefig(target, dpi=dpi, metadata={"Date": None} if fmt == "pdf" else
-                ({"Software": None} if fmt == "png" else {"Date": None} if fmt == "svg" else None))
-    return target
+    """``path`` with the format's suffix, through the campaign figures' writer (no dates or software tags)."""
+    from magbench.benchmarks.figures import _save as save_formats
+
+    return save_formats(fig, path.parent, path.name, (fmt,), dpi)[0]
 
 
 def comparison_figures(campaign_dir, curves: pd.DataFrame, anytime: pd.DataFrame, profile: pd.DataFrame,
@@ -58,41 +58,47 @@ def comparison_figures(campaign_dir, curves: pd.DataFrame, anytime: pd.DataFrame
     return written
 
 
-def _ecdf_figure(curves, styles, path, fmt, dpi):
-    scenarios = list(dict.fromkeys(curves["scenario"]))
+def _scenario_figure(frame, styles, draw, ylabel: str, title: str, legend_loc: str, log_y: bool = False):
+    """One panel per scenario of ``frame``, ``draw(ax, part, conf, style)`` once per configuration, on a
+    log axis of objective evaluations."""
+    scenarios = list(dict.fromkeys(frame["scenario"]))
     fig, axes = _panels(len(scenarios))
     for ax, scenario in zip(axes, scenarios):
-        for conf, part in curves[curves["scenario"] == scenario].groupby("configuration", sort=False):
-            st = styles[conf]
-            ax.step(part["evaluations"], part["fraction"], where="post", color=st["color"], ls=st["ls"], label=conf,
-                    marker=st["marker"], markevery=MARK_EVERY, ms=4)
+        for conf, part in frame[frame["scenario"] == scenario].groupby("configuration", sort=False):
+            draw(ax, part, conf, styles[conf])
+        if log_y:
+            ax.axhline(1.0, color="0.5", lw=1, ls="--")
         ax.set_xscale("log")
-        ax.set_ylim(-0.02, 1.02)
+        if log_y:
+            ax.set_yscale("log")
+        else:
+            ax.set_ylim(-0.02, 1.02)
         ax.set_xlabel("objective evaluations")
-        ax.set_ylabel("fraction of (run, target) pairs reached")
-        ax.set_title(f"{scenario}: runtime ECDF, RMS targets 10x .. 1.001x optimum", fontsize=10)
+        ax.set_ylabel(ylabel)
+        ax.set_title(f"{scenario}: {title}", fontsize=10)
         ax.grid(True, which="major", alpha=0.3)
-        ax.legend(fontsize=7, loc="lower right")
+        ax.legend(fontsize=7, loc=legend_loc)
+    return fig
+
+
+def _ecdf_figure(curves, styles, path, fmt, dpi):
+    def draw(ax, part, conf, st):
+        ax.step(part["evaluations"], part["fraction"], where="post", color=st["color"], ls=st["ls"], label=conf,
+                marker=st["marker"], markevery=MARK_EVERY, ms=4)
+
+    fig = _scenario_figure(curves, styles, draw, "fraction of (run, target) pairs reached",
+                           "runtime ECDF, RMS targets 10x .. 1.001x optimum", "lower right")
     return _save(fig, path, fmt, dpi)
 
 
 def _anytime_figure(anytime, styles, path, fmt, dpi):
-    scenarios = list(dict.fromkeys(anytime["scenario"]))
-    fig, axes = _panels(len(scenarios))
-    for ax, scenario in zip(axes, scenarios):
-        for conf, part in anytime[anytime["scenario"] == scenario].groupby("configuration", sort=False):
-            st = styles[conf]
-            ax.plot(part["evaluations"], part["median"], color=st["color"], ls=st["ls"], marker=st["marker"],
-                    markevery=MARK_EVERY, ms=4, label=f"{conf} (n={part['n'].max()})")
-            ax.fill_between(part["evaluations"], part["q25"], part["q75"], color=st["color"], alpha=0.15, lw=0)
-        ax.axhline(1.0, color="0.5", lw=1, ls="--")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("objective evaluations")
-        ax.set_ylabel("best RMS so far / optimum")
-        ax.set_title(f"{scenario}: anytime performance (median, inter-quartile band)", fontsize=10)
-        ax.grid(True, which="major", alpha=0.3)
-        ax.legend(fontsize=7, loc="upper right")
+    def draw(ax, part, conf, st):
+        ax.plot(part["evaluations"], part["median"], color=st["color"], ls=st["ls"], marker=st["marker"],
+                markevery=MARK_EVERY, ms=4, label=f"{conf} (n={part['n'].max()})")
+        ax.fill_between(part["evaluations"], part["q25"], part["q75"], color=st["color"], alpha=0.15, lw=0)
+
+    fig = _scenario_figure(anytime, styles, draw, "best RMS so far / optimum",
+                           "anytime performance (median, inter-quartile band)", "upper right", log_y=True)
     return _save(fig, path, fmt, dpi)
 
 
