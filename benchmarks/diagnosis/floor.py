@@ -87,8 +87,7 @@ def time_difference_floor(r_in_order: np.ndarray, t_in_order: np.ndarray | None 
         n = int((~spk).sum())
     s1 = robust_sigma(e1)
     s3 = robust_sigma(e3) if len(e3) else s1
-    se, lo, hi = _interval(s1, int(INDEPENDENT_SHARE * n))
-    leak = bool(s1 - s3 > LEAK_Z * se)  # structure left in the two-neighbour errors inflates them
+    leak = bool(s1 - s3 > LEAK_Z * _interval(s1, int(INDEPENDENT_SHARE * n))[0])  # structure inflates s1
     sigma = min(s1, s3) if leak else s1
     se, lo, hi = _interval(sigma, int(INDEPENDENT_SHARE * n))
     return {"noise_floor_nT": float(sigma), "floor_se_nT": float(se), "floor_interval_nT": [float(lo), float(hi)],

@@ -24,7 +24,7 @@ BLOCK_ROWS = 65536
 GN_ITERATIONS = 12
 GN_TOLERANCE = 1e-10
 TRIM_ROUNDS = 8  # re-trim until the spike mask settles (heavy-tailed spikes come out in layers)
-GN_HALVINGS = 12  # ridge increases per Levenberg-Marquardt step
+LM_RIDGE_STEPS = 12  # tenfold ridge increases tried per Levenberg-Marquardt step
 TRIM_ITERATIONS = 4  # per trim round (the rounds continue from the last point)
 TRIM_TOLERANCE = 1e-6  # the spike mask needs the fit to a millionth of its sum of squares, not to rounding
 STORE_J_BYTES = 400e6  # keep the Jacobian in memory (float32) below this size, else recompute it per pass
@@ -178,7 +178,7 @@ class ExtendedModel:
             tol: float = GN_TOLERANCE, iterations: int = GN_ITERATIONS) -> np.ndarray:
         """Levenberg-Marquardt on the rows ``keep`` (a mask over all rows) for the ``free`` parameters:
         Gauss-Newton steps on the column-scaled normal equations, whose ridge grows tenfold (at most
-        GN_HALVINGS times) until the sum of squares goes down and shrinks again after a success.  Every
+        LM_RIDGE_STEPS times) until the sum of squares goes down and shrinks again after a success.  Every
         step is verified, so the answer is never worse than the start; the ridge, not a shorter step, is
         what tames the near-null directions of a model with every effect free (a plain Gauss-Newton step
         there moved an angle by 0.3 rad and raised the sum of squares by 10^6)."""
@@ -187,7 +187,7 @@ class ExtendedModel:
         sse, a, bvec = self._normal_equations(x, free, keep, blocks)
         ridge = FIT_RIDGE
         for _ in range(iterations):
-            for _ in range(GN_HALVINGS):
+            for _ in range(LM_RIDGE_STEPS):
                 x_new = x.copy()
                 x_new[free] -= solve_normal(a, bvec, ridge)
                 sse_new, a_new, b_new = self._normal_equations(x_new, free, keep, blocks)

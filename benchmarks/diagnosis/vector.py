@@ -24,6 +24,7 @@ import time
 import numpy as np
 
 from magbench.calibrators import make
+from magbench.calibrators.registry import get
 from magbench.errors import InputError
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.effects import EFFECTS, SPIKE_SIGMA, Columns, Normalization, OutlierEffect, robust_sigma
@@ -42,7 +43,7 @@ MIN_POINTS_BEYOND_PARAMETERS = 10
 MAX_EFFECTS = 4
 SELECTION_PASSES = 3
 MIN_STEP_OF_REMAINING = 0.25  # ... or a quarter of what the effects before it left
-ROBUST_START_MODELS = {"nine": ("ransac",)}  # a robust base start where the calibrator estimates the base model
+ROBUST_START = "ransac"  # the robust base start, where it estimates the base model (its supported_models)
 TANGENT_TOLERANCE = 0.05  # a later tangent point must reproduce the base fit's RMS within 5 %
 SHRINK_FLAG = ("above 100 %: the held-out RMS with the effect is below the noise-floor estimate, so the floor "
                "(its interval is given) is too high for these data or the remainder is smaller than its error")
@@ -98,15 +99,15 @@ class Diagnosis:
         10^5 nT) that no trimming from there recovers."""
         fits = [make("lsq", model=self.base).fit(self.dataset)]
         r = [self._scalar_residual(fits[0])]
-        if OutlierEffect.spike_mask(r[0]).any() and "ransac" in ROBUST_START_MODELS.get(self.base, ()):
+        if OutlierEffect.spike_mask(r[0]).any() and self.base in get(ROBUST_START).supported_models:
             try:
-                fits.append(make("ransac", model=self.base, seed=self.seed).fit(self.dataset))
+                fits.append(make(ROBUST_START, model=self.base, seed=self.seed).fit(self.dataset))
                 r.append(self._scalar_residual(fits[-1]))
             except (InputError, ValueError, np.linalg.LinAlgError):  # no consensus set: keep lsq
                 pass
         best = min(range(len(fits)), key=lambda i: robust_sigma(r[i]))
         fit, res = fits[best], r[best]
-        self.base_method = ("lsq", "ransac")[best]
+        self.base_method = ("lsq", ROBUST_START)[best]
         corrected = fit.correct(self.columns.raw_nT)
         x9 = np.array([fit.params.alpha_rad, fit.params.beta_rad, fit.params.gamma_rad, *fit.params.scale,
                        *fit.params.offset_nT], dtype=float)
