@@ -17,6 +17,7 @@ Local workers exit on their own when the campaign process dies (a watchdog threa
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import platform
@@ -25,7 +26,7 @@ import subprocess
 import sys
 import threading
 import time
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
@@ -72,7 +73,7 @@ class MethodSpec:
         return self.name + "".join(f" {k}={v}" for k, v in self.params)
 
     @classmethod
-    def parse(cls, text: str) -> "MethodSpec":
+    def parse(cls, text: str) -> MethodSpec:
         """``name`` or ``name:key=value:key=value`` (values parsed as JSON where they can be)."""
         name, *items = text.split(":")
         params = []
@@ -80,10 +81,8 @@ class MethodSpec:
             if "=" not in item:
                 raise InputError(f"method {text!r}: parameter {item!r} is not key=value")
             k, v = item.split("=", 1)
-            try:
+            with suppress(json.JSONDecodeError):
                 v = json.loads(v)
-            except json.JSONDecodeError:
-                pass
             params.append((k, v))
         return cls(name.strip(), tuple(params))
 
@@ -252,10 +251,8 @@ def _stop_pool(pool) -> None:
     """Cancel what has not started and terminate the workers now, without waiting for running chunks."""
     procs = list((getattr(pool, "_processes", None) or {}).values())
     for p in procs:
-        try:
+        with suppress(OSError, AttributeError, ValueError):
             p.terminate()
-        except (OSError, AttributeError, ValueError):
-            pass
     pool.shutdown(wait=False, cancel_futures=True)
     deadline = time.monotonic() + 3.0
     for p in procs:
@@ -295,16 +292,12 @@ def _run_dask(tasks: list[dict], address: str, finish) -> None:
             for fut in as_completed(futures):
                 finish(index[fut.key], fut.result())
         except BaseException:
-            try:
+            with contextlib.suppress(Exception):  # the cluster may be gone; nothing more to cancel then
                 client.cancel(futures, force=True)
-            except Exception:  # the cluster may be gone; nothing more to cancel then
-                pass
             raise
     finally:
-        try:
+        with suppress(Exception):
             client.close(timeout=5)
-        except Exception:
-            pass
 
 
 def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, progress: bool = True,
@@ -366,7 +359,7 @@ class Checkpoint:
             tmp = self.path.with_name(self.path.name + ".tmp")
             tmp.write_text(json.dumps(header) + "\n", encoding="utf-8")
             os.replace(tmp, self.path)
-        self._file = open(self.path, "ab", buffering=0)
+        self._file = open(self.path, "ab", buffering=0)  # noqa: SIM115 - held open for the campaign, closed in close()
 
     @staticmethod
     def read(path: Path) -> tuple[dict | None, dict]:
@@ -401,10 +394,8 @@ class Checkpoint:
 
     def close(self) -> None:
         if not self._file.closed:
-            try:
+            with suppress(OSError):
                 os.fsync(self._file.fileno())
-            except OSError:
-                pass
             self._file.close()
 
 
@@ -459,10 +450,8 @@ def clear_outputs(out) -> list[Path]:
             if (comparison / name).is_file():
                 (comparison / name).unlink()
                 removed.append(comparison / name)
-        try:
+        with contextlib.suppress(OSError):  # something else lives there: not ours to delete
             comparison.rmdir()
-        except OSError:  # something else lives there: not ours to delete
-            pass
     figures = out / "figures"
     if figures.is_symlink():
         figures.unlink()
@@ -472,10 +461,8 @@ def clear_outputs(out) -> list[Path]:
             if path.suffix in (".png", ".svg", ".pdf") and (path.is_file() or path.is_symlink()):
                 path.unlink()
                 removed.append(path)
-        try:
+        with contextlib.suppress(OSError):  # something else lives there: not ours to delete
             figures.rmdir()
-        except OSError:  # something else lives there: not ours to delete
-            pass
     return removed
 
 

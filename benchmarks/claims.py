@@ -13,9 +13,8 @@ import pandas as pd
 from magbench.benchmarks.metrics import heading_error_deg
 from magbench.calibrators import make
 from magbench.errors import InputError
-from magbench.simulate.scenarios import get_scenario
 from magbench.paper import RESOLUTION_RAD
-
+from magbench.simulate.scenarios import get_scenario
 
 
 def ellipse2d_heading_error_deg(data) -> float:

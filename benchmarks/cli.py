@@ -360,8 +360,8 @@ def cmd_demo(args) -> int:
 
     from magbench.benchmarks.metrics import evaluations_label
     from magbench.benchmarks.runner import run_one
-    from magbench.paper import ARCSEC_PER_RAD
     from magbench.calibrators import available
+    from magbench.paper import ARCSEC_PER_RAD
     from magbench.simulate.scenarios import get_scenario
 
     rows = []
@@ -521,9 +521,7 @@ def _compare_outputs(args, runs, out: Path, progress: bool) -> int:
 
 
 def cmd_diagnose(args) -> int:
-    from magbench.benchmarks.diagnosis import diagnose, diagnosis_figure, diagnosis_text
-
-    from magbench.benchmarks.diagnosis import read_gravity
+    from magbench.benchmarks.diagnosis import diagnose, diagnosis_figure, diagnosis_text, read_gravity
 
     data = load_dataset(args, require_vector=False)
     figure = Path(args.figure) if args.figure and not args.no_figure else None

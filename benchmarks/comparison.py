@@ -233,10 +233,7 @@ def paired_tests(runs: pd.DataFrame, metric: str = "rms_after_nT") -> tuple[pd.D
             for b in confs[i + 1:]:
                 both = table[[a, b]].dropna()
                 diff = (both[a] - both[b]).to_numpy()
-                if len(diff) and np.any(diff != 0):
-                    p = float(wilcoxon(diff, zero_method="zsplit").pvalue)
-                else:
-                    p = 1.0
+                p = float(wilcoxon(diff, zero_method="zsplit").pvalue) if len(diff) and np.any(diff != 0) else 1.0
                 pairs.append({"scenario": scenario, "a": a, "b": b, "n": len(diff), "median_diff": float(np.median(diff))
                               if len(diff) else math.nan, "p": p})
         if pairs:

@@ -3,7 +3,7 @@ report and the ``magbench gradiometer`` command.
 
 Seed 001: Jin, Zhuang, Wang, "基于磁梯度测量的磁校准方法", Aero Weaponry 2024 (1): 117-121.  The sensor
 pair and its simulator are in ``magbench.simulate.gradiometer``, the calibrations in
-``magbench.calibrators.gradiometer``.  ``run_gradiometer`` simulates the paper's gradiometer in a field
+``magbench.calibrators.methods.gradiometer``.  ``run_gradiometer`` simulates the paper's gradiometer in a field
 fluctuating in time, calibrates it by single-sensor ellipsoid fits and by the paper's three 6-gene GAs
 (plus our references) and measures each by the per-axis gradient residual (RMS of eq. 8's left side over
 the record), per-sensor vector errors and parameter errors against the truth.  ``magbench reproduce``
@@ -25,12 +25,31 @@ import time
 
 import numpy as np
 
-from magbench.calibrators.gradiometer import (GradientCalibration, best_rotation, check_ga_options,
-                                              ellipsoid_calibration, ga_gradient_calibration, gauge_fixed,
-                                              lsq_reference, rotated_ellipsoid, true_calibration, uncalibrated)
-from magbench.simulate.gradiometer import (DEFAULT_DURATION_S, DEFAULT_FIELD, DEFAULT_FLUCTUATION_NT,
-                                           DEFAULT_NOISE_NT, DEFAULT_POINTS, MIN_POINTS, GradiometerDataset,
-                                           GradiometerParams, check_int, check_nonneg, simulate_gradiometer)
+from magbench.calibrators.methods.gradiometer import (
+    GradientCalibration,
+    best_rotation,
+    check_ga_options,
+    ellipsoid_calibration,
+    ga_gradient_calibration,
+    gauge_fixed,
+    lsq_reference,
+    rotated_ellipsoid,
+    true_calibration,
+    uncalibrated,
+)
+from magbench.simulate.gradiometer import (
+    DEFAULT_DURATION_S,
+    DEFAULT_FIELD,
+    DEFAULT_FLUCTUATION_NT,
+    DEFAULT_NOISE_NT,
+    DEFAULT_POINTS,
+    MIN_POINTS,
+    GradiometerDataset,
+    GradiometerParams,
+    check_int,
+    check_nonneg,
+    simulate_gradiometer,
+)
 
 PAPER_GA_RMS_NT = (1.8482, 1.8453, 1.9150)
 """Seed 001, abstract and section 4: gradient (difference) error per axis after the GA calibration."""

@@ -11,8 +11,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from magbench.calibrators.base import CalibrationResult
+from magbench.calibrators.core.objective import ScalarObjective
 from magbench.calibrators.fisher import crb_std
-from magbench.calibrators.objective import ScalarObjective
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import PARAM_NAMES, ErrorParams
 

@@ -16,8 +16,8 @@ import numpy as np
 import pandas as pd
 
 from magbench.benchmarks.runner import run_one
-from magbench.simulate import simulate
 from magbench.paper import RESOLUTION_RAD
+from magbench.simulate import simulate
 
 SPHERE_METHODS = [("ga", {}), ("rga", {}), ("aco", {}), ("nlopt", {}), ("nlopt", {"algorithm": "LD_LBFGS"}),
                   ("nlopt", {"algorithm": "GN_CRS2_LM", "max_evaluations": 80000}),

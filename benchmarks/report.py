@@ -20,8 +20,16 @@ from pathlib import Path
 import pandas as pd
 
 from magbench.benchmarks.figures import KINDS, failed_mask, make_figures, safe_name
-from magbench.benchmarks.tables import (ANGLE_COLUMNS, COLUMNS, MIN_TRIALS_EFFICIENCY, _few, _value, add_intervals,
-                                        efficiency_text, summarize)
+from magbench.benchmarks.tables import (
+    ANGLE_COLUMNS,
+    COLUMNS,
+    MIN_TRIALS_EFFICIENCY,
+    _few,
+    _value,
+    add_intervals,
+    efficiency_text,
+    summarize,
+)
 
 TEMPLATES = Path(__file__).with_name("templates")
 
@@ -260,7 +268,7 @@ def _comparison_tables(campaign_dir: Path) -> list[dict]:
         else pd.DataFrame()
     out = []
     for scenario, part in ert.groupby("scenario", sort=False):
-        part = part.assign(target_label=[("RMS ≤ %g×" % t) if k == "rms" else ("angle ≤ %gσ" % t)
+        part = part.assign(target_label=[(f"RMS ≤ {t:g}×") if k == "rms" else (f"angle ≤ {t:g}σ")
                                          for k, t in zip(part["kind"], part["target"])],
                            cell=[ert_cell(x) for x in part.itertuples(index=False)])
         order = list(dict.fromkeys(part["configuration"]))

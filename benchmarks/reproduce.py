@@ -85,7 +85,7 @@ def lu2014_tables(campaign_dir: Path, out: Path) -> Path:
               f"{100 * (1 - PAPER_TEXT_RMS[1] / PAPER_TEXT_RMS[0]):.1f} % |",
               f"| paper, computed from the 35 rows of its Table 2 | {rows_before:.2f} | {rows_after:.2f} | "
               f"{100 * (1 - rows_after / rows_before):.1f} % |"]
-    for m, r in fits.items():
+    for m, _r in fits.items():
         lines.append(f"| ours, {m} on simulated lu2014 (36 points) | {ours_before:.2f} | {_rms(f_after[m] - ref):.2f} | "
                      f"{100 * (1 - _rms(f_after[m] - ref) / ours_before):.1f} % |")
     lines += ["", "The paper's text (411.82 -> 49.38 nT, 88.1 %) does not follow from its own Table 2, whose rows give "
@@ -271,13 +271,13 @@ def write_timing(clock: PhaseClock, out: Path, jobs: int, quick: bool) -> Path:
 
 
 def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = True) -> list[Path]:
+    from tqdm import tqdm
+
     from magbench.benchmarks.campaign import Campaign, MethodSpec, clear_outputs, run_campaign
     from magbench.benchmarks.comparison import write_comparison
     from magbench.benchmarks.figures import make_figures
     from magbench.benchmarks.report import write_report
     from magbench.calibrators import available
-
-    from tqdm import tqdm
 
     out.mkdir(parents=True, exist_ok=True)
     written = []

@@ -114,7 +114,8 @@ def _quality_lines(bench: dict) -> list[str]:
         t_o = _time_to_target(o) if o else None
         t_p = _time_to_target(p) if p else None
         ratio = f"{t_p / t_o:.0f}x" if t_o and t_p else ("peer never reached it" if p and t_o else "not run")
-        cell = (lambda t: f"{t:.3f} s" if t else "not reached")
+        def cell(t):
+            return (f"{t:.3f} s" if t else "not reached")
         lines.append(f"| {ours_name} | {cell(t_o) if o else 'not run'} | "
                      f"{o['extra_info'].get('rms_after_nT', float('nan')) if o else float('nan'):.3f} | {peer_name} | "
                      f"{cell(t_p) if p else 'not run'} | "

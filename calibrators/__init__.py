@@ -9,8 +9,10 @@
 from magbench.simulate.sensor import ErrorParams
 
 from .artifacts import Calibration, export, load_calibration
-from .base import CalibrationResult, Calibrator, Problem, ReadingsProblem, SolveOutput, search_bounds
-from .objective import Budget, BudgetExhausted, Evaluator, ScalarObjective, audit_evaluations
+from .base import CalibrationResult, Calibrator
+from .core.evaluator import Budget, BudgetExhausted, Evaluator, audit_evaluations
+from .core.objective import ScalarObjective
+from .core.problem import Problem, ReadingsProblem, SolveOutput, search_bounds
 from .registry import ENTRY_POINT_GROUP, available, get, make, register
 
 __all__ = [

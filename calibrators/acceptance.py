@@ -23,11 +23,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from magbench.numerics import lm_normal
 from magbench.simulate.effects import robust_sigma
 from magbench.simulate.sensor import PARAM_NAMES
 
+from .core.objective import ScalarObjective
 from .fisher import crb_std
-from .objective import ScalarObjective, lm_normal
 
 PROFILE_ATOL = 0.02
 """The profile refit stops once an iteration lowers the sum of squares by less than this many noise

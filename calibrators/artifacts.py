@@ -146,7 +146,7 @@ class Calibration:
 
     # -- building --------------------------------------------------------------------------------------
     @classmethod
-    def from_result(cls, result) -> "Calibration":
+    def from_result(cls, result) -> Calibration:
         from magbench import __version__
 
         return cls(model=result.model, matrix=result.params.matrix, offset_nT=result.params.offset_nT,
@@ -192,7 +192,7 @@ class Calibration:
         return json.dumps(self.as_dict(), indent=2, allow_nan=False) + "\n"
 
     @classmethod
-    def from_dict(cls, d: dict, where: str = "calibration") -> "Calibration":
+    def from_dict(cls, d: dict, where: str = "calibration") -> Calibration:
         if not isinstance(d, dict):
             raise InputError(f"{where}: not a calibration (a JSON object is expected)")
         if "schema" not in d and "A" in d and "b" in d:
@@ -232,7 +232,7 @@ class Calibration:
             raise InputError(f"{where}: malformed entry ({exc})") from None
 
     @classmethod
-    def _rest_of_dict(cls, d, model, matrix, offset, params, p) -> "Calibration":
+    def _rest_of_dict(cls, d, model, matrix, offset, params, p) -> Calibration:
         uncertainty = {k: float(v["std"]) for k, v in p.items() if isinstance(v, dict) and v.get("std") is not None}
         data = d.get("data") or {}
         return cls(model=model, matrix=matrix, offset_nT=tuple(offset), params=params, uncertainty=uncertainty,
@@ -245,7 +245,7 @@ class Calibration:
                    origin=str(d.get("origin", "magbench")))
 
     @classmethod
-    def from_json(cls, text: str, where: str = "calibration") -> "Calibration":
+    def from_json(cls, text: str, where: str = "calibration") -> Calibration:
         try:
             d = json.loads(text)
         except json.JSONDecodeError as exc:

@@ -17,13 +17,24 @@ from typing import ClassVar
 import numpy as np
 
 from magbench.errors import InputError
-from magbench.simulate.dataset import Dataset, readonly_copy
-from magbench.simulate.sensor import FREE, MODELS, PARAM_NAMES, ErrorParams
+from magbench.simulate.dataset import Dataset
+from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
 
 from .acceptance import DEFAULT_LIMITS, AcceptanceLimits, assess, reference_problems
+from .artifacts import Calibration
+from .core.evaluator import Budget, BudgetExhausted, Evaluator
+from .core.objective import ScalarObjective, identity_vector
+from .core.problem import (  # noqa: F401
+    PHYSICAL_BOX,
+    POPULATION_OFFSET_FRACTION,
+    Problem,
+    ReadingsProblem,
+    SolveOutput,
+    population_box,
+    search_bounds,
+)
 from .fisher import coverage, crb_std
-from .objective import Budget, BudgetExhausted, Evaluator, ScalarObjective, identity_vector
-
+from .inputs import algebraic_vector, as_dataset
 
 
 @dataclass(frozen=True)
@@ -87,8 +98,6 @@ class CalibrationResult:
 
     def calibration(self):
         """This result as a ``Calibration`` (the saved artifact, ``calibrators/artifacts.py``)."""
-        from .artifacts import Calibration
-
         return Calibration.from_result(self)
 
     def to_json(self) -> str:
@@ -141,149 +150,6 @@ def _jsonable(v):
     if isinstance(v, (np.floating, np.integer)):
         return v.item()
     return v
-
-
-class Problem:
-    """What an iterative calibrator's ``_solve`` sees (pymoo's algorithm sees only its evaluator): the
-    counted objective (``values``, ``value``, ``residuals``, ``jacobian``, ``gradient``), the start point
-    ``x0``, the search box ``lower``/``upper`` (from ``search_bounds``, the one bounds function), the rng
-    and the seed.  It holds no readings: everything a solver learns about the data is counted.
-
-    ``algebraic_start()`` is the one service that reads the data for the solver: the closed-form
-    ellipsoid fit (the usual start of a local method), computed by the framework and counted as one
-    evaluation when the solver asks for it.
-    """
-
-    __slots__ = ("model", "x0", "lower", "upper", "rng", "seed", "_evaluator", "_start")
-
-    def __init__(self, evaluator: Evaluator, model: str, x0: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                 rng: np.random.Generator, seed: int | None, start=None):
-        self._evaluator = evaluator
-        self.model = model
-        self.x0 = readonly_copy(x0)
-        self.lower = readonly_copy(lower)
-        self.upper = readonly_copy(upper)
-        self.rng = rng
-        self.seed = seed
-        self._start = start
-
-    # the counted objective
-    def values(self, x: np.ndarray) -> np.ndarray:
-        """F of eq. 3 (seed 000) for a population (m, p): m counted evaluations."""
-        return self._evaluator.values(x)
-
-    def value(self, x: np.ndarray) -> float:
-        return self._evaluator.value(x)
-
-    def residuals(self, x: np.ndarray) -> np.ndarray:
-        """The per-point residuals |M (raw - o)| - F at one point: one counted evaluation."""
-        return self._evaluator.residuals(x)
-
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
-        return self._evaluator.jacobian(x)
-
-    def gradient(self, x: np.ndarray) -> np.ndarray:
-        return self._evaluator.gradient(x)
-
-    def normal_equations(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-        """``(J^T J, J^T r, r^T r)`` accumulated in bounded memory: one counted evaluation, one Jacobian."""
-        return self._evaluator.normal_equations(x)
-
-    @property
-    def n_points(self) -> int:
-        """How many readings the objective sums over (their number, not their values)."""
-        return self._evaluator.n_points
-
-    # what the counter knows
-    @property
-    def n_params(self) -> int:
-        return len(self.x0)
-
-    @property
-    def n_evaluations(self) -> int:
-        return self._evaluator.n_evaluations
-
-    @property
-    def evaluations_left(self) -> int | None:
-        """Evaluations the budget still allows (None: no evaluation budget)."""
-        return self._evaluator.evaluations_left
-
-    @property
-    def max_time_s(self) -> float | None:
-        return self._evaluator.budget.max_time_s
-
-    @property
-    def best_x(self) -> np.ndarray | None:
-        """The best point evaluated so far (None before the first evaluation)."""
-        return self._evaluator.best_x
-
-    def algebraic_start(self) -> tuple[np.ndarray, float] | None:
-        """The closed-form fit as a start point and its F, or None where the readings do not fit that shape
-        (``nine``: the ellipsoid; ``diag``: the axis-aligned ellipsoid; ``offset``: the sphere; ``angles``:
-        none); counted as one evaluation (its objective value is computed)."""
-        x = self._start() if self._start is not None else None
-        if x is None:
-            return None
-        return x, float(self._evaluator.values(x[None, :])[0])
-
-
-class ReadingsProblem(Problem):
-    """What a closed-form calibrator's ``_solve`` sees (one that declares ``closed_form = True``): the
-    ``Problem`` plus read-only copies of the readings ``raw_nT`` (n, 3) and reference ``f_ref_nT`` (n,).
-    Its rows report the evaluation mode ``closed-form``: a count of objective evaluations does not
-    describe its cost."""
-
-    __slots__ = ("raw_nT", "f_ref_nT")
-
-    def __init__(self, evaluator, model, x0, lower, upper, rng, seed, raw_nT, f_ref_nT, start=None):
-        super().__init__(evaluator, model, x0, lower, upper, rng, seed, start)
-        self.raw_nT = readonly_copy(raw_nT)
-        self.f_ref_nT = readonly_copy(f_ref_nT)
-
-
-@dataclass(frozen=True)
-class SolveOutput:
-    x: np.ndarray
-    status: str = "converged"
-    message: str = ""
-    nit: int = 0
-    success: bool = True
-    extra: dict = field(default_factory=dict)
-
-
-PHYSICAL_BOX = {"angle_range_rad": 0.5, "scale_min": 0.5, "scale_max": 2.0, "offset_fraction": 2.0}
-"""Where a sensor can physically be: angles within 0.5 rad, scales 0.5..2, offsets within twice the field.
-Scalar data admit degenerate 'far-centre' solutions (huge scale and offset that shrink the residual
-below the noise) when the attitudes cover few directions; this box excludes them."""
-
-POPULATION_OFFSET_FRACTION = 0.1
-"""Offsets the population methods search: +-10 % of the reference magnitude unless given in nT."""
-
-
-def search_bounds(model: str, f_ref_nT, angle_range_rad: float, scale_min: float = 1.0, scale_max: float = 1.0,
-                  offset_range_nT: float | None = None, offset_fraction: float = POPULATION_OFFSET_FRACTION
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """The one bounds function: the search box ``(lower, upper)`` every ``_solve`` is handed.
-
-    Angles +-``angle_range_rad`` (seed 000, section 2.2 step 1: 0.1 rad), scales in [``scale_min``,
-    ``scale_max``] and offsets +-``offset_range_nT`` (default ``offset_fraction`` times the median reference
-    magnitude), for the entries the model estimates.  Each calibrator names its box in ``search_box()``."""
-    lo = [-angle_range_rad] * 3
-    hi = [angle_range_rad] * 3
-    if model != "angles":
-        offset = offset_fraction * float(np.median(f_ref_nT)) if offset_range_nT is None else offset_range_nT
-        lo += [scale_min] * 3 + [-offset] * 3
-        hi += [scale_max] * 3 + [offset] * 3
-        free = list(FREE[model])
-        lo, hi = [lo[i] for i in free], [hi[i] for i in free]
-    return np.array(lo, dtype=float), np.array(hi, dtype=float)
-
-
-def population_box(cal) -> dict:
-    """``search_box()`` of the population methods, from their hyper-parameters ``angle_range_rad``,
-    ``scale_range`` (scale 1 +- it) and ``offset_range_nT``."""
-    return {"angle_range_rad": cal.angle_range_rad, "scale_min": 1.0 - cal.scale_range,
-            "scale_max": 1.0 + cal.scale_range, "offset_range_nT": cal.offset_range_nT}
 
 
 class Calibrator:
@@ -363,7 +229,7 @@ class Calibrator:
             wanted = " or ".join(sorted({t.__name__ for t in allowed} - {"NoneType"} | ({"None"} if type(None) in allowed else set())))
             raise InputError(f"{cls.name}: hyper-parameter {name} must be {wanted}, not {value!r}")
 
-    def set_params(self, **params) -> "Calibrator":
+    def set_params(self, **params) -> Calibrator:
         """A new calibrator with some hyper-parameters changed (the original is untouched)."""
         self.check_param_names(params)
         self.check_param_values(params)
@@ -429,8 +295,6 @@ class Calibrator:
         MATLAB magcal's ``expmfs``; the overall gain then stays relative, see ``calibrators/inputs.py``),
         else the data's own (a Dataset's ``f_ref_nT``, a DataFrame's ``f_ref`` column).  With the model
         ``auto`` the candidate models are compared first (``calibrators/modelselect.py``)."""
-        from .inputs import as_dataset
-
         dataset = as_dataset(data, f_ref_nT=f_ref_nT, field=field, units=units, model=self.model)
         if self.model == "auto":
             from .modelselect import fit_auto
@@ -593,8 +457,6 @@ def _solver_point(x, p: int) -> tuple[np.ndarray, str]:
 def _algebraic_start(raw_nT: np.ndarray, f_ref_nT: np.ndarray, model: str) -> np.ndarray | None:
     """The closed-form start of a model: the ellipsoid (``nine``), the axis-aligned ellipsoid (``diag``),
     the sphere (``offset``), or None where the readings fit no such shape."""
-    from .inputs import algebraic_vector
-
     return algebraic_vector(raw_nT, f_ref_nT, model)
 
 

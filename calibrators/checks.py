@@ -8,19 +8,19 @@ from __future__ import annotations
 
 import copy
 from dataclasses import replace
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
 from magbench import paper
-from magbench.simulate import attitude
 from magbench.errors import InputError
-from magbench.simulate.dataset import Dataset
+from magbench.simulate import attitude
+from magbench.simulate.dataset import Dataset, Truth
 from magbench.simulate.field import ConstantField
 from magbench.simulate.sensor import PARAM_NAMES, ErrorParams, SensorModel
 
 from .base import CalibrationResult, Calibrator
-from .objective import Budget, audit_evaluations
+from .core.evaluator import Budget, audit_evaluations
 
 CHECK_ERRORS = {
     "offset": ErrorParams(offset_nT=(152.0, -218.0, 85.0)),
@@ -30,7 +30,7 @@ CHECK_ERRORS = {
 }
 
 
-@lru_cache(maxsize=None)
+@cache
 def check_dataset(model: str, noise_nT: float = 0.05, n: int = 240, seed: int = 12345) -> Dataset:
     """Low-noise full-sphere data with known errors for the battery."""
     rng = np.random.default_rng(seed)
@@ -38,8 +38,6 @@ def check_dataset(model: str, noise_nT: float = 0.05, n: int = 240, seed: int = 
     att = attitude.full_sphere(n, rng)
     sensor = SensorModel(CHECK_ERRORS[model], noise_nT=noise_nT)
     raw = sensor.measure(att.body_field(np.asarray(field.vector_nT)), rng)
-    from magbench.simulate.dataset import Truth
-
     truth = Truth(sensor.true_correction(), sensor, field.vector_nT, scenario=f"check_{model}", seed=seed)
     return Dataset(raw, f_ref_nT=field.total_nT, t_s=att.t_s, truth=truth)
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from magbench.simulate.sensor import PARAM_NAMES
 
-from .objective import ScalarObjective
+from .core.objective import ScalarObjective
 
 # Standard deviations per nT of noise *for one point's worth of information* (the Cramér-Rao standard
 # deviation times sqrt(n)) above which the attitudes are called ill-conditioned (warning) or degenerate

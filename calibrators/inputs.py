@@ -19,9 +19,12 @@ from __future__ import annotations
 import numpy as np
 
 from magbench.errors import InputError
+from magbench.numerics import lm_normal
 from magbench.simulate.dataset import UNIT_FACTORS_NT, Dataset
 
-from .ellipsoid import normalize
+from .acceptance import least_covered_direction
+from .core.algebra import axis_ellipsoid_fit, ellipsoid_params, fit_ellipsoid, sphere_fit
+from .core.objective import ScalarObjective
 
 FIELD_AUTO_NOTE = ("field magnitude estimated from the readings (--field auto, as magcal's expmfs): the overall "
                    "gain (absolute scale of the corrected field) is relative to this estimate, not to a reference; "
@@ -101,40 +104,6 @@ def _from_frame(frame, factor: float) -> Dataset:
 
 
 # ------------------------------------------------------------------------------- algebraic fits
-def sphere_fit(raw_nT: np.ndarray) -> tuple[np.ndarray, float]:
-    """Centre and radius of the least-squares sphere ``|r - c|² = R²`` (linear in c and R² - |c|²)."""
-    raw = np.asarray(raw_nT, dtype=float)
-    if raw.shape[0] < 4:
-        raise InputError(f"a sphere fit needs at least 4 points, got {raw.shape[0]}")
-    x, mu, s = normalize(raw)
-    design = np.column_stack([2 * x, np.ones(len(x))])
-    sol, *_ = np.linalg.lstsq(design, np.sum(x * x, axis=1), rcond=None)
-    c, k = sol[:3], sol[3]
-    r2 = k + c @ c
-    if not r2 > 0:
-        raise InputError("the readings fit no sphere")
-    return mu + s * c, float(s * np.sqrt(r2))
-
-
-def axis_ellipsoid_fit(raw_nT: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Centre and semi-axes of the least-squares axis-aligned ellipsoid
-    ``a x² + b y² + c z² + d x + e y + f z = 1`` (linear), for the ``diag`` model."""
-    raw = np.asarray(raw_nT, dtype=float)
-    if raw.shape[0] < 7:
-        raise InputError(f"an axis-aligned ellipsoid fit needs at least 7 points, got {raw.shape[0]}")
-    x, mu, s = normalize(raw)
-    design = np.column_stack([x * x, x])
-    sol, *_ = np.linalg.lstsq(design, np.ones(len(x)), rcond=None)
-    quad, lin = sol[:3], sol[3:]
-    if np.any(quad <= 0):
-        raise InputError("the readings fit no axis-aligned ellipsoid (they cover too few directions)")
-    centre = -lin / (2 * quad)
-    g = 1.0 + np.sum(quad * centre * centre)
-    if not g > 0:
-        raise InputError("the readings fit no axis-aligned ellipsoid")
-    return mu + s * centre, s * np.sqrt(g / quad)
-
-
 def algebraic_vector(raw_nT: np.ndarray, f_ref_nT, model: str) -> np.ndarray | None:
     """A closed-form start for ``model`` scaled to the median reference, or None where the readings fit
     no such shape: the ellipsoid fit (``nine``), the axis-aligned ellipsoid (``diag``: k_i = r_i / F),
@@ -142,8 +111,6 @@ def algebraic_vector(raw_nT: np.ndarray, f_ref_nT, model: str) -> np.ndarray | N
     f = float(np.median(f_ref_nT))
     try:
         if model == "nine":
-            from .ellipsoid import ellipsoid_params
-
             return ellipsoid_params(raw_nT, f_ref_nT).to_vector("nine")
         if model == "diag":
             centre, radii = axis_ellipsoid_fit(raw_nT)
@@ -169,8 +136,6 @@ def estimate_field(raw_nT: np.ndarray, model: str) -> tuple[float, str]:
     angles_how = "mean corrected magnitude, refined with the angles (angles model)"
     if model == "angles":
         return _angles_field(raw), angles_how
-    from .acceptance import least_covered_direction
-
     _, spread = least_covered_direction(raw)
     if spread < MIN_SPREAD_FOR_SHAPE_FIT:
         # near-planar readings determine no sphere or ellipsoid (their centre along the normal is free)
@@ -182,8 +147,6 @@ def estimate_field(raw_nT: np.ndarray, model: str) -> tuple[float, str]:
     for kind in tries:
         try:
             if kind == "ellipsoid":
-                from .ellipsoid import fit_ellipsoid
-
                 shape, _ = fit_ellipsoid(raw)
                 det = float(np.linalg.det(shape))
                 f, how = (det ** (-1.0 / 6.0) if det > 0 else float("nan"),
@@ -205,8 +168,6 @@ def estimate_field(raw_nT: np.ndarray, model: str) -> tuple[float, str]:
 def _angles_field(raw: np.ndarray) -> float:
     """Least squares over (angles, F): F is the mean corrected magnitude for given angles, the angles the
     least-squares fit for given F; alternated until F settles."""
-    from .objective import ScalarObjective, lm_normal
-
     f = float(np.mean(np.linalg.norm(raw, axis=1)))
     x = np.zeros(3)
     for _ in range(10):

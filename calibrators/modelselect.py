@@ -23,10 +23,12 @@ from dataclasses import replace
 import numpy as np
 
 from magbench.errors import InputError
+from magbench.numerics import lm_normal
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
-from .objective import ScalarObjective, lm_normal
+from .core.objective import ScalarObjective
+from .core.problem import PHYSICAL_BOX, search_bounds
 
 FOLDS = 5
 Z_WITHIN_NOISE = 2.0
@@ -49,8 +51,6 @@ def _refit(raw: np.ndarray, f_ref: np.ndarray, model: str, x_start: np.ndarray, 
 def held_out_residuals(dataset: Dataset, model: str, x_full: np.ndarray, folds: int = FOLDS,
                        seed: int | None = 0) -> np.ndarray:
     """Residual of every point under the model fitted without its fold (k-fold, shuffled by ``seed``)."""
-    from .base import PHYSICAL_BOX, search_bounds
-
     n = len(dataset)
     order = np.random.default_rng(seed).permutation(n)
     out = np.empty(n)
@@ -66,7 +66,7 @@ def held_out_residuals(dataset: Dataset, model: str, x_full: np.ndarray, folds: 
 def choose_model(dataset: Dataset, candidates=None, folds: int = FOLDS, seed: int | None = 0) -> tuple[str, dict, dict]:
     """Fit every candidate with lsq, cross-validate, choose.  Returns the chosen model, the record of the
     choice (``model_choice``) and the lsq results by model."""
-    from .lsq import LeastSquares
+    from .methods.lsq import LeastSquares
 
     candidates = [m for m in MODELS if m in (candidates or MODELS)]
     rows, results, sq = [], {}, {}

@@ -6,6 +6,8 @@ from importlib import metadata
 
 from magbench.errors import InputError
 
+from .base import Calibrator
+
 ENTRY_POINT_GROUP = "magbench.calibrators"
 
 _REGISTRY: dict[str, type] = {}
@@ -17,8 +19,6 @@ def register(cls: type) -> type:
     """Class decorator: add a calibrator under ``cls.name``.  A class that is not a ``Calibrator``, has no
     name, or takes a name already registered by another class is refused (``ValueError``) and the registry
     is left as it was."""
-    from .base import Calibrator
-
     if not (isinstance(cls, type) and issubclass(cls, Calibrator)):
         raise ValueError(f"{getattr(cls, '__qualname__', repr(cls))} is not a Calibrator subclass")
     name = getattr(cls, "name", "")
@@ -60,7 +60,7 @@ def _load_plugins() -> None:
 
 def available() -> dict[str, type]:
     """All registered calibrators, built-in and plug-in, by name."""
-    from . import builtin  # noqa: F401  (registers the built-ins)
+    from . import methods  # noqa: F401  (registers the built-ins)
 
     _load_plugins()
     return dict(_REGISTRY)

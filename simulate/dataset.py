@@ -39,8 +39,8 @@ def readonly_copy(a, dtype=float, ndim=None, name="array"):
 class Truth:
     """What was simulated: the true correction (canonical form), the sensor as specified, the field."""
 
-    params: "object"  # simulate.sensor.ErrorParams: what an ideal calibrator reports
-    sensor: "object"  # simulate.sensor.SensorModel as simulated
+    params: object  # simulate.sensor.ErrorParams: what an ideal calibrator reports
+    sensor: object  # simulate.sensor.SensorModel as simulated
     field_ned_nT: tuple[float, float, float]
     scenario: str = ""
     seed: int | None = None
@@ -113,7 +113,7 @@ class Dataset:
     def has_reference(self) -> bool:
         return self.f_ref_nT is not None
 
-    def with_reference(self, f_ref_nT) -> "Dataset":
+    def with_reference(self, f_ref_nT) -> Dataset:
         return replace(self, f_ref_nT=f_ref_nT)
 
     # ------------------------------------------------------------------ CSV (CONTRACT section 2)

@@ -45,6 +45,7 @@ import numpy as np
 from numpy.polynomial import legendre
 
 from magbench.errors import InputError
+from magbench.numerics import MAD_TO_SIGMA, robust_sigma  # noqa: F401  (re-exported for the diagnosis)
 
 from .field import ConstantField, VaryingField
 
@@ -55,18 +56,8 @@ MIN_TEMPERATURE_SPAN_C = 1.0
 """Least temperature range (max - min) that makes a temperature effect identifiable."""
 MIN_SPAN_S = 1e-9
 """Least time span used as a divisor (a record at one instant)."""
-MAD_TO_SIGMA = 1.4826
-"""Robust sigma = 1.4826 median |x - median x| (consistent with the standard deviation for Gaussian x)."""
 FD_STEP = 1e-3
 """Finite-difference step of the columns of a plug-in's non-linear fitted form."""
-
-
-def robust_sigma(x: np.ndarray) -> float:
-    """The scale estimate MAD_TO_SIGMA * median absolute deviation (Hampel 1974)."""
-    x = np.asarray(x, dtype=float)
-    if x.size == 0:
-        return 0.0
-    return float(MAD_TO_SIGMA * np.median(np.abs(x - np.median(x))))
 
 
 def first_order_lag(t_s: np.ndarray, x: np.ndarray, tau_s: float) -> np.ndarray:
@@ -157,7 +148,7 @@ class Column:
     field: str
     min_span: float = 0.0
 
-    def informative(self, d: "Columns") -> bool:
+    def informative(self, d: Columns) -> bool:
         values = getattr(d, self.field)
         if values is None:
             return False
@@ -180,13 +171,13 @@ class Columns:
     extra: dict = field(default_factory=dict)
 
     @classmethod
-    def of(cls, data) -> "Columns":
+    def of(cls, data) -> Columns:
         """The columns of a ``Dataset`` as plain arrays."""
         opt = lambda v: None if v is None else np.asarray(v, dtype=float)  # noqa: E731
         return cls(np.asarray(data.raw_nT, dtype=float), np.asarray(data.f_ref_nT, dtype=float), opt(data.t_s),
                    opt(data.temp_C))
 
-    def take(self, idx) -> "Columns":
+    def take(self, idx) -> Columns:
         opt = lambda v: None if v is None else v[idx]  # noqa: E731
         return Columns(self.raw_nT[idx], self.f_ref_nT[idx], opt(self.t_s), opt(self.temp_C),
                        {k: v[idx] for k, v in self.extra.items()})
@@ -206,7 +197,7 @@ class Normalization:
     temp0_C: float | None = None
 
     @classmethod
-    def of(cls, d: Columns) -> "Normalization":
+    def of(cls, d: Columns) -> Normalization:
         t0 = span = temp0 = None
         if d.t_s is not None:
             t0, span = float(d.t_s.min()), max(float(np.ptp(d.t_s)), MIN_SPAN_S)
@@ -220,11 +211,11 @@ class Normalization:
 
 
 # ---------------------------------------------------------------------------------------------- registry
-EFFECTS: dict[str, type["Effect"]] = {}
+EFFECTS: dict[str, type[Effect]] = {}
 """The one effect registry: name -> class, in registration order."""
 
 
-def register_effect(cls: type["Effect"]) -> type["Effect"]:
+def register_effect(cls: type[Effect]) -> type[Effect]:
     """Class decorator: add an effect under ``cls.name``; a second class with the same name is refused."""
     if not cls.name:
         raise ValueError(f"{cls.__name__} has no 'name'")
@@ -238,7 +229,7 @@ def unregister_effect(name: str) -> None:
     EFFECTS.pop(name, None)
 
 
-def get_effect(name: str) -> type["Effect"]:
+def get_effect(name: str) -> type[Effect]:
     try:
         return EFFECTS[name]
     except KeyError:
@@ -250,17 +241,17 @@ def effect_names(in_library: bool | None = None) -> tuple[str, ...]:
     return tuple(n for n, cls in EFFECTS.items() if in_library is None or cls.in_library == in_library)
 
 
-def library_effects() -> tuple[type["Effect"], ...]:
+def library_effects() -> tuple[type[Effect], ...]:
     """The effects the diagnosis may fit and claim."""
     return tuple(cls for cls in EFFECTS.values() if cls.in_library)
 
 
-def make_effect(name: str, **params) -> "Effect":
+def make_effect(name: str, **params) -> Effect:
     """An effect by name with its default parameters, or those given."""
     return get_effect(name)(**params)
 
 
-def random_effect(name: str, rng: np.random.Generator, strength: float = 1.0) -> "Effect":
+def random_effect(name: str, rng: np.random.Generator, strength: float = 1.0) -> Effect:
     """An effect of the named kind with random parameters (signs and axes drawn), scaled by ``strength``."""
     return get_effect(name).random(rng, strength)
 
@@ -303,7 +294,7 @@ class Effect:
         return " ".join((cls.__doc__ or "").split())
 
     @classmethod
-    def random(cls, rng: np.random.Generator, strength: float = 1.0) -> "Effect":
+    def random(cls, rng: np.random.Generator, strength: float = 1.0) -> Effect:
         """An instance with random parameters scaled by ``strength`` (default: the default parameters)."""
         return cls()
 
@@ -377,7 +368,7 @@ class Effect:
         return (g if np.any(g) else None), (h if np.any(h) else None)
 
     @classmethod
-    def from_fit(cls, e: np.ndarray, norm: Normalization, info: dict | None = None) -> "Effect | None":
+    def from_fit(cls, e: np.ndarray, norm: Normalization, info: dict | None = None) -> Effect | None:
         """The forward effect with the fitted parameters (else None)."""
         return None
 

@@ -32,7 +32,7 @@ class ConstantField:
         object.__setattr__(self, "vector_nT", tuple(float(v) for v in self.vector_nT))
 
     @classmethod
-    def from_angles(cls, total_nT: float, inclination_deg: float, declination_deg: float = 0.0) -> "ConstantField":
+    def from_angles(cls, total_nT: float, inclination_deg: float, declination_deg: float = 0.0) -> ConstantField:
         """B = F [cos I cos D, cos I sin D, sin I] (inclination positive downwards)."""
         i, d = np.radians(inclination_deg), np.radians(declination_deg)
         return cls((total_nT * np.cos(i) * np.cos(d), total_nT * np.cos(i) * np.sin(d), total_nT * np.sin(i)))

@@ -28,7 +28,7 @@ installation error 0.05 deg; Rg = 0.5 deg about X then 0.5 deg about Y.  The sig
 and the axes of the installation tilts are *ours*.  The noise level is not given (the paper neglects
 noise, "averaging many samples"); see ``DEFAULT_NOISE_NT``.
 
-The calibrations are in ``magbench.calibrators.gradiometer``, the experiment and its command in
+The calibrations are in ``magbench.calibrators.methods.gradiometer``, the experiment and its command in
 ``magbench.benchmarks.gradiometer``.
 """
 from __future__ import annotations
@@ -155,7 +155,7 @@ class GradiometerParams:
         object.__setattr__(self, "alignment_deg", a)
 
     @classmethod
-    def paper(cls) -> "GradiometerParams":
+    def paper(cls) -> GradiometerParams:
         """Section 4.1's values (Mag-03MS typical errors); signs and tilt axes are ours."""
         s1 = FluxgateErrors((0.1, 0.1, 0.1), (1.005, 0.995, 1.005), (100.0, 100.0, 0.0), (0.05, 0.0, 0.0))
         s2 = FluxgateErrors((0.05, 0.05, 0.05), (0.996, 1.004, 1.004), (-200.0, 100.0, 0.0), (0.0, 0.05, 0.0))

@@ -6,9 +6,9 @@
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
-from typing import Callable
+from functools import cache
 
 import numpy as np
 
@@ -30,7 +30,7 @@ SPHERE9_ERRORS = ErrorParams(alpha_rad=0.012, beta_rad=-0.008, gamma_rad=0.015,
                              scale=(1.021, 0.984, 1.008), offset_nT=(152.0, -218.0, 85.0))
 
 
-@lru_cache(maxsize=None)
+@cache
 def xian_2013() -> ConstantField:
     """IGRF at Xi'an on the paper's submission date, scaled to the paper's reference magnitude."""
     igrf = igrf_field(**XIAN)
@@ -53,7 +53,7 @@ class Scenario:
     reference_tracks_drift: bool = True
     effects: tuple = ()  # simulate.effects.Effect instances switched on
 
-    def with_effects(self, *effects, name: str | None = None) -> "Scenario":
+    def with_effects(self, *effects, name: str | None = None) -> Scenario:
         """The same scenario with effects switched on: ``simulate.effects.Effect`` instances, or names of
         registered effects (``simulate.effects.EFFECTS``) with their default parameters."""
         effects = tuple(make_effect(e) if isinstance(e, str) else e for e in effects)
@@ -72,10 +72,7 @@ class Scenario:
         base = self.field_fn()
         attitudes = self.attitudes(rng)
         t = attitudes.t_s
-        if self.drift_nT > 0:
-            field_ned = VaryingField(base, amplitude_nT=self.drift_nT).at(t, rng)
-        else:
-            field_ned = base.at(t)
+        field_ned = VaryingField(base, amplitude_nT=self.drift_nT).at(t, rng) if self.drift_nT > 0 else base.at(t)
         clean_field = field_ned
         for e in self.effects:
             field_ned = e.field(field_ned, t, rng)

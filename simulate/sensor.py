@@ -38,7 +38,7 @@ NEUTRAL = (0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0)
 PARAM_NAMES = {model: tuple(NINE_NAMES[i] for i in free) for model, free in FREE.items()}
 
 
-def embed(x, model: str) -> "np.ndarray":
+def embed(x, model: str) -> np.ndarray:
     """A model's parameter vector(s) (p,) or (m, p) as nine-vector(s) (9,) or (m, 9): the linear embedding
     that holds the entries the model does not estimate at their neutral values."""
     if model not in FREE:
@@ -117,13 +117,13 @@ class ErrorParams:
         return nine[list(FREE[model])]
 
     @classmethod
-    def from_vector(cls, x, model: str = "nine") -> "ErrorParams":
+    def from_vector(cls, x, model: str = "nine") -> ErrorParams:
         """The parameters of a model's vector; the entries the model does not estimate are neutral."""
         x = embed(np.asarray(x, dtype=float), model)
         return cls(x[0], x[1], x[2], tuple(x[3:6]), tuple(x[6:9]))
 
     @classmethod
-    def from_correction(cls, c: np.ndarray, offset_nT=(0.0, 0.0, 0.0)) -> "ErrorParams":
+    def from_correction(cls, c: np.ndarray, offset_nT=(0.0, 0.0, 0.0)) -> ErrorParams:
         """Canonical decomposition of a general correction matrix C (CONTRACT section 1).
 
         W = C^T C is factored as W = M^T M with M lower triangular and positive diagonal; then

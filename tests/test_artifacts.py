@@ -9,7 +9,7 @@ import pytest
 
 from magbench.benchmarks.cli import main
 from magbench.calibrators import make
-from magbench.calibrators.artifacts import (Calibration, apply_to_csv, export, load_calibration)
+from magbench.calibrators.artifacts import Calibration, apply_to_csv, export, load_calibration
 from magbench.calibrators.checks import CHECK_ERRORS, check_dataset
 from magbench.errors import InputError
 from magbench.simulate import simulate

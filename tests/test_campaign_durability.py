@@ -12,8 +12,15 @@ import pandas as pd
 import pytest
 
 from magbench.benchmarks import campaign as campaign_module
-from magbench.benchmarks.campaign import (CHECKPOINT, RUNTIME_COLUMNS, Campaign, CampaignInterrupted, Checkpoint,
-                                          MethodSpec, run_campaign)
+from magbench.benchmarks.campaign import (
+    CHECKPOINT,
+    RUNTIME_COLUMNS,
+    Campaign,
+    CampaignInterrupted,
+    Checkpoint,
+    MethodSpec,
+    run_campaign,
+)
 from magbench.benchmarks.cli import main
 
 # ~0.25 s per ga run: long enough to interrupt, short enough for seconds-long tests
@@ -31,7 +38,8 @@ def compare_args(out, *extra, trials=TRIALS, seed=SEED):
 def start(args, tmp_path, name):
     """``python -m magbench ARGS`` in the background; stdout/stderr to files (a stray worker holding a pipe
     must not be able to block the test)."""
-    stdout, stderr = open(tmp_path / f"{name}.out", "w"), open(tmp_path / f"{name}.err", "w")
+    stdout = open(tmp_path / f"{name}.out", "w")  # noqa: SIM115 - handed to the child process, closed by the test
+    stderr = open(tmp_path / f"{name}.err", "w")  # noqa: SIM115
     # SIGINT back to its default in the child: a test run started in the background by a non-interactive
     # shell inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler at all
     proc = subprocess.Popen([sys.executable, "-P", "-m", "magbench", *args], stdout=stdout, stderr=stderr,

@@ -2,8 +2,8 @@
 import pytest
 
 from magbench.calibrators import available
-from magbench.simulate import simulate
 from magbench.errors import InputError
+from magbench.simulate import simulate
 
 NINE = sorted(n for n, c in available().items() if "nine" in c.supported_models)
 

@@ -6,8 +6,8 @@ import pytest
 from magbench.calibrators import BudgetExhausted, Calibrator, SolveOutput, available, check_calibrator
 from magbench.calibrators import checks as C
 from magbench.calibrators.checks import iter_checks
-from magbench.calibrators.ellipsoid import ellipsoid_params
-from magbench.calibrators.lsq import LeastSquares
+from magbench.calibrators.core.algebra import ellipsoid_params
+from magbench.calibrators.methods.lsq import LeastSquares
 
 CASES = [(name, check, model) for name, cls in sorted(available().items())
          for _, check, model in iter_checks(cls)]
@@ -36,7 +36,7 @@ class _Good(Calibrator):
     supported_models = ("angles",)
 
     def _solve(self, problem):
-        from magbench.calibrators.lsq import levenberg_marquardt
+        from magbench.calibrators.methods.lsq import levenberg_marquardt
 
         sol = levenberg_marquardt(problem, problem.x0)
         return SolveOutput(sol.x)

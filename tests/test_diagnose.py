@@ -6,7 +6,6 @@ import sys
 from dataclasses import replace
 from importlib import resources
 
-
 from magbench.benchmarks.diagnosis import diagnose
 from magbench.simulate.effects import OutlierEffect, TemperatureEffect
 from magbench.simulate.scenarios import get_scenario

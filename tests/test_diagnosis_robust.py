@@ -8,8 +8,14 @@ import pytest
 from magbench.benchmarks.diagnosis import diagnose
 from magbench.benchmarks.diagnosis.blind import blind_dataset, category, classify
 from magbench.benchmarks.diagnosis.floor import _interpolation_errors, time_difference_floor
-from magbench.simulate.effects import (NonlinearityEffect, TemperatureEffect, first_order_lag, local_derivatives,
-                                       robust_sigma, time_derivative)
+from magbench.simulate.effects import (
+    NonlinearityEffect,
+    TemperatureEffect,
+    first_order_lag,
+    local_derivatives,
+    robust_sigma,
+    time_derivative,
+)
 
 
 def _irregular_times(rng, n, duration=600.0):

@@ -13,8 +13,15 @@ import pytest
 
 from magbench.benchmarks.cli import main as cli
 from magbench.benchmarks.diagnosis import candidate_effects, diagnose
-from magbench.simulate.effects import (EFFECTS, Columns, Effect, Normalization, effect_names, register_effect,
-                                       unregister_effect)
+from magbench.simulate.effects import (
+    EFFECTS,
+    Columns,
+    Effect,
+    Normalization,
+    effect_names,
+    register_effect,
+    unregister_effect,
+)
 from magbench.simulate.scenarios import get_scenario
 
 REPO = Path(__file__).resolve().parents[1]

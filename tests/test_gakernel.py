@@ -5,7 +5,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from magbench.calibrators import _gakernel, make
+from magbench.calibrators import make
+from magbench.calibrators.methods import _gakernel
 from magbench.simulate import simulate
 
 LAST_UNIFORM = np.nextafter(1.0, 0.0)  # the largest double rng.random can return

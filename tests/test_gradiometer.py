@@ -8,9 +8,14 @@ import pytest
 
 from magbench.benchmarks.gradiometer import gradient_rms, run_gradiometer
 from magbench.benchmarks.gradiometer_cli import add_gradiometer_command
-from magbench.calibrators.gradiometer import (RowGA, RowObjective, ellipsoid_calibration, ga_gradient_calibration,
-                                              true_calibration)
-from magbench.calibrators.objective import Budget, Evaluator
+from magbench.calibrators.core.evaluator import Budget, Evaluator
+from magbench.calibrators.methods.gradiometer import (
+    RowGA,
+    RowObjective,
+    ellipsoid_calibration,
+    ga_gradient_calibration,
+    true_calibration,
+)
 from magbench.errors import InputError
 from magbench.simulate.gradiometer import GradiometerParams, simulate_gradiometer
 

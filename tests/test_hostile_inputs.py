@@ -5,7 +5,6 @@ that stdout stays clean on failure, and that the input file is not changed."""
 from __future__ import annotations
 
 import hashlib
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -7,12 +7,12 @@ import io
 import re
 import shutil
 import subprocess
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+import tomllib
 
 import magbench
 from magbench.benchmarks.cli import build_parser, main
@@ -158,7 +158,7 @@ def test_report_has_results_first_contents_and_too_few_trials_warnings(campaign)
     assert html.index('id="results"') < html.index('id="figures"') < html.index('id="campaign"')
     assert html.index('id="results"') < html.index("Manifest")
     # the warning wherever trials are too few: page head, the tables and the efficiency figure
-    assert f"Only 3 successful trials per calibrator" in html
+    assert "Only 3 successful trials per calibrator" in html
     assert html.count("Efficiency from fewer than") >= 2
     assert "an efficiency needs about" in html
     assert "median_abs_alpha_err_arcsec" not in html  # human column names

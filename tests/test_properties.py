@@ -4,7 +4,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from magbench.calibrators.objective import ScalarObjective, correction_matrices
+from magbench.calibrators.core.objective import ScalarObjective, correction_matrices
 from magbench.simulate.sensor import ErrorParams, SensorModel
 
 angle = st.floats(-0.1, 0.1)

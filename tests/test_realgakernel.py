@@ -6,8 +6,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from magbench.calibrators import _gakernel as K
-from magbench.calibrators import genetic, make
+from magbench.calibrators import make
+from magbench.calibrators.methods import _gakernel as K
+from magbench.calibrators.methods import genetic
 from magbench.simulate import simulate
 
 LAST_UNIFORM = np.nextafter(1.0, 0.0)

@@ -4,7 +4,7 @@ import textwrap
 import pytest
 
 from magbench.calibrators import available, register, registry
-from magbench.calibrators.lsq import LeastSquares
+from magbench.calibrators.methods.lsq import LeastSquares
 
 
 def test_duplicate_name_refused():
@@ -19,7 +19,7 @@ def test_duplicate_name_refused():
 def test_entry_point_plugin_is_discovered(tmp_path, monkeypatch):
     """An installed package adds a calibrator through the 'magbench.calibrators' entry-point group."""
     (tmp_path / "magbench_demo_plugin.py").write_text(textwrap.dedent("""
-        from magbench.calibrators.lsq import LeastSquares
+        from magbench.calibrators.methods.lsq import LeastSquares
 
         class Plugin(LeastSquares):
             name = "plugin-lsq"
@@ -62,7 +62,7 @@ def test_broken_plugins_are_listed_with_the_reason_and_never_harm_the_registry(t
     from magbench.errors import InputError
 
     _install_plugin(tmp_path, monkeypatch, """
-        from magbench.calibrators.lsq import LeastSquares
+        from magbench.calibrators.methods.lsq import LeastSquares
 
         def not_a_class():
             return 1

@@ -17,6 +17,8 @@ this package is the procedure, one concern per module:
 """
 from __future__ import annotations
 
+import numpy as np
+
 from magbench.simulate.dataset import ScalarSeries
 
 from .blind import blind_dataset, blind_kinds
@@ -45,9 +47,8 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
         return Diagnosis(data, base, folds, seed, gravity=gravity, progress=progress).run()
 
 
-def read_gravity(path) -> "np.ndarray | None":
+def read_gravity(path) -> np.ndarray | None:
     """The accelerometer columns ax, ay, az (else gx, gy, gz) of a CSV file, any unit; None without them."""
-    import numpy as np
     import pandas as pd
 
     try:

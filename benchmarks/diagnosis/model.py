@@ -110,7 +110,7 @@ class ExtendedModel:
         x9 = x[:9]
         m_mat, o = base_correction(x9)
         v = d.raw_nT - o
-        for (cls, i0), (g, h) in zip(self.col_effects, cols):
+        for (cls, i0), (g, _h) in zip(self.col_effects, cols):
             if g is not None:
                 v = v - g @ x[i0:i0 + len(cls.fit_params)]
         b = v @ m_mat.T

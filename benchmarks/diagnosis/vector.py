@@ -34,8 +34,21 @@ from .floor import vector_floor
 from .localize import folds, localize, tails
 from .model import BASE_FREE, ExtendedModel, Tangent
 from .resimulate import resimulate
-from .scoring import (MIN_SIGNIFICANT_SHRINK_PCT, POWER_MAX_OF_FLOOR, REMAINDER_Z, Z_SIGNIFICANT, coverage_pct,
-                      min_detectable_nT, paired_z, remainder, rms, shrink_interval, shrink_pct, spike_z, testable)
+from .scoring import (
+    MIN_SIGNIFICANT_SHRINK_PCT,
+    POWER_MAX_OF_FLOOR,
+    REMAINDER_Z,
+    Z_SIGNIFICANT,
+    coverage_pct,
+    min_detectable_nT,
+    paired_z,
+    remainder,
+    rms,
+    shrink_interval,
+    shrink_pct,
+    spike_z,
+    testable,
+)
 from .verdict import verdict
 
 DEFAULT_FOLDS = 5

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from magbench.calibrators import Budget, make
-from magbench.calibrators.base import population_box, search_bounds
-from magbench.calibrators.objective import ScalarObjective
+from magbench.calibrators.core.objective import ScalarObjective
+from magbench.calibrators.core.problem import population_box, search_bounds
 
 GENERATIONS = 1000
 POPULATION = 80

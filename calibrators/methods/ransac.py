@@ -22,9 +22,10 @@ import numpy as np
 
 from magbench.errors import InputError
 
-from .base import Calibrator, ReadingsProblem, SolveOutput
-from .ellipsoid import ellipsoid_params
-from .registry import register
+from ..base import Calibrator
+from ..core.algebra import ellipsoid_params
+from ..core.problem import ReadingsProblem, SolveOutput
+from ..registry import register
 
 
 def ransac_iterations(confidence: float, inlier_fraction: float, sample_size: int) -> int:

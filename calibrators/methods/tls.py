@@ -18,9 +18,10 @@ import numpy as np
 
 from magbench.errors import InputError
 
-from .base import Calibrator, ReadingsProblem, SolveOutput
-from .ellipsoid import normalize, quadric_to_ellipsoid, shape_to_params
-from .registry import register
+from ..base import Calibrator
+from ..core.algebra import normalize, quadric_to_ellipsoid, shape_to_params
+from ..core.problem import ReadingsProblem, SolveOutput
+from ..registry import register
 
 N_UNKNOWNS = 9
 CORNER_MIN_DISTANCE = 0.05

@@ -23,9 +23,9 @@ import numpy as np
 
 from magbench.errors import InputError
 
-from .base import Calibrator, Problem, SolveOutput, population_box
-from .registry import register
-
+from ..base import Calibrator
+from ..core.problem import Problem, SolveOutput, population_box
+from ..registry import register
 
 TOLFUN_REL = 1e-6
 

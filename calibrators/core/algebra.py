@@ -1,22 +1,12 @@
-"""``ellipsoid``: the linear algebraic ellipsoid fit with the ellipsoid-specific constraint.
-
-Li and Griffiths (2004), "Least squares ellipsoid specific fitting", GMP 2004: the quadric
-``a x² + b y² + c z² + 2f yz + 2g xz + 2h xy + 2p x + 2q y + 2r z + d = 0`` is fitted under
-``k J - I² = 1`` (k = 4, I = a + b + c, J = ab + bc + ca - f² - g² - h²), which makes the
-solution an ellipsoid whenever the data are roughly ellipsoidal; the generalized eigenproblem
-``C1^-1 (S11 - S12 S22^-1 S21) v1 = λ v1`` gives it in closed form (their eq. 13-15).  The fitted
-shape ``(x - c)^T A (x - c) = 1`` is scaled to the reference magnitude, ``W = F² A = M^T M``, and
-reported through the canonical decomposition of CONTRACT section 1.  Seed 003 builds RANSAC on it.
-"""
+"""Closed-form quadric fits shared by the framework (start points, ``--field auto``) and the algebraic
+methods: the Li-Griffiths ellipsoid-specific fit (Li and Griffiths 2004, eq. 13-15), the least-squares
+sphere and the axis-aligned ellipsoid, and the ellipsoid's canonical parameters (CONTRACT section 1)."""
 from __future__ import annotations
 
 import numpy as np
 
 from magbench.errors import InputError
 from magbench.simulate.sensor import ErrorParams
-
-from .base import Calibrator, ReadingsProblem, SolveOutput
-from .registry import register
 
 
 def fit_ellipsoid(raw_nT: np.ndarray, k: float = 4.0) -> tuple[np.ndarray, np.ndarray]:
@@ -92,22 +82,35 @@ def ellipsoid_params(raw_nT: np.ndarray, f_ref_nT) -> ErrorParams:
     return shape_to_params(*fit_ellipsoid(raw_nT), f_ref_nT)
 
 
-@register
-class EllipsoidFit(Calibrator):
-    """Algebraic ellipsoid-specific fit (Li and Griffiths 2004), closed form, no iterations."""
+def sphere_fit(raw_nT: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre and radius of the least-squares sphere ``|r - c|² = R²`` (linear in c and R² - |c|²)."""
+    raw = np.asarray(raw_nT, dtype=float)
+    if raw.shape[0] < 4:
+        raise InputError(f"a sphere fit needs at least 4 points, got {raw.shape[0]}")
+    x, mu, s = normalize(raw)
+    design = np.column_stack([2 * x, np.ones(len(x))])
+    sol, *_ = np.linalg.lstsq(design, np.sum(x * x, axis=1), rcond=None)
+    c, k = sol[:3], sol[3]
+    r2 = k + c @ c
+    if not r2 > 0:
+        raise InputError("the readings fit no sphere")
+    return mu + s * c, float(s * np.sqrt(r2))
 
-    name = "ellipsoid"
-    summary = "linear ellipsoid-specific fit (Li & Griffiths 2004), canonical decomposition"
-    supported_models = ("nine",)
-    check_tolerance = {"angle_rad": 1e-4, "scale": 1e-4, "offset_nT": 2.0}
-    closed_form = True
 
-    def __init__(self, model: str = "nine", seed: int | None = 0, budget=None):
-        super().__init__(model=model, seed=seed, budget=budget)
-
-    def min_points(self, model: str) -> int:
-        return 10
-
-    def _solve(self, problem: ReadingsProblem) -> SolveOutput:
-        params = ellipsoid_params(problem.raw_nT, problem.f_ref_nT)
-        return SolveOutput(params.to_vector("nine"), status="closed_form", message="algebraic fit")
+def axis_ellipsoid_fit(raw_nT: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and semi-axes of the least-squares axis-aligned ellipsoid
+    ``a x² + b y² + c z² + d x + e y + f z = 1`` (linear), for the ``diag`` model."""
+    raw = np.asarray(raw_nT, dtype=float)
+    if raw.shape[0] < 7:
+        raise InputError(f"an axis-aligned ellipsoid fit needs at least 7 points, got {raw.shape[0]}")
+    x, mu, s = normalize(raw)
+    design = np.column_stack([x * x, x])
+    sol, *_ = np.linalg.lstsq(design, np.ones(len(x)), rcond=None)
+    quad, lin = sol[:3], sol[3:]
+    if np.any(quad <= 0):
+        raise InputError("the readings fit no axis-aligned ellipsoid (they cover too few directions)")
+    centre = -lin / (2 * quad)
+    g = 1.0 + np.sum(quad * centre * centre)
+    if not g > 0:
+        raise InputError("the readings fit no axis-aligned ellipsoid")
+    return mu + s * centre, s * np.sqrt(g / quad)

@@ -41,10 +41,10 @@ from magbench.simulate.dataset import readonly_copy
 from magbench.simulate.gradiometer import GradiometerParams, check_int, check_nonneg
 from magbench.simulate.sensor import ul_factor
 
-from .base import Problem
-from .ellipsoid import fit_ellipsoid
+from ..core.algebra import fit_ellipsoid
+from ..core.evaluator import Budget, BudgetExhausted, Evaluator
+from ..core.problem import Problem
 from .genetic import ElitistRealGA, RealGA, real_ga
-from .objective import Budget, BudgetExhausted, Evaluator
 
 ROW_MODEL = "gradient_row"
 """``Problem.model`` of a row GA: the 6 genes (m_i1, m_i2, m_i3, m'_i1, m'_i2, m'_i3) of eq. 11."""

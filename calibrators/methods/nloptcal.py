@@ -13,9 +13,10 @@ import numpy as np
 
 from magbench.errors import InputError
 
-from .base import Calibrator, Problem, SolveOutput, population_box
-from .objective import BudgetExhausted
-from .registry import register
+from ..base import Calibrator
+from ..core.evaluator import BudgetExhausted
+from ..core.problem import Problem, SolveOutput, population_box
+from ..registry import register
 
 RESULT_NAMES = {1: "success", 2: "stopval_reached", 3: "ftol_reached", 4: "xtol_reached", 5: "maxeval_reached",
                 6: "maxtime_reached"}
@@ -57,7 +58,7 @@ class NLoptCalibrator(Calibrator):
 
     def _solve(self, problem: Problem) -> SolveOutput:
         code = getattr(nlopt, str(self.algorithm), None)
-        if not isinstance(code, int) or not str(self.algorithm)[:3] in ("LN_", "LD_", "GN_", "GD_"):
+        if not isinstance(code, int) or str(self.algorithm)[:3] not in ("LN_", "LD_", "GN_", "GD_"):
             raise InputError(f"nlopt: unknown algorithm {self.algorithm!r} (e.g. LN_BOBYQA, LD_LBFGS, GN_CRS2_LM, "
                              "GN_ISRES, GN_ESCH)")
         obj = problem

@@ -13,10 +13,12 @@ import numpy as np
 
 from magbench.errors import InputError
 
+from ..base import Calibrator
+from ..core.problem import Problem, SolveOutput, population_box
+from ..registry import register
 from . import _gakernel
 from ._gakernel import adaptive_probability  # noqa: F401  (seed 000's eq. 4-5, part of this module's API)
-from .base import Calibrator, Problem, SolveOutput, population_box
-from .registry import register
+from .lsq import levenberg_marquardt
 
 
 @register
@@ -120,8 +122,6 @@ class AdaptiveGA(Calibrator):
         # step 7: the best individual of all generations (kept by the shared counter)
         x_best = problem.best_x
         if self.polish:  # not in the paper: Levenberg-Marquardt from the GA's best individual
-            from .lsq import levenberg_marquardt
-
             levenberg_marquardt(problem, x_best, bounded=False)
             x_best = problem.best_x
         return SolveOutput(x_best, status="converged" if stop != "max_generations" else "max_generations",

@@ -12,10 +12,11 @@ from types import SimpleNamespace
 import numpy as np
 
 from magbench.errors import InputError
+from magbench.numerics import lm_normal
 
-from .base import Calibrator, Problem, SolveOutput
-from .objective import lm_normal
-from .registry import register
+from ..base import Calibrator
+from ..core.problem import Problem, SolveOutput
+from ..registry import register
 
 
 def levenberg_marquardt(problem: Problem, x_start: np.ndarray, tol: float = 1e-12, max_nfev: int = 200,

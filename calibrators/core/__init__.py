@@ -1,0 +1,9 @@
+"""The core room: the shared objective (seed 000, eq. 3), the one evaluator that counts every evaluation
+against the budget, the problem a solver is handed, and the closed-form quadric algebra.  It imports no
+calibration method."""
+from .evaluator import Budget, BudgetExhausted, Evaluator, audit_evaluations
+from .objective import ScalarObjective
+from .problem import Problem, ReadingsProblem, SolveOutput, search_bounds
+
+__all__ = ["Budget", "BudgetExhausted", "Evaluator", "audit_evaluations", "ScalarObjective", "Problem",
+           "ReadingsProblem", "SolveOutput", "search_bounds"]

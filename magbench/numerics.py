@@ -1,0 +1,57 @@
+"""Shared numerics used by the simulator, the calibrators and the diagnosis: robust scale and the
+Levenberg-Marquardt iteration on accumulated normal equations.  Imports nothing of magbench's."""
+from __future__ import annotations
+
+import numpy as np
+
+MAD_TO_SIGMA = 1.4826
+"""Median absolute deviation to the standard deviation of a normal distribution."""
+
+
+def robust_sigma(x: np.ndarray) -> float:
+    """The scale estimate MAD_TO_SIGMA * median absolute deviation (Hampel 1974)."""
+    x = np.asarray(x, dtype=float)
+    if x.size == 0:
+        return 0.0
+    return float(MAD_TO_SIGMA * np.median(np.abs(x - np.median(x))))
+
+
+def lm_normal(normal_equations, x: np.ndarray, lower: np.ndarray | None = None, upper: np.ndarray | None = None,
+              tol: float = 1e-12, max_iter: int = 100, atol: float = 0.0) -> tuple[np.ndarray, float, int]:
+    """Levenberg-Marquardt on the normal equations (Marquardt's diagonal scaling; a step leaving the box
+    is projected back onto it): ``normal_equations(x)`` returns ``(J^T J, J^T r, r^T r)``, which a long
+    record accumulates block by block in bounded memory.  Stops when the sum of squares or the step no
+    longer changes relative to ``tol``, or the sum of squares by less than ``atol``.  Returns the point, its
+    sum of squares and the number of calls."""
+    x = np.asarray(x, dtype=float).copy()
+    a, g, cost = normal_equations(x)
+    calls, damping = 1, 1e-3
+    try:  # already at the optimum: the Gauss-Newton step would lower the sum of squares by almost nothing
+        if float(g @ np.linalg.solve(a, g)) <= max(tol * cost, atol):
+            return x, float(cost), calls
+    except np.linalg.LinAlgError:
+        pass
+    for _ in range(max_iter):
+        diag = np.maximum(np.diag(a), 1e-300)
+        try:
+            step = np.linalg.solve(a + damping * np.diag(diag), -g)
+        except np.linalg.LinAlgError:
+            damping *= 10.0
+            continue
+        trial = x + step
+        if lower is not None:
+            trial = np.clip(trial, lower, upper)
+        a_t, g_t, cost_t = normal_equations(trial)
+        calls += 1
+        if np.isfinite(cost_t) and cost_t < cost:
+            done = (cost - cost_t <= max(tol * cost, atol)
+                    or np.linalg.norm(trial - x) <= tol * (np.linalg.norm(x) + tol))
+            x, a, g, cost = trial, a_t, g_t, cost_t
+            damping = max(damping / 3.0, 1e-15)
+            if done:
+                break
+        else:
+            damping *= 4.0
+            if damping > 1e15:
+                break
+    return x, float(cost), calls
