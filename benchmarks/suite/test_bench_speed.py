@@ -71,7 +71,8 @@ def _pygad(benchmark, sphere9, batch: bool, rounds: int):
     def run():
         ga = pygad.GA(num_generations=GENERATIONS - 1, num_parents_mating=POPULATION // 2,
                       fitness_func=fitness if batch else fitness_one, fitness_batch_size=POPULATION if batch else None,
-                      sol_per_pop=POPULATION, num_genes=9, init_range_low=0.0, init_range_high=1.0,
+                      sol_per_pop=POPULATION, num_genes=9,
+                      init_range_low=0.0, init_range_high=1.0,
                       gene_space={"low": 0.0, "high": 1.0}, random_seed=0, suppress_warnings=True)
         ga.run()
         return ga
@@ -185,7 +186,8 @@ def test_quality_pygad(benchmark, sphere9):
         found.clear()
         found["t0"] = time.perf_counter()
         ga = pygad.GA(num_generations=PYGAD_QUALITY_GENERATIONS, num_parents_mating=POPULATION // 2,
-                      fitness_func=fitness, fitness_batch_size=POPULATION, sol_per_pop=POPULATION, num_genes=9, init_range_low=0.0,
+                      fitness_func=fitness, fitness_batch_size=POPULATION, sol_per_pop=POPULATION, num_genes=9,
+                      init_range_low=0.0,
                       init_range_high=1.0, gene_space={"low": 0.0, "high": 1.0}, random_seed=0,
                       suppress_warnings=True, on_generation=on_generation)
         ga.run()
