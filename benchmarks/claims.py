@@ -60,7 +60,7 @@ def ransac_experiment(n_seeds: int = 30, epsilon_sigma: float = PAPER_RANSAC_EPS
     base = get_scenario("sphere9")
     scenario = replace(base, n_points=200, sensor=replace(base.sensor, noise_nT=1.0)).with_effects(
         OutlierEffect(fraction=0.10, amplitude_nT=500.0), name="seed003")
-    errs = {"ellipsoid": [], "ransac": []}
+    errs: dict[str, list] = {"ellipsoid": [], "ransac": []}
     for seed in range(n_seeds):
         data = scenario.build(seed)
         t = data.truth.params
@@ -84,7 +84,7 @@ def ransac_experiment(n_seeds: int = 30, epsilon_sigma: float = PAPER_RANSAC_EPS
 def vehicle_experiment(n_seeds: int = 30) -> dict:
     """Seed 004's regime (scenario vehicle9n): TLS and TTLS on the paper's formulation, heading errors
     against a 2-D ellipse fit, the 3-D ellipsoid fit and lsq."""
-    out = {m: [] for m in ("tls", "ttls", "ellipsoid", "lsq")}
+    out: dict[str, list] = {m: [] for m in ("tls", "ttls", "ellipsoid", "lsq")}
     out["ellipse2d"] = []
     conds, ks, fails = [], [], {m: 0 for m in ("tls", "ttls", "ellipsoid", "lsq")}
     for seed in range(n_seeds):

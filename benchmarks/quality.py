@@ -19,7 +19,8 @@ from magbench.benchmarks.runner import run_one
 from magbench.paper import RESOLUTION_RAD
 from magbench.simulate import simulate
 
-SPHERE_METHODS = [("ga", {}), ("rga", {}), ("aco", {}), ("nlopt", {}), ("nlopt", {"algorithm": "LD_LBFGS"}),
+SPHERE_METHODS: list[tuple[str, dict]] = [
+                  ("ga", {}), ("rga", {}), ("aco", {}), ("nlopt", {}), ("nlopt", {"algorithm": "LD_LBFGS"}),
                   ("nlopt", {"algorithm": "GN_CRS2_LM", "max_evaluations": 80000}),
                   ("nlopt", {"algorithm": "GN_ISRES", "max_evaluations": 80000}),
                   ("nlopt", {"algorithm": "GN_ESCH", "max_evaluations": 80000}),

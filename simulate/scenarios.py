@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import cache
+from typing import Any
 
 import numpy as np
 
@@ -21,9 +22,10 @@ from .field import ConstantField, VaryingField, igrf_field
 from .sensor import ErrorParams, SensorModel
 
 # Seed 000: Xi'an (34.26 N, 108.94 E, about 0.4 km), 2013; reference magnitude 51978.74 nT (Table 2).
-XIAN = dict(lat_deg=34.26, lon_deg=108.94, alt_km=0.4, date="2013-06-27")
+XIAN_LAT_DEG, XIAN_LON_DEG, XIAN_ALT_KM, XIAN_DATE = 34.26, 108.94, 0.4, "2013-06-27"
 LU2014_F_NT = paper.F_XIAN_NT
-LU2014_ANGLES = ErrorParams(**paper.TABLE1_ANGLES_RAD)  # seed 000, Table 1
+LU2014_ANGLES = ErrorParams(alpha_rad=paper.TABLE1_ANGLES_RAD["alpha_rad"], beta_rad=paper.TABLE1_ANGLES_RAD["beta_rad"],
+                            gamma_rad=paper.TABLE1_ANGLES_RAD["gamma_rad"])  # seed 000, Table 1
 
 # A typical small fluxgate with 9-parameter errors (seeds 002, 003 use errors of this order).
 SPHERE9_ERRORS = ErrorParams(alpha_rad=0.012, beta_rad=-0.008, gamma_rad=0.015,
@@ -33,7 +35,7 @@ SPHERE9_ERRORS = ErrorParams(alpha_rad=0.012, beta_rad=-0.008, gamma_rad=0.015,
 @cache
 def xian_2013() -> ConstantField:
     """IGRF at Xi'an on the paper's submission date, scaled to the paper's reference magnitude."""
-    igrf = igrf_field(**XIAN)
+    igrf = igrf_field(XIAN_LAT_DEG, XIAN_LON_DEG, XIAN_ALT_KM, XIAN_DATE)
     return ConstantField.from_angles(LU2014_F_NT, igrf.inclination_deg, igrf.declination_deg)
 
 
@@ -64,7 +66,8 @@ class Scenario:
         kw = dict(self.schedule_kw)
         if self.schedule == "turntable":
             return att.turntable(n_steps=self.n_points, **kw)
-        fn = {"sphere": att.full_sphere, "cap": att.cap, "vehicle": att.vehicle, "tumble": att.tumble}[self.schedule]
+        fn: Callable[..., Any] = {"sphere": att.full_sphere, "cap": att.cap, "vehicle": att.vehicle,
+                                            "tumble": att.tumble}[self.schedule]
         return fn(self.n_points, rng, **kw)
 
     def build(self, seed: int = 0) -> Dataset:
@@ -97,8 +100,10 @@ class Scenario:
             f_ref = np.linalg.norm(field_ned, axis=1)
         else:
             f_ref = np.full(len(attitudes), base.total_nT)
+        vx, vy, vz = (float(v) for v in base.vector_nT)
+        field_ned_tuple = (vx, vy, vz)
         truth = Truth(params=self.sensor.true_correction(), sensor=self.sensor,
-                      field_ned_nT=tuple(base.vector_nT), scenario=self.name, seed=seed,
+                      field_ned_nT=field_ned_tuple, scenario=self.name, seed=seed,
                       effects=tuple(e.as_dict() for e in self.effects),
                       attitude_quat=attitudes.rotation.as_quat(),
                       raw_without_effects_nT=clean if self.effects else None)
