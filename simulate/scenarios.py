@@ -66,9 +66,9 @@ class Scenario:
         kw = dict(self.schedule_kw)
         if self.schedule == "turntable":
             return att.turntable(n_steps=self.n_points, **kw)
-        fn: Callable[..., Any] = {"sphere": att.full_sphere, "cap": att.cap, "vehicle": att.vehicle,
-                                            "tumble": att.tumble}[self.schedule]
-        return fn(self.n_points, rng, **kw)
+        schedules: dict[str, Callable[..., att.Attitudes]] = {
+            "sphere": att.full_sphere, "cap": att.cap, "vehicle": att.vehicle, "tumble": att.tumble}
+        return schedules[self.schedule](self.n_points, rng, **kw)
 
     def build(self, seed: int = 0) -> Dataset:
         rng = np.random.default_rng(seed)
