@@ -89,7 +89,7 @@ CASES = [
     ("semicolon", _csv(RAW, sep=";"), [], 0, ""),
     ("tab", _csv(RAW, sep="\t"), [], 0, ""),
     ("header-comma-rows-semicolon", _csv(RAW, sep=";").replace("bx;by;bz;f_ref", "bx,by,bz,f_ref"), [], 2,
-     "non-numeric"),
+     "has 1 field(s) but the header names 4"),
     ("extra-field-in-a-row", _edit_row(GOOD, 5, "1,2,3,50000,9"), [], 2, "not a readable CSV"),
     ("spaces-around-values", GOOD.replace(",", " , "), [], 0, ""),
     ("quoted-header", GOOD.replace("bx,by,bz,f_ref", '"bx","by","bz","f_ref"'), [], 0, ""),
@@ -99,7 +99,7 @@ CASES = [
     ("duplicate-same-case", GOOD.replace("bx,by,bz,f_ref", "bx,by,bx,f_ref"), [], 2, "more than once"),
     ("missing-bz", GOOD.replace("bx,by,bz,f_ref", "bx,by,bq,f_ref"), [], 2, "lacks column"),
     ("no-header", "\n".join(GOOD.splitlines()[2:]) + "\n", [], 2, "lacks column"),
-    ("extra-columns", GOOD.replace("bx,by,bz,f_ref", "bx,by,bz,f_ref,comment").replace("\n", ",x\n")
+    ("extra-columns", GOOD.replace("\n", ",x\n").replace("bx,by,bz,f_ref,x", "bx,by,bz,f_ref,comment")
      .replace("# field_nT: 50000,x", "# field_nT: 50000"), [], 0, ""),
     ("upper-case-names", GOOD.replace("bx,by,bz,f_ref", "BX,BY,BZ,F_REF"), [], 0, ""),
     ("other-order", _csv(RAW[:, [2, 0, 1]], header=("bz", "bx", "by", "f_ref")), [], 0, ""),
