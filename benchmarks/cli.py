@@ -431,7 +431,7 @@ def _campaign_from_args(args):
     """The campaign and output folder ``compare`` was asked for, refused (InputError) before anything in
     ``--out`` is touched: unknown scenarios or methods, bad counts, a non-empty folder without --force or
     --resume."""
-    from magbench.benchmarks.campaign import CHECKPOINT, Campaign, MethodSpec
+    from magbench.benchmarks.campaign import CHECKPOINT, LOCK, Campaign, MethodSpec, lock_holder
     from magbench.calibrators import available
     from magbench.simulate.scenarios import get_scenario
 
@@ -448,7 +448,10 @@ def _campaign_from_args(args):
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out} exists and is not a directory")
-    if out.exists() and any(out.iterdir()) and not (args.force or args.resume):
+    holder = lock_holder(out) if out.is_dir() else None
+    if holder is not None:
+        raise InputError(f"{out} is in use by another campaign ({holder}); wait for it to end, or use another --out")
+    if out.exists() and any(p.name != LOCK for p in out.iterdir()) and not (args.force or args.resume):
         hint = (f"it holds an interrupted campaign ({CHECKPOINT}): use --resume to complete it or --force to start "
                 "over" if (out / CHECKPOINT).exists() else "use --resume to complete its campaign or --force to "
                 "overwrite it")
@@ -464,12 +467,23 @@ def _campaign_from_args(args):
 def cmd_compare(args) -> int:
     import shlex
 
-    from magbench.benchmarks.campaign import CampaignInterrupted, clear_outputs, run_campaign
+    from magbench.benchmarks.campaign import campaign_lock
 
     campaign, out = _campaign_from_args(args)
+    command = "magbench " + shlex.join(args._argv)
+    with campaign_lock(out, command):  # one campaign per folder; held until the report is written
+        if not (args.force or args.resume) and any(p.name != ".magbench.lock" for p in out.iterdir()):
+            raise InputError(f"{out} was filled by another process meanwhile; refusing to overwrite it")
+        return _compare_locked(args, campaign, out, command)
+
+
+def _compare_locked(args, campaign, out: Path, command: str) -> int:
+    import shlex
+
+    from magbench.benchmarks.campaign import CampaignInterrupted, clear_outputs, run_campaign
+
     if args.force:
         clear_outputs(out)
-    command = "magbench " + shlex.join(args._argv)
     progress = not args.json and not args.quiet
     cluster = _local_dask_cluster(args.jobs, progress) if args.dask == "local" else None
     try:
