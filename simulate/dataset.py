@@ -364,11 +364,11 @@ COUNT_UNITS = ("counts", "count", "lsb", "adc", "raw", "digits")
 def _check_meta_units(where, meta: dict, units: str) -> None:
     """Refuse a file whose metadata says its readings are in another unit than they are read in, or in
     ADC counts (with a gain line): the unit is then stated, never guessed."""
-    lower = {k.strip().lower(): v for k, v in meta.items()}
-    gain = next((k for k in COUNT_META_KEYS if k in lower), None)
-    stated = next((lower[k] for k in UNIT_META_KEYS if k in lower), None)
+    lower = {k.strip().lower(): k for k in meta}
+    gain = next((lower[k] for k in COUNT_META_KEYS if k in lower), None)
+    stated = next((meta[lower[k]] for k in UNIT_META_KEYS if k in lower), None)
     if gain is not None or (stated is not None and stated.strip().lower() in COUNT_UNITS):
-        line = f"'# {gain}: {lower[gain]}'" if gain is not None else f"'# units: {stated}'"
+        line = f"'# {gain}: {meta[gain]}'" if gain is not None else f"'# units: {stated}'"
         raise InputError(f"{where}: the readings are ADC counts ({line}), not {units}: convert them to nT with "
                          "the gain first (counts x nT per count)")
     if stated is not None:
