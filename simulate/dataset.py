@@ -297,7 +297,9 @@ def _check_rows(where, body: bytes, sep: str, n_names: int, first_line: int) -> 
         space = (arr == 32) | (arr == 13)
     nonspace = np.concatenate([[0], np.cumsum(~space)])
     blank = (nonspace[ends] - nonspace[starts]) == 0
-    if b'"' not in body:
+    if b'"' in body:
+        _check_quoted_rows(where, body, sep, n_names, first_line)
+    else:
         seps = np.concatenate([[0], np.cumsum(arr == ord(sep))])
         fields = seps[ends] - seps[starts] + 1
         wrong = np.flatnonzero((fields != n_names) & ~blank)
@@ -307,6 +309,33 @@ def _check_rows(where, body: bytes, sep: str, n_names: int, first_line: int) -> 
                              f"field(s) but the header names {n_names} column(s)"
                              + (f" (and {wrong.size - 1} more such lines)" if wrong.size > 1 else ""))
     return int((~blank).sum())
+
+
+def _check_quoted_rows(where, body: bytes, sep: str, n_names: int, first_line: int) -> None:
+    """With quoted fields (rare in data files): the records read by Python's csv module, which knows
+    quoting; a field that spans lines (an unbalanced quote, or a quoted line break) and a record whose
+    number of fields differs from the header's are refused, naming the line."""
+    import csv
+
+    try:
+        text = body.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{where} is not UTF-8 text ({exc.reason})") from None
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=sep, skipinitialspace=True, strict=False)
+    line = first_line
+    try:
+        for record in reader:
+            start, line = line, first_line + reader.line_num
+            if not record or all(not f.strip() for f in record) and len(record) <= 1:
+                continue
+            if line - start > 1 or any("\n" in f or "\r" in f for f in record):
+                raise InputError(f"{where}: a quoted field starting on line {start} spans {line - start} lines: an "
+                                 "unbalanced quote (\") joins lines into one field, or a field holds a line break")
+            if len(record) != n_names:
+                raise InputError(f"{where} is not a readable CSV file: line {start} has {len(record)} field(s) but "
+                                 f"the header names {n_names} column(s)")
+    except csv.Error as exc:
+        raise InputError(f"{where} is not a readable CSV file: {exc} (line {line})") from None
 
 
 def _table(path, data: bytes, head: _Head, sep: str, names: list[str], numeric: list[str]):
