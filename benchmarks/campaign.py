@@ -379,7 +379,7 @@ class Checkpoint:
     def __init__(self, path: Path, header: dict, done: dict | None = None):
         self.path = Path(path)
         self.done = dict(done or {})
-        self.campaign_id = campaign_digest(header.get("campaign"))
+        self.campaign_id = campaign_digest(header.get("campaign") or {})
         if done is None:  # a fresh checkpoint: the header, atomically
             tmp = self.path.with_name(self.path.name + ".tmp")
             tmp.write_text(json.dumps(header) + "\n", encoding="utf-8")
@@ -403,7 +403,9 @@ class Checkpoint:
             data = data[:data.rfind(b"\n") + 1]
             with open(path, "r+b") as f:
                 f.truncate(len(data))
-        header, done, refused, campaign_id, legacy = None, {}, 0, "", False
+        header: dict | None = None
+        done: dict = {}
+        refused, campaign_id, legacy = 0, "", False
         for n, line in enumerate(data.splitlines()):
             try:
                 item = json.loads(line)

@@ -308,6 +308,7 @@ def cmd_calibrate(args) -> int:
     data = load_dataset(args)
     result = cal.fit(data, field="auto") if field_auto else cal.fit(data)
     obj = result.as_dict()
+    obj["input_sha256"] = data.meta.get("file_sha256")  # the bytes the readings were parsed from
     ref = result.reference
     if ref.get("estimated"):
         sys.stderr.write(f"magbench: reference {ref['median_nT']:.6g} nT estimated from the readings (--field auto); "

@@ -74,6 +74,7 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -355,7 +356,8 @@ def parse_json(text: str, where: str = "calibration"):
         raise InputError(f"{where}: not a valid JSON calibration ({type(exc).__name__})") from None
 
 
-_SCHEMA_TYPES = {"schema": str, "schema_version": int, "magbench_version": str, "method": str, "model": str,
+_SCHEMA_TYPES: dict[str, Any] = {
+                 "schema": str, "schema_version": int, "magbench_version": str, "method": str, "model": str,
                  "origin": str, "parameters": dict, "M": list, "o_nT": list, "correction": str,
                  "noise_nT": (int, float, type(None)), "reference": dict, "data": dict,
                  "rms_before_nT": (int, float, type(None)), "rms_after_nT": (int, float, type(None)),
@@ -465,7 +467,8 @@ def load_calibration(path, source: InputBytes | None = None) -> Calibration:
     try:
         text = src.data.decode("utf-8-sig")
     except UnicodeDecodeError:
-        raise InputError(f"{path} is not a calibration file (not UTF-8 text; .mat files need the .mat extension)") from None
+        raise InputError(f"{path} is not a calibration file (not UTF-8 text; .mat files need the .mat "
+                         "extension)") from None
     return Calibration.from_json(text, str(path))
 
 
@@ -590,7 +593,8 @@ def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = Fa
             written.append(line)
             continue
         if k >= len(values):
-            raise InputError(f"{src}: more data lines than rows read ({len(values)}): quoted line breaks are not supported")
+            raise InputError(f"{src}: more data lines than rows read ({len(values)}): quoted line breaks are not "
+                             "supported")
         ending = line[len(text):] or eol
         written.append(text + sep + sep.join(format(v, digits) for v in values[k]) + ending)
         k += 1

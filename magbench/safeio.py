@@ -146,11 +146,11 @@ def atomic_output(path, inputs=(), force: bool = False, what: str = "output"):
     the temporary file is removed and ``path`` is left as it was."""
     path = check_output(path, inputs, force, what)
     try:
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=f".tmp{path.suffix}")
+        fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=f".tmp{path.suffix}")
         os.close(fd)
     except OSError as exc:
         raise InputError(f"cannot write {path}: {os_reason(exc)}") from None
-    tmp = Path(tmp)
+    tmp = Path(name)
     try:
         yield tmp
         with open(tmp, "rb+") as handle:

@@ -154,16 +154,6 @@ class ScalarSeries:
         return len(self.f_meas_nT)
 
 
-def _parse_meta(lines: list[str]) -> dict:
-    meta = {}
-    for line in lines:
-        body = line.lstrip("#").strip()
-        if ":" in body:
-            key, value = body.split(":", 1)
-            meta[key.strip()] = value.strip()
-    return meta
-
-
 def guess_unit(median_magnitude: float, expected_nT: float) -> str:
     """The unit whose conversion puts a typical magnitude nearest (in log) to the expected field."""
     if not (median_magnitude > 0 and math.isfinite(median_magnitude)):

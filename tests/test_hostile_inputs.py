@@ -373,6 +373,7 @@ def test_clean_records_are_accepted_with_white_or_1_over_f_noise(tmp_path, capsy
 
     obj = json.loads(out)
     assert obj["accepted"] and not [w for w in obj["warnings"] if "independently" in w]
+    assert obj["input_sha256"] == _digest(path)  # the digest of the bytes read, recorded
 
 
 def test_without_time_or_repeats_the_warning_says_the_noise_is_not_independent(tmp_path, capsys):
