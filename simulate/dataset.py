@@ -266,11 +266,12 @@ def _header(path, line: str) -> tuple[str, list[str]]:
     return sep, names
 
 
-def _check_rows(where, body: bytes, sep: str, n_names: int, first_line: int) -> int:
-    """The number of non-blank data lines of ``body``; refuses a line longer than ``MAX_LINE_BYTES`` and,
-    when no field is quoted, a line whose number of fields differs from the header's (vectorized: one
-    pass of numpy over the bytes)."""
-    arr = np.frombuffer(body, dtype=np.uint8)
+def _check_rows(where, data: bytes, offset: int, sep: str, n_names: int, first_line: int) -> int:
+    """The number of non-blank data lines of ``data[offset:]``; refuses a line longer than
+    ``MAX_LINE_BYTES`` and a line whose number of fields differs from the header's (vectorized over the
+    positions of line ends and separators, so memory stays a small fraction of the file's; with quoted
+    fields, Python's csv module counts instead)."""
+    arr = np.frombuffer(data, dtype=np.uint8)[offset:]
     if arr.size == 0:
         return 0
     ends = np.flatnonzero(arr == 10)
@@ -282,22 +283,30 @@ def _check_rows(where, body: bytes, sep: str, n_names: int, first_line: int) -> 
         i = int(np.argmax(lengths > MAX_LINE_BYTES))
         raise InputError(f"{where}: line {first_line + i} is longer than {MAX_LINE_BYTES:,} bytes (the limit of a "
                          "line)")
-    space = (arr == 32) | (arr == 9) | (arr == 13)
-    if sep == "\t":
-        space = (arr == 32) | (arr == 13)
-    nonspace = np.concatenate([[0], np.cumsum(~space)])
-    blank = (nonspace[ends] - nonspace[starts]) == 0
-    if b'"' in body:
-        _check_quoted_rows(where, body, sep, n_names, first_line)
-    else:
-        seps = np.concatenate([[0], np.cumsum(arr == ord(sep))])
-        fields = seps[ends] - seps[starts] + 1
+    first = arr[np.minimum(starts, arr.size - 1)]
+    blank = (lengths == 0) | ((lengths == 1) & (first == 13))
+    if data.find(b'"', offset) >= 0:
+        _check_quoted_rows(where, bytes(memoryview(data)[offset:]), sep, n_names, first_line)
+        return _nonblank(arr, starts, ends, blank, np.flatnonzero(~blank & (lengths <= 2 * n_names)))
+    fields = np.bincount(np.searchsorted(ends, np.flatnonzero(arr == ord(sep))), minlength=len(ends))[:len(ends)] + 1
+    wrong = np.flatnonzero((fields != n_names) & ~blank)
+    if wrong.size:
+        for i in wrong[:1000]:  # lines of spaces only are blank (the first thousand suspects are enough)
+            blank[i] = not bytes(arr[starts[i]:ends[i]]).strip()
         wrong = np.flatnonzero((fields != n_names) & ~blank)
-        if wrong.size:
-            i = int(wrong[0])
-            raise InputError(f"{where} is not a readable CSV file: line {first_line + i} has {int(fields[i])} "
-                             f"field(s) but the header names {n_names} column(s)"
-                             + (f" (and {wrong.size - 1} more such lines)" if wrong.size > 1 else ""))
+    if wrong.size:
+        i = int(wrong[0])
+        raise InputError(f"{where} is not a readable CSV file: line {first_line + i} has {int(fields[i])} "
+                         f"field(s) but the header names {n_names} column(s)"
+                         + (f" (and {wrong.size - 1} more such lines)" if wrong.size > 1 else ""))
+    return int((~blank).sum())
+
+
+def _nonblank(arr, starts, ends, blank, suspects) -> int:
+    """Lines not blank, the ``suspects`` (short lines) checked for whitespace only."""
+    blank = blank.copy()
+    for i in suspects:
+        blank[i] = not bytes(arr[starts[i]:ends[i]]).strip()
     return int((~blank).sum())
 
 
@@ -338,7 +347,7 @@ def _table(path, data: bytes, head: _Head, sep: str, names: list[str], numeric: 
     import pandas as pd
 
     body = memoryview(data)[head.body_start:]
-    n_lines = _check_rows(path, bytes(body), sep, len(names), head.skipped + 2)
+    n_lines = _check_rows(path, data, head.body_start, sep, len(names), head.skipped + 2)
     options = dict(sep=sep, header=None, names=names, encoding=ENCODINGS[0],
                    skipinitialspace=True, comment=None, engine="c", skip_blank_lines=True, index_col=False)
     try:
