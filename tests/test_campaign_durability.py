@@ -364,3 +364,24 @@ def test_a_corrupt_checkpoint_header_is_named_as_such(tmp_path, monkeypatch, cap
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "is not a magbench checkpoint header" in err[0] and "no runs.partial" not in err[0]
     assert path.read_bytes() == saved
+
+
+def test_a_campaign_started_while_another_process_runs_one_is_refused(tmp_path, capsys):
+    """The race of issue 19 with two real processes: the second campaign (another seed, --force) on the
+    folder of a running one exits 2 naming it, and the running one's checkpoint is untouched."""
+    out = tmp_path / "camp"
+    proc = start(compare_args(out, "--quiet"), tmp_path, "first")
+    try:
+        wait_for_runs(proc, out, 1)
+        capsys.readouterr()
+        assert main(compare_args(out, "--force", "--quiet", seed=SEED + 1)) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "in use by another campaign" in err[0] and f"process {proc.pid}" in err[0], err
+        assert (out / CHECKPOINT).is_file()  # --force did not clear the running campaign's outputs
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=60) == 130
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    header, done = Checkpoint.read(out / CHECKPOINT)
+    assert header["campaign"]["seed"] == SEED and done
