@@ -468,12 +468,12 @@ def _campaign_from_args(args):
 def cmd_compare(args) -> int:
     import shlex
 
-    from magbench.benchmarks.campaign import campaign_lock
+    from magbench.benchmarks.campaign import LOCK, campaign_lock
 
     campaign, out = _campaign_from_args(args)
     command = "magbench " + shlex.join(args._argv)
     with campaign_lock(out, command):  # one campaign per folder; held until the report is written
-        if not (args.force or args.resume) and any(p.name != ".magbench.lock" for p in out.iterdir()):
+        if not (args.force or args.resume) and any(p.name != LOCK for p in out.iterdir()):
             raise InputError(f"{out} was filled by another process meanwhile; refusing to overwrite it")
         return _compare_locked(args, campaign, out, command)
 
