@@ -14,14 +14,22 @@ what finished with ``"complete": false`` in the manifest; ``resume=True`` runs o
 gives the same tables as an uninterrupted campaign.  The rows of the tables always come from the
 checkpoint's JSON, so a resumed campaign and an uninterrupted one are built from identical values.
 Local workers exit on their own when the campaign process dies (a watchdog thread polls their parent).
+
+Integrity: one campaign at a time per folder (``campaign_lock``: ``fcntl.flock`` on ``.magbench.lock`` in
+it, the holder's pid, host and command written there; a second campaign is refused naming the holder, and
+a lock left by a dead process is free again, since the kernel releases it).  Every checkpoint line
+carries the sha256 of its content and of the campaign's definition (``line_checksum``): a line edited by
+hand, or copied from another campaign, fails it and its run is run again, with a warning.
 """
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import platform
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -39,7 +47,8 @@ from magbench.errors import InputError
 RUNTIME_COLUMNS = ("runtime_s", "median_runtime_s")
 TRACE_POINTS = 100  # convergence traces (kept for every trial) are thinned to at most this many points per run
 CHECKPOINT = "runs.partial.jsonl"  # one header line, then one JSON line per finished run
-CHECKPOINT_VERSION = 1
+CHECKPOINT_VERSION = 2  # 2: every run line carries a checksum
+LOCK = ".magbench.lock"  # in the campaign folder while a campaign runs there
 TABLE_FILES = ("runs.csv", "summary.csv", "summary.md", "summary.tex", "traces.csv", "fields.csv", "manifest.json")
 CHUNK_MAX = 4  # runs per unit of work sent to a worker: an interrupt loses at most this many per worker
 WATCHDOG_S = 0.5  # how often a local worker checks that the campaign process is still alive
@@ -345,6 +354,21 @@ def _json_default(o):
     return str(o)
 
 
+def campaign_digest(definition: dict) -> str:
+    """The sha256 of a campaign's definition (canonical JSON): what a checkpoint line's checksum binds it to."""
+    return hashlib.sha256(json.dumps(definition, sort_keys=True, default=_json_default).encode("utf-8")).hexdigest()
+
+
+def line_checksum(campaign_id: str, key: list, row: dict) -> str:
+    """sha256 of the campaign's digest and the line's key and row (canonical JSON)."""
+    text = json.dumps({"campaign": campaign_id, "key": key, "row": row}, sort_keys=True, default=_json_default)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+class CheckpointCorrupt(InputError):
+    """The checkpoint's header line is not a magbench checkpoint header."""
+
+
 class Checkpoint:
     """``runs.partial.jsonl``: a header with the campaign's definition, then one line per finished run.
 
@@ -355,6 +379,7 @@ class Checkpoint:
     def __init__(self, path: Path, header: dict, done: dict | None = None):
         self.path = Path(path)
         self.done = dict(done or {})
+        self.campaign_id = campaign_digest(header.get("campaign") or {})
         if done is None:  # a fresh checkpoint: the header, atomically
             tmp = self.path.with_name(self.path.name + ".tmp")
             tmp.write_text(json.dumps(header) + "\n", encoding="utf-8")
@@ -363,32 +388,54 @@ class Checkpoint:
 
     @staticmethod
     def read(path: Path) -> tuple[dict | None, dict]:
-        """(header, {key: row}) of a checkpoint; a torn last line is cut off the file."""
+        """(header, {key: row}) of a checkpoint; a torn last line is cut off the file, and lines that fail
+        their checksum are left out (``read_checked`` counts them)."""
+        header, done, _ = Checkpoint.read_checked(path)
+        return header, done
+
+    @staticmethod
+    def read_checked(path: Path) -> tuple[dict | None, dict, int]:
+        """(header, {key: row}, number of run lines refused): a run line counts only when its checksum
+        matches its content and the header's campaign (version 2; version 1 lines had none)."""
         path = Path(path)
         data = path.read_bytes()
         if data and not data.endswith(b"\n"):  # a kill during a write: drop the torn line
             data = data[:data.rfind(b"\n") + 1]
             with open(path, "r+b") as f:
                 f.truncate(len(data))
-        header, done = None, {}
+        header: dict | None = None
+        done: dict = {}
+        refused, campaign_id, legacy = 0, "", False
         for n, line in enumerate(data.splitlines()):
             try:
                 item = json.loads(line)
-            except ValueError:
+            except (ValueError, RecursionError):
+                refused += n > 0
                 continue
             if n == 0:
-                header = item if isinstance(item, dict) and "campaign" in item else None
+                header = item if isinstance(item, dict) and isinstance(item.get("campaign"), dict) else None
                 if header is None:
                     break
-            elif isinstance(item, dict) and "key" in item and "row" in item:
-                done.setdefault(tuple(item["key"]), item["row"])
-        return header, done
+                campaign_id = campaign_digest(header["campaign"])
+                legacy = header.get("magbench_checkpoint") == 1
+            elif (isinstance(item, dict) and isinstance(item.get("key"), list) and len(item["key"]) == 3
+                  and isinstance(item.get("row"), dict)
+                  and (legacy or item.get("sha256") == line_checksum(campaign_id, item["key"], item["row"]))):
+                try:
+                    done.setdefault(tuple(item["key"]), item["row"])
+                except TypeError:  # an unhashable key
+                    refused += 1
+            else:
+                refused += 1
+        return header, done, refused
 
     def add(self, task: dict, row: dict) -> dict:
         """Append a finished run; return the row as it is stored (the JSON round trip)."""
-        line = json.dumps({"key": list(task_key(task)), "row": row}, default=_json_default) + "\n"
+        key = list(task_key(task))
+        stored = json.loads(json.dumps(row, default=_json_default))  # the row as JSON gives it back
+        line = json.dumps({"key": key, "row": stored, "sha256": line_checksum(self.campaign_id, key, stored)},
+                          default=_json_default) + "\n"
         self._file.write(line.encode("utf-8"))
-        stored = json.loads(line)["row"]
         self.done[task_key(task)] = stored
         return stored
 
@@ -406,6 +453,8 @@ def stored_definition(out: Path) -> tuple[dict | None, str]:
         header, _ = Checkpoint.read(out / CHECKPOINT)
         if header is not None:
             return header["campaign"], CHECKPOINT
+        raise CheckpointCorrupt(f"cannot resume: the first line of {out / CHECKPOINT} is not a magbench checkpoint "
+                                "header (the file is corrupt or not ours); use --force to start over")
     if (out / "manifest.json").is_file():
         try:
             man = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
@@ -428,6 +477,79 @@ def _check_same_campaign(stored: dict, campaign: Campaign, out: Path, source: st
     if diff:
         raise InputError(f"cannot resume: {out} holds another campaign ({'; '.join(diff)}, from its {source}); "
                          "repeat its arguments, or use --force to start over")
+
+
+def _lock_info(path: Path) -> str:
+    try:
+        info = json.loads(path.read_text(encoding="utf-8") or "{}")
+    except (OSError, ValueError):
+        return "another process"
+    return (f"process {info.get('pid', '?')} on {info.get('host', '?')}"
+            + (f" ({info['command']})" if info.get("command") else ""))
+
+
+def lock_holder(out) -> str | None:
+    """Who holds the campaign lock of ``out`` (None when no one does)."""
+    import fcntl
+
+    path = Path(out) / LOCK
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return _lock_info(path)
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+    return None
+
+
+@contextmanager
+def campaign_lock(out, command: str = ""):
+    """Hold the campaign lock of ``out`` (created if needed) for the block: ``fcntl.flock`` on ``out/LOCK``,
+    with this process's pid, host and command written in it.  ``InputError`` naming the holder when
+    another process has it; a lock left by a dead process is taken over (the kernel released it).  The
+    lock file is removed when the block ends."""
+    import fcntl
+
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create {out}: {exc.strerror or exc}") from None
+    path = out / LOCK
+    while True:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise InputError(f"cannot lock {out}: {exc.strerror or exc}") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise InputError(f"{out} is in use by another campaign ({_lock_info(path)}); wait for it to end, "
+                             "or use another --out") from None
+        try:
+            same = os.fstat(fd).st_ino == os.stat(path).st_ino
+        except OSError:
+            same = False
+        if same:  # not a file its previous holder removed meanwhile
+            break
+        os.close(fd)
+    try:
+        info = json.dumps({"pid": os.getpid(), "host": socket.gethostname(), "command": command,
+                           "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}) + "\n"
+        os.ftruncate(fd, 0)
+        os.write(fd, info.encode("utf-8"))
+        yield path
+    finally:
+        with suppress(OSError):
+            path.unlink()
+        os.close(fd)
 
 
 COMPARISON_FILES = ("ert.csv", "ecdf.csv", "anytime.csv", "profile.csv", "paired_tests.csv", "win_rate.csv")
@@ -519,7 +641,11 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
             _check_same_campaign(stored, campaign, out, source)
         if source == CHECKPOINT:
             keys = {task_key(t) for t in tasks}
-            done = {k: v for k, v in Checkpoint.read(ckpt_path)[1].items() if k in keys}
+            _, on_file, refused = Checkpoint.read_checked(ckpt_path)
+            done = {k: v for k, v in on_file.items() if k in keys}
+            if refused:
+                sys.stderr.write(f"magbench: warning: {refused} line(s) of {ckpt_path} failed their checksum "
+                                 "(edited, corrupt, or from another campaign): those runs are run again\n")
         elif stored is not None:
             man = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
             if man.get("complete", True) and (out / "runs.csv").is_file():

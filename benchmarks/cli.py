@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from magbench.errors import InputError
-from magbench.simulate.dataset import writable_path
+from magbench.safeio import atomic_output, check_output, os_reason
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_REJECTED = 0, 1, 2, 3
 EXIT_STATUS_HELP = """exit status:
@@ -223,14 +223,16 @@ def cmd_simulate(args) -> int:
 
     scenario = get_scenario(args.scenario)
     out = Path(args.out)
-    if args.truth and Path(args.truth).resolve() == out.resolve():
-        raise InputError(f"--out and --truth name the same file ({out}): the truth would overwrite the data")
-    for path in filter(None, [out, Path(args.truth) if args.truth else None]):
-        writable_path(path, args.force)
+    if args.truth and (Path(args.truth).resolve() == out.resolve()
+                       or (out.exists() and Path(args.truth).exists() and os.path.samefile(out, args.truth))):
+        raise InputError(f"--out and --truth name the same file ({out}, by inode): the truth would overwrite the data")
+    check_output(out, force=args.force, what="--out file")
+    if args.truth:
+        check_output(args.truth, [out], force=args.force, what="--truth file")
     data = scenario.build(args.seed)
     data.to_csv(out)
     if args.truth:
-        write_truth(data.truth, args.truth)
+        write_truth(data.truth, args.truth, inputs=[out])
     obj = {"scenario": scenario.name, "seed": args.seed, "out": str(out), "truth": args.truth,
            "n_points": len(data), "model": scenario.model}
     _emit(args, obj, f"wrote {len(data)} samples of scenario {scenario.name} (seed {args.seed}) to {out}"
@@ -263,9 +265,7 @@ def _save_target(args):
     from magbench.calibrators.artifacts import export_path
 
     path = export_path(args.save, args.export or "json")
-    if Path(args.file).exists() and path.exists() and path.resolve() == Path(args.file).resolve():
-        raise InputError(f"--save {path} is the input file: give another name")
-    return writable_path(path, args.force)
+    return check_output(path, [args.file], args.force, what="--save file")
 
 
 def _calibration_lines(result, n_points: int) -> list[str]:
@@ -308,6 +308,7 @@ def cmd_calibrate(args) -> int:
     data = load_dataset(args)
     result = cal.fit(data, field="auto") if field_auto else cal.fit(data)
     obj = result.as_dict()
+    obj["input_sha256"] = data.meta.get("file_sha256")  # the bytes the readings were parsed from
     ref = result.reference
     if ref.get("estimated"):
         sys.stderr.write(f"magbench: reference {ref['median_nT']:.6g} nT estimated from the readings (--field auto); "
@@ -319,7 +320,7 @@ def cmd_calibrate(args) -> int:
     if target is not None and (result.accepted or args.accept_any):
         from magbench.calibrators.artifacts import export
 
-        saved = export(result.calibration(), target, args.export or "json", force=args.force)
+        saved = export(result.calibration(), target, args.export or "json", force=args.force, inputs=[args.file])
         lines.append(f"  saved {args.export or 'json'} calibration to {saved}")
     obj["saved"] = str(saved) if saved else None
     if result.accepted:
@@ -339,18 +340,22 @@ def cmd_calibrate(args) -> int:
 
 
 def cmd_apply(args) -> int:
-    from magbench.calibrators.artifacts import apply_to_csv, load_calibration
+    from magbench.calibrators.artifacts import apply_problems, apply_to_csv, load_calibration
 
+    check_output(args.out, [args.calibration, args.file], args.force, what="--out file")
     cal = load_calibration(args.calibration)
-    if Path(args.out).exists() and Path(args.out).resolve() == Path(args.calibration).resolve():
-        raise InputError(f"--out {args.out} is the calibration file: give another name")
+    problems = apply_problems(cal)
+    if problems and not args.accept_any:
+        raise InputError(f"{args.calibration}: {problems[0]}: refusing to apply it (--accept-any applies it anyway)")
     info = apply_to_csv(cal, args.file, args.out, units=args.units, force=args.force,
-                        cal_name=Path(args.calibration).name)
-    info.update(calibration=str(args.calibration), method=cal.method, model=cal.model, data_digest=cal.data_digest)
+                        cal_name=Path(args.calibration).name, inputs=[args.calibration])
+    info.update(calibration=str(args.calibration), method=cal.method, model=cal.model, data_digest=cal.data_digest,
+                warnings=[f"applied by --accept-any: {p}" for p in problems])
     text = (f"wrote {info['n_rows']} rows to {info['out']}: {', '.join(info['columns_added'])} added ({info['units']}; "
             f"{cal.method or cal.origin} {cal.model} calibration from {args.calibration})")
     if "rms_f_cal_minus_f_ref_nT" in info:
         text += f"\n  total-field RMS against the file's f_ref: {info['rms_f_cal_minus_f_ref_nT']:.3f} nT"
+    text += "".join(f"\n  warning: {w}" for w in info["warnings"])
     _emit(args, info, text)
     return EXIT_OK
 
@@ -427,7 +432,7 @@ def _campaign_from_args(args):
     """The campaign and output folder ``compare`` was asked for, refused (InputError) before anything in
     ``--out`` is touched: unknown scenarios or methods, bad counts, a non-empty folder without --force or
     --resume."""
-    from magbench.benchmarks.campaign import CHECKPOINT, Campaign, MethodSpec
+    from magbench.benchmarks.campaign import CHECKPOINT, LOCK, Campaign, MethodSpec, lock_holder
     from magbench.calibrators import available
     from magbench.simulate.scenarios import get_scenario
 
@@ -444,7 +449,10 @@ def _campaign_from_args(args):
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out} exists and is not a directory")
-    if out.exists() and any(out.iterdir()) and not (args.force or args.resume):
+    holder = lock_holder(out) if out.is_dir() else None
+    if holder is not None:
+        raise InputError(f"{out} is in use by another campaign ({holder}); wait for it to end, or use another --out")
+    if out.exists() and any(p.name != LOCK for p in out.iterdir()) and not (args.force or args.resume):
         hint = (f"it holds an interrupted campaign ({CHECKPOINT}): use --resume to complete it or --force to start "
                 "over" if (out / CHECKPOINT).exists() else "use --resume to complete its campaign or --force to "
                 "overwrite it")
@@ -460,12 +468,23 @@ def _campaign_from_args(args):
 def cmd_compare(args) -> int:
     import shlex
 
-    from magbench.benchmarks.campaign import CampaignInterrupted, clear_outputs, run_campaign
+    from magbench.benchmarks.campaign import LOCK, campaign_lock
 
     campaign, out = _campaign_from_args(args)
+    command = "magbench " + shlex.join(args._argv)
+    with campaign_lock(out, command):  # one campaign per folder; held until the report is written
+        if not (args.force or args.resume) and any(p.name != LOCK for p in out.iterdir()):
+            raise InputError(f"{out} was filled by another process meanwhile; refusing to overwrite it")
+        return _compare_locked(args, campaign, out, command)
+
+
+def _compare_locked(args, campaign, out: Path, command: str) -> int:
+    import shlex
+
+    from magbench.benchmarks.campaign import CampaignInterrupted, clear_outputs, run_campaign
+
     if args.force:
         clear_outputs(out)
-    command = "magbench " + shlex.join(args._argv)
     progress = not args.json and not args.quiet
     cluster = _local_dask_cluster(args.jobs, progress) if args.dask == "local" else None
     try:
@@ -525,11 +544,14 @@ def cmd_diagnose(args) -> int:
 
     data = load_dataset(args, require_vector=False)
     figure = Path(args.figure) if args.figure and not args.no_figure else None
-    if figure is not None and figure.exists() and not args.force:
-        raise InputError(f"{figure} exists; refusing to overwrite it (use another --figure PATH or --force)")
+    if figure is not None:
+        if figure.exists() and not args.force and not figure.is_dir():
+            raise InputError(f"{figure} exists; refusing to overwrite it (use another --figure PATH or --force)")
+        check_output(figure, [args.file], args.force, what="--figure file")
     result = diagnose(data, base=args.model, folds=args.folds, seed=args.seed, gravity=read_gravity(args.file))
     if figure is not None:
-        diagnosis_figure(data, result, figure)
+        with atomic_output(figure, [args.file], args.force, what="--figure file") as tmp:
+            diagnosis_figure(data, result, tmp)
     result["figure"] = str(figure) if figure else None
     _emit(args, result, diagnosis_text(result, args.file))
     return EXIT_OK
@@ -661,6 +683,9 @@ def _add_apply_parser(sub) -> None:
     p.add_argument("--out", required=True, metavar="OUT.csv",
                    help="the output: FILE's lines and columns as they are, plus bx_cal, by_cal, bz_cal, f_cal")
     p.add_argument("--force", action="store_true", help="overwrite OUT.csv")
+    p.add_argument("--accept-any", action="store_true",
+                   help="apply a calibration that was rejected when it was made, or whose matrix is ill-conditioned "
+                        "(condition number above 100, determinant outside 0.01..100); refused otherwise (exit 2)")
     p.add_argument("--units", default="nT", choices=["nT", "uT", "G", "mG"],
                    help="unit of the file's field columns (default nT); the added columns are in it too")
     p.add_argument("--json", action="store_true")
@@ -739,17 +764,45 @@ def _add_demo_parser(sub) -> None:
     p.set_defaults(func=cmd_demo)
 
 
+def _first_line(exc: BaseException) -> str:
+    """The first non-empty line of an exception's text, or its type's name (a MemoryError has no text)."""
+    lines = [ln for ln in str(exc).splitlines() if ln.strip()]
+    return _printable(lines[0].strip()) if lines else type(exc).__name__
+
+
+def _usage_error(exc: BaseException) -> str | None:
+    """The one-line message of an exception that is bad input, not our fault (None otherwise): an
+    ``InputError``, an ``OSError`` (a path and the system's reason), memory or nesting beyond the machine's."""
+    if isinstance(exc, InputError):
+        return _first_line(exc)
+    if isinstance(exc, OSError):
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        return _printable(f"cannot read or write {where}{os_reason(exc)}")
+    if isinstance(exc, MemoryError):
+        return "not enough memory for this input (it is too large, or not what it claims to be)"
+    if isinstance(exc, RecursionError):
+        return "the input is nested too deeply to read"
+    return None
+
+
 def main(argv=None) -> int:
+    import warnings
+
     parser = build_parser()
+    caught: list = []
     try:
-        args = parser.parse_args(argv)
-        args._argv = list(argv) if argv is not None else sys.argv[1:]
-        if not getattr(args, "command", None):
-            parser.print_help(sys.stderr)
-            return EXIT_USAGE
-        return args.func(args)
-    except InputError as exc:
-        sys.stderr.write(f"magbench: {_printable(str(exc).splitlines()[0]) if str(exc) else type(exc).__name__}\n")
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            args = parser.parse_args(argv)
+            args._argv = list(argv) if argv is not None else sys.argv[1:]
+            if not getattr(args, "command", None):
+                parser.print_help(sys.stderr)
+                return EXIT_USAGE
+            status = args.func(args)
+        _show_warnings(caught)
+        return status
+    except (InputError, OSError, MemoryError, RecursionError) as exc:  # bad input: one line, no library warnings
+        sys.stderr.write(f"magbench: {_usage_error(exc)}\n")
         return EXIT_USAGE
     except KeyboardInterrupt as exc:  # 130 for Ctrl-C (128 + SIGINT); 143 for a SIGTERM turned into one
         sys.stderr.write("magbench: interrupted\n")
@@ -757,9 +810,23 @@ def main(argv=None) -> int:
     except Exception as exc:  # anything else is our fault: one line, status 1, traceback on request
         if os.environ.get("MAGBENCH_DEBUG"):
             raise
-        sys.stderr.write(f"magbench: internal error: {type(exc).__name__}: {_printable(str(exc))} "
+        sys.stderr.write(f"magbench: internal error: {type(exc).__name__}: {_first_line(exc)} "
                          "(set MAGBENCH_DEBUG=1 for a traceback)\n")
         return EXIT_FAIL
+
+
+LIBRARY_WARNINGS = (RuntimeWarning, DeprecationWarning, PendingDeprecationWarning, FutureWarning)
+"""Warnings of numpy, pandas and scipy about their own internals: never shown to a user (the checks of
+magbench say what matters, in its own words)."""
+
+
+def _show_warnings(caught) -> None:
+    """After a command that did not fail on bad input: the warnings it raised, except the libraries' own."""
+    import warnings
+
+    for w in caught:
+        if not issubclass(w.category, LIBRARY_WARNINGS) and not type(w.message).__module__.startswith("pandas"):
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
 
 
 if __name__ == "__main__":  # pragma: no cover

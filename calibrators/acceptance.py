@@ -12,7 +12,13 @@ off-diagonal limits, offset limit, fitness), but each check names its cause:
   is rejected when there are any, with the count and the advice to use ``ransac``;
 - **fitness**: the residual on the inliers against the optimum these data allow (the judge's own
   least-squares polish of the answer): a search that stopped short is rejected, and the optimum's
-  residual is the noise at which identifiability is judged (independent of how well the method did).
+  residual is the noise at which identifiability is judged (independent of how well the method did);
+- **structure**: the optimum's residual against noise the fit did not make (``independent_noise``: from
+  neighbouring samples in time, as the diagnosis's floor, or from repeated attitudes): a residual far
+  above that noise is structure the model lacks (a step in the offsets, a drift) and is rejected, the
+  structure named (``describe_structure``: the best single step, located in time order);
+- **scale**: a mean scale factor more than 5 % from unity is a warning (a fluxgate's scales are within a
+  few per cent of 1: the reference or the units are likely wrong).
 
 The reference against the readings (units, ADC counts, a wrong or jumping reference, mixed units) is
 checked before the fit (``reference_problems``): it is bad input, refused with exit status 2.
@@ -23,8 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from magbench.numerics import lm_normal
-from magbench.simulate.effects import robust_sigma
+from magbench.numerics import lm_normal, robust_sigma
 from magbench.simulate.sensor import PARAM_NAMES
 
 from .core.objective import ScalarObjective
@@ -177,13 +182,170 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
             f"spread {100 * ratio:.2g} % of the in-plane spread): tilt the sensor more or use --model angles"]
 
 
+STRUCTURE_RATIO = 10.0
+"""A residual RMS more than this many times the independent noise (plus ``STRUCTURE_FLOOR_FRACTION`` of the
+field) is structure the model lacks, not noise (1/f sensor noise leaves a ratio of 1 to 3)."""
+STRUCTURE_FLOOR_FRACTION = 2e-5
+"""Below 2e-5 of the field (1 nT at 50,000 nT) a residual is not judged for structure (quantization)."""
+REPEAT_FRACTION = 1e-3
+"""Two readings closer than 0.1 % of the field are one attitude measured twice."""
+MIN_REPEATS = 10
+"""Pairs of repeated attitudes needed to estimate the noise from them."""
+MIN_NOISE_POINTS = 10
+STEP_CANDIDATES = 2000
+"""Split points tried when locating a step (evenly spaced in time order)."""
+STEP_SHARE = 0.5
+"""A single step names the structure when it explains at least this share of the residual's excess over
+the noise."""
+SCALE_WARNING = 0.05
+"""A mean scale factor further than this from 1 gets a warning (a fluxgate's scales are near unity)."""
+
+
+def independent_noise(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray | None,
+                      field_nT: float) -> tuple[float, str, np.ndarray | None]:
+    """The noise of the residual ``r`` estimated independently of the fit, how, and the time order used.
+
+    With times: the robust scatter of the errors of linear interpolation between time neighbours,
+    ``r_i - (w r_(i-1) + (1 - w) r_(i+1))`` scaled to white noise (the second difference / sqrt(6) on even
+    sampling; the diagnosis's floor, ``benchmarks/diagnosis/floor.py``), which a smooth structure (a
+    drift, a slowly changing attitude's misfit) cancels in and a step touches only twice.  Without times:
+    pairs of repeated attitudes (readings within ``REPEAT_FRACTION`` of the field), ``(r_i - r_j) /
+    sqrt(2)``.  With neither, the rows in file order taken as time order ("rows"; an upper bound of the
+    noise when they are not)."""
+    n = len(r)
+    if t_s is not None and np.ptp(t_s) > 0:
+        order = np.argsort(t_s, kind="stable")
+        return _interpolation_sigma(r[order], t_s[order]), "time", order
+    from scipy.spatial import cKDTree
+
+    dist, idx = cKDTree(raw_nT).query(raw_nT, k=2)
+    close = dist[:, 1] < REPEAT_FRACTION * field_nT
+    if close.sum() >= MIN_REPEATS:
+        i = np.flatnonzero(close)
+        return robust_sigma(r[i] - r[idx[i, 1]]) / np.sqrt(2.0), "repeats", None
+    return _interpolation_sigma(r, np.arange(n, dtype=float)), "rows", np.arange(n)
+
+
+def _interpolation_sigma(r: np.ndarray, t: np.ndarray) -> float:
+    t = t + np.arange(len(t)) * 1e-9 * max(float(np.ptp(t)), 1.0)  # ties broken
+    w = (t[2:] - t[1:-1]) / (t[2:] - t[:-2])  # weight of the earlier neighbour
+    e = (r[1:-1] - (w * r[:-2] + (1 - w) * r[2:])) / np.sqrt(1.0 + w * w + (1 - w) ** 2)
+    return robust_sigma(e)
+
+
+def describe_structure(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: np.ndarray | None,
+                       noise_nT: float, rows: np.ndarray, t_s: np.ndarray | None) -> str:
+    """Name the structure of a residual far above the noise: the best single step in time order (a jump of
+    the offsets and of the mean after row k, ``[i >= k] (c + J_o d)``, on top of every parameter's
+    direction ``J`` over the whole record: a partial regression, evaluated at ``STEP_CANDIDATES`` split
+    points from block sums), when it explains most of the excess over the noise; else a structure in time
+    without a single step."""
+    if order is None:
+        return "the residual is structured (not noise), but without time order its shape cannot be located"
+    names = PARAM_NAMES[objective.model]
+    offsets = [1 + i for i, nm in enumerate(names) if nm.endswith("_nT")]
+    # a step of the offsets where there are offsets, else of the mean; the mean is never a column of the
+    # whole record (with scales the residual |c| - F lies in the span of the scales' columns and a constant)
+    full = np.column_stack([np.ones(len(r)), objective.jacobian(x)])[order]
+    if offsets:
+        full[:, 0] = 0.0
+    scale = np.sqrt(np.mean(full * full, axis=0))
+    scale[scale == 0] = 1.0
+    full = full / scale  # columns of one size: the systems below are then well conditioned
+    ro = r[order]
+    n, p = full.shape
+    tail = offsets or [0]
+    q = len(tail)
+    edges = np.unique(np.linspace(max(1, n // 50), n - max(1, n // 50), min(STEP_CANDIDATES, n)).astype(int))
+    if len(edges) < 2:
+        return "the residual is structured in time"
+    bounds = np.concatenate([[0], edges, [n]])
+    ss = np.empty((len(bounds) - 1, p, p))
+    sb = np.empty((len(bounds) - 1, p))
+    for j in range(len(bounds) - 1):
+        block = full[bounds[j]:bounds[j + 1]]
+        ss[j], sb[j] = block.T @ block, block.T @ ro[bounds[j]:bounds[j + 1]]
+    a_after = np.cumsum(ss[::-1], axis=0)[::-1][1:]  # sums over rows >= edges[m]
+    b_after = np.cumsum(sb[::-1], axis=0)[::-1][1:]
+    a_all, b_all = ss.sum(axis=0), sb.sum(axis=0)
+    m = len(edges)
+    h = np.zeros((m, p + q, p + q))
+    h[:, :p, :p] = a_all
+    h[:, :p, p:] = a_after[:, :, tail]
+    h[:, p:, :p] = a_after[:, tail, :]
+    h[:, p:, p:] = a_after[:, tail][:, :, tail]
+    c = np.concatenate([np.broadcast_to(b_all, (m, p)), b_after[:, tail]], axis=1)
+    with np.errstate(all="ignore"):
+        coef = _batched_solve(h, c)
+        explained = np.einsum("mi,mi->m", coef, c)
+        base = float(np.linalg.pinv(a_all, rcond=1e-9, hermitian=True) @ b_all @ b_all)
+    gain = np.where(np.isfinite(explained), explained - base, -np.inf)
+    best = int(np.argmax(gain))
+    excess = float(ro @ ro) - base - n * noise_nT ** 2
+    k = int(edges[best])
+    if excess > 0 and gain[best] >= STEP_SHARE * excess:
+        row = int(rows[order[k]])
+        when = f" (t = {t_s[row]:.6g} s)" if t_s is not None else ""
+        jump = coef[best][p:] / scale[tail]
+        what = (f"the offsets jump by about {np.linalg.norm(jump):.3g} nT" if offsets else
+                f"the residual jumps by about {abs(jump[0]):.3g} nT")
+        return (f"a step in the residual at row {row:,}{when}: {what} there (one calibration cannot hold both "
+                "parts: split the record, or find what changed)")
+    return ("the residual drifts or oscillates in time rather than stepping (an effect the model lacks: "
+            "magbench diagnose names it)")
+
+
+def _batched_solve(h: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Least-squares solutions of a stack of small symmetric systems (singular ones by pseudo-inverse)."""
+    return np.einsum("mij,mj->mi", np.linalg.pinv(h, rcond=1e-9, hermitian=True), c)
+
+
+def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, field_nT: float,
+                    rows: np.ndarray, t_s: np.ndarray | None, info: dict) -> tuple[list[str], list[str]]:
+    """The residual at ``x`` (the judge's optimum) against ``independent_noise``: a rejection naming the
+    structure when it is more than ``STRUCTURE_RATIO`` times that noise; a warning when the noise could not
+    be estimated independently of the fit."""
+    r = objective.residuals(x)
+    if len(r) < MIN_NOISE_POINTS:
+        return [], [f"only {len(r)} points: the noise could not be estimated independently of the fit"]
+    t_in = None if t_s is None else np.asarray(t_s, dtype=float)[rows]
+    sigma, how, order = independent_noise(r, objective.raw_nT, t_in, field_nT)
+    info["noise_independent_nT"], info["noise_independent_from"] = float(sigma), how
+    warnings = []
+    if how == "rows":
+        warnings.append("the noise could not be estimated independently of the fit (no t column and no repeated "
+                        "attitudes): it was estimated from neighbouring rows taken in file order")
+    if not rms_nT > STRUCTURE_RATIO * sigma + STRUCTURE_FLOOR_FRACTION * field_nT:
+        return [], warnings
+    source = {"time": "neighbouring samples in time", "repeats": "repeated attitudes",
+              "rows": "neighbouring rows"}[how]
+    shape = describe_structure(objective, x, r, order, sigma, rows, t_s)
+    return [f"the residual {rms_nT:.3g} nT is {rms_nT / max(sigma, 1e-12):.3g} times the noise estimated independently "
+            f"of the fit ({sigma:.3g} nT, from {source}): {shape}"], warnings
+
+
+def scale_warning(x: np.ndarray, model: str) -> list[str]:
+    """A warning when the mean scale factor is more than ``SCALE_WARNING`` from 1."""
+    names = PARAM_NAMES[model]
+    if "kx" not in names:
+        return []
+    i = names.index("kx")
+    mean = float(np.mean(x[i:i + 3]))
+    if abs(mean - 1.0) <= SCALE_WARNING:
+        return []
+    return [f"the mean scale factor is {mean:.4g}, {100 * abs(mean - 1):.3g} % from unity: a fluxgate's scales are "
+            f"within a few per cent of 1, so the reference magnitude or the units are likely wrong"]
+
+
 def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust: bool, closed_form: bool,
            physical_box: tuple[np.ndarray, np.ndarray], limits: AcceptanceLimits = DEFAULT_LIMITS,
-           info: dict | None = None) -> tuple[list[str], list[str]]:
+           info: dict | None = None, t_s: np.ndarray | None = None) -> tuple[list[str], list[str]]:
     """Rejections and warnings for the estimate ``x`` on the data of ``objective``: improvement, physical
-    range, outliers (robust screening), fitness against the data's own optimum, and identifiability at
-    the noise that optimum leaves.  ``info``, when given, receives ``noise_nT`` (that noise), ``inliers``
-    (the objective on the points kept) and ``n_outliers``."""
+    range, outliers (robust screening), fitness against the data's own optimum, structure against the
+    noise estimated independently of the fit (``t_s``: the sample times, when there are), the mean scale,
+    and identifiability at the noise the optimum leaves.  ``info``, when given, receives ``noise_nT``
+    (that noise), ``noise_independent_nT``, ``inliers`` (the objective on the points kept) and
+    ``n_outliers``."""
     info = {} if info is None else info
     rejections: list[str] = []
     warnings: list[str] = []
@@ -218,6 +380,9 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
                           f"data allow ({rms_ref:.3g} nT): {why}")
     noise = rms_ref * np.sqrt(n / (n - p))
     info["noise_nT"], info["inliers"] = float(noise), inliers
+    structure, notes = structure_check(inliers, x_ref, rms_ref, field_nT, np.flatnonzero(~mask), t_s, info)
+    rejections += structure
+    warnings += notes + scale_warning(x, objective.model)
     rejections += identifiability(inliers, x_ref, noise, field_nT, limits)
     rejections += profile_offset(inliers, x_ref, noise, field_nT, limits, base_ss=n * rms_ref ** 2)
     return rejections, warnings

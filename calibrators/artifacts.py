@@ -71,12 +71,16 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from magbench.errors import InputError
+from magbench.safeio import InputBytes, atomic_output, atomic_write, check_output, read_input
+from magbench.simulate.dataset import UNIT_FACTORS_NT, _header, _parse_head, read_csv
 from magbench.simulate.sensor import FREE, MODELS, NEUTRAL, NINE_NAMES, ErrorParams
 
 SCHEMA = "magbench.calibration"
@@ -246,10 +250,10 @@ class Calibration:
 
     @classmethod
     def from_json(cls, text: str, where: str = "calibration") -> Calibration:
-        try:
-            d = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise InputError(f"{where} is not JSON ({exc.msg} at line {exc.lineno})") from None
+        """Parse ``text`` with a nesting limit (``MAX_JSON_DEPTH``) and bounded numbers (``MAX_JSON_DIGITS``),
+        then validate it against the schema (``validate_schema``) before use."""
+        d = parse_json(text, where)
+        validate_schema(d, where)
         return cls.from_dict(d, where)
 
     # -- exports -------------------------------------------------------------------------------------
@@ -305,6 +309,113 @@ def _jsonable(v):
     return v
 
 
+MAX_JSON_BYTES = 1024 * 1024
+"""The largest calibration file read (1 MiB; a calibration is about 5 kB)."""
+MAX_JSON_DEPTH = 32
+"""The deepest nesting of arrays and objects a calibration may have (the schema needs 5)."""
+MAX_JSON_DIGITS = 400
+"""The most digits a number in a calibration may have (a float64 needs 17, its exponent 3)."""
+MAX_MAT_BYTES = 16 * 1024 * 1024
+"""The largest .mat calibration read, and the most its compressed parts may inflate to (16 MiB)."""
+_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
+
+
+def json_depth(text: str) -> int:
+    """The deepest nesting of ``[`` and ``{`` in JSON text (strings skipped), without recursion."""
+    bare = _STRING.sub('""', text).encode("utf-8", "replace")
+    arr = np.frombuffer(bare, dtype=np.uint8)
+    step = np.isin(arr, (ord("["), ord("{"))).astype(np.int64) - np.isin(arr, (ord("]"), ord("}")))
+    return int(np.cumsum(step).max()) if step.size else 0
+
+
+def _bounded_number(kind):
+    def parse(text: str):
+        if len(text.lstrip("-")) > MAX_JSON_DIGITS:
+            raise InputError(f"a number of {len(text):,} characters (the limit is {MAX_JSON_DIGITS})")
+        return kind(text)
+    return parse
+
+
+def _no_constant(name: str):
+    raise InputError(f"{name} is not a number JSON allows")
+
+
+def parse_json(text: str, where: str = "calibration"):
+    """JSON with a depth limit, bounded numbers and no NaN/Infinity; ``InputError`` (one line) otherwise."""
+    depth = json_depth(text)
+    if depth > MAX_JSON_DEPTH:
+        raise InputError(f"{where}: JSON nested {depth:,} deep, more than the limit of {MAX_JSON_DEPTH}")
+    try:
+        return json.loads(text, parse_int=_bounded_number(int), parse_float=_bounded_number(float),
+                          parse_constant=_no_constant)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{where} is not JSON ({exc.msg} at line {exc.lineno})") from None
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
+    except (ValueError, RecursionError) as exc:
+        raise InputError(f"{where}: not a valid JSON calibration ({type(exc).__name__})") from None
+
+
+_SCHEMA_TYPES: dict[str, Any] = {
+                 "schema": str, "schema_version": int, "magbench_version": str, "method": str, "model": str,
+                 "origin": str, "parameters": dict, "M": list, "o_nT": list, "correction": str,
+                 "noise_nT": (int, float, type(None)), "reference": dict, "data": dict,
+                 "rms_before_nT": (int, float, type(None)), "rms_after_nT": (int, float, type(None)),
+                 "accepted": bool, "rejections": list, "warnings": list, "model_choice": (dict, type(None))}
+"""The type of each top-level entry of the schema (module docstring)."""
+
+
+def validate_schema(d, where: str = "calibration") -> None:
+    """Refuse a magbench calibration whose entries do not have the schema's types (a magcal ``A``/``b`` file
+    is checked by its own reader)."""
+    if not isinstance(d, dict):
+        raise InputError(f"{where}: not a calibration (a JSON object is expected)")
+    if "schema" not in d:
+        return
+    for key, kind in _SCHEMA_TYPES.items():
+        if key in d and not isinstance(d[key], kind) or (kind is int and isinstance(d.get(key), bool)):
+            raise InputError(f"{where}: entry {key!r} has the wrong type ({type(d[key]).__name__})")
+    for key in ("parameters", "M", "o_nT", "accepted"):
+        if key not in d:
+            raise InputError(f"{where}: missing entry {key!r}")
+    for key in ("rejections", "warnings"):
+        if not all(isinstance(v, str) for v in d.get(key) or ()):
+            raise InputError(f"{where}: entry {key!r} must be a list of strings")
+    for name, p in d["parameters"].items():
+        if not isinstance(p, dict) or not isinstance(p.get("value"), (int, float)) or isinstance(p.get("value"), bool):
+            raise InputError(f"{where}: parameter {name!r} must be an object with a numeric 'value'")
+
+
+def _mat_inflated_size(data: bytes, where: str) -> int:
+    """The size a MATLAB v5 file's compressed elements inflate to, counted without keeping more than
+    ``MAX_MAT_BYTES`` of it (``InputError`` beyond): a zip bomb is refused before scipy inflates it."""
+    import zlib
+
+    if len(data) < 128 or data[126:128] not in (b"IM", b"MI"):
+        return len(data)  # not v5 (v4 has no compression; v7.3 is HDF5, refused by scipy)
+    order = "<" if data[126:128] == b"IM" else ">"
+    total, pos = 0, 128
+    while pos + 8 <= len(data):
+        kind, nbytes = np.frombuffer(data, dtype=order + "u4", count=2, offset=pos)
+        if kind >> 16:  # small data element: 4 bytes of data in the tag
+            pos += 8
+            continue
+        body = data[pos + 8:pos + 8 + int(nbytes)]
+        if kind == 15:  # miCOMPRESSED
+            inflater = zlib.decompressobj()
+            try:
+                out = inflater.decompress(body, MAX_MAT_BYTES + 1 - total)
+            except zlib.error:
+                raise InputError(f"{where} is not a readable .mat file (a compressed part is corrupt)") from None
+            total += len(out)
+        else:
+            total += len(body)
+        if total > MAX_MAT_BYTES:
+            raise InputError(f"{where}: the .mat file inflates to more than {MAX_MAT_BYTES:,} bytes (the limit)")
+        pos += 8 + int(nbytes) + (-int(nbytes) % 8 if kind != 15 else 0)
+    return total
+
+
 def _from_magcal(d: dict, where: str, field_nT=None) -> Calibration:
     """A calibration from MATLAB magcal's ``A``, ``b`` (and ``expmfs``): M = A^T, o = b."""
     try:
@@ -331,29 +442,58 @@ def _from_magcal(d: dict, where: str, field_nT=None) -> Calibration:
                        method="magcal", origin="matlab")
 
 
-def load_calibration(path) -> Calibration:
+def load_calibration(path, source: InputBytes | None = None) -> Calibration:
     """Read a calibration file: magbench's schema (``.json``) or MATLAB magcal's ``A``/``b`` (``.mat`` or
-    ``.json``).  Refuses (``InputError``, one line) what is neither, another schema or a newer version."""
+    ``.json``).  Refuses (``InputError``, one line) what is neither, another schema or a newer version, a
+    special file, a file over ``MAX_JSON_BYTES`` (``MAX_MAT_BYTES`` for .mat, inflated size included),
+    JSON nested deeper than ``MAX_JSON_DEPTH`` or with numbers longer than ``MAX_JSON_DIGITS``.  The
+    file is read once (``source``: bytes read already)."""
     path = Path(path)
-    if path.is_dir():
-        raise InputError(f"{path} is a directory, not a calibration file")
-    if not path.exists():
-        raise InputError(f"no such calibration file: {path}")
-    if path.suffix.lower() == ".mat":
+    mat = path.suffix.lower() == ".mat"
+    src = source or read_input(path, "calibration file", MAX_MAT_BYTES if mat else MAX_JSON_BYTES)
+    if mat:
+        import io
+
         from scipy.io import loadmat
 
+        _mat_inflated_size(src.data, str(path))
         try:
-            d = loadmat(str(path))
+            d = loadmat(io.BytesIO(src.data))
+        except MemoryError:
+            raise InputError(f"{path}: not enough memory to read this .mat file") from None
         except Exception as exc:  # scipy raises several kinds for a broken file
             raise InputError(f"{path} is not a readable .mat file ({type(exc).__name__})") from None
         return _from_magcal({k: v for k, v in d.items() if not k.startswith("__")}, str(path))
     try:
-        text = path.read_text(encoding="utf-8")
+        text = src.data.decode("utf-8-sig")
     except UnicodeDecodeError:
-        raise InputError(f"{path} is not a calibration file (not UTF-8 text; .mat files need the .mat extension)") from None
-    except OSError as exc:
-        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+        raise InputError(f"{path} is not a calibration file (not UTF-8 text; .mat files need the .mat "
+                         "extension)") from None
     return Calibration.from_json(text, str(path))
+
+
+MAX_CONDITION = 100.0
+"""The largest condition number of M that ``apply`` uses: a physical sensor (scales 0.5..2, angles within
+0.5 rad) has at most about 8; beyond 100 the calibration collapses a direction."""
+DETERMINANT_RANGE = (1e-2, 1e2)
+"""|det M| of a physical sensor lies in about 0.05..8 (scales 0.5..2): outside 0.01..100 it is not one."""
+
+
+def apply_problems(cal: Calibration) -> list[str]:
+    """Why ``cal`` should not be applied: it was rejected when made, or M is ill-conditioned (condition
+    number above ``MAX_CONDITION`` or determinant outside ``DETERMINANT_RANGE``)."""
+    out = []
+    if not cal.accepted:
+        first = cal.rejections[0] if cal.rejections else "no reason recorded"
+        out.append(f"the calibration was rejected by its acceptance checks when it was made ({first})")
+    with np.errstate(all="ignore"):
+        cond = float(np.linalg.cond(cal.matrix))
+        det = float(abs(np.linalg.det(cal.matrix)))
+    if not cond <= MAX_CONDITION or not DETERMINANT_RANGE[0] <= det <= DETERMINANT_RANGE[1]:
+        out.append(f"the calibration matrix is ill-conditioned (condition number {cond:.3g}, |determinant| "
+                   f"{det:.3g}; the limits are a condition number of {MAX_CONDITION:g} and a determinant within "
+                   f"{DETERMINANT_RANGE[0]:g}..{DETERMINANT_RANGE[1]:g})")
+    return out
 
 
 def export_path(path, fmt: str) -> Path:
@@ -395,21 +535,20 @@ def export_text(cal: Calibration, fmt: str, path: Path) -> str | None:
     return "\n".join(lines) + "\n"
 
 
-def export(cal: Calibration, path, fmt: str = "json", force: bool = False) -> Path:
-    """Write ``cal`` to PATH (extension added when it has none) in ``fmt``; refuses to overwrite an
-    existing file unless ``force``.  Returns the path written."""
-    from magbench.simulate.dataset import writable_path
-
-    path = writable_path(export_path(path, fmt), force)
+def export(cal: Calibration, path, fmt: str = "json", force: bool = False, inputs=()) -> Path:
+    """Write ``cal`` to PATH (extension added when it has none) in ``fmt``, atomically (a temporary file in
+    the same folder, renamed); refuses to overwrite an existing file unless ``force``, and any of
+    ``inputs`` (paths or ``InputBytes``, compared by inode) even with it.  Returns the path written."""
+    path = check_output(export_path(path, fmt), inputs, force)
     text = export_text(cal, fmt, path)
-    if text is None:
-        from scipy.io import savemat
+    if text is not None:
+        return atomic_write(path, text, inputs, force)
+    from scipy.io import savemat
 
-        mc = cal.magcal()
-        savemat(str(path), {"A": mc["A"], "b": mc["b"][None, :],
-                            "expmfs": np.nan if mc["expmfs"] is None else mc["expmfs"]})
-    else:
-        path.write_text(text, encoding="utf-8")
+    mc = cal.magcal()
+    with atomic_output(path, inputs, force) as tmp:
+        savemat(str(tmp), {"A": mc["A"], "b": mc["b"][None, :],
+                           "expmfs": np.nan if mc["expmfs"] is None else mc["expmfs"]})
     return path
 
 
@@ -417,23 +556,23 @@ CAL_COLUMNS = ("bx_cal", "by_cal", "bz_cal", "f_cal")
 """Columns ``apply`` adds: the corrected field and its magnitude, in the unit of the input's field columns."""
 
 
-def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = False, cal_name: str = "") -> dict:
+def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = False, cal_name: str = "",
+                 inputs=()) -> dict:
     """Write ``out``: the data file ``src`` with the corrected field ``bx_cal, by_cal, bz_cal`` and its
     magnitude ``f_cal`` added as the last columns (in ``units``, the unit of the file's field columns);
     every other line and column of ``src`` is copied byte for byte, its ``#`` metadata lines too, with
-    two lines added after them (``# calibration:`` and ``# cal_units:``).  Refuses (``InputError``) an
-    ``out`` that is ``src`` or exists (unless ``force``), a file that already has those columns, and
-    readings whose magnitude does not fit the calibration's reference (wrong ``units``)."""
-    from magbench.simulate.dataset import UNIT_FACTORS_NT, _file_head, _header, read_csv, writable_path
-
+    two lines added after them (``# calibration:`` and ``# cal_units:``).  ``src`` is read once: the rows
+    corrected and the lines copied come from the same bytes.  Refuses (``InputError``) an ``out`` that is
+    ``src`` or one of ``inputs`` (by inode, hard links included) or exists (unless ``force``), a file that
+    already has those columns, and readings whose magnitude does not fit the calibration's reference
+    (wrong ``units``).  ``out`` is written atomically."""
     src, out = Path(src), Path(out)
-    if out.resolve() == src.resolve() or (out.exists() and src.exists() and out.samefile(src)):
-        raise InputError(f"--out {out} is the input file: give another name (the input is never changed)")
-    writable_path(out, force)
+    check_output(out, [src, *inputs], force)
+    source = read_input(src, "data file")
     field = cal.field_nT if math.isfinite(cal.field_nT) and cal.field_nT > 0 else None
-    data = read_csv(src, units=units, require_vector=True, expected_field_nT=field)
-    _, skipped, header_line = _file_head(src)
-    sep, names = _header(src, header_line)
+    data = read_csv(src, units=units, require_vector=True, expected_field_nT=field, source=source)
+    head = _parse_head(source.data, str(src))
+    sep, names = _header(src, head.header)
     clash = [c for c in CAL_COLUMNS if c in names]
     if clash:
         raise InputError(f"{src} already has column(s) {', '.join(clash)}: it was calibrated already "
@@ -441,9 +580,9 @@ def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = Fa
     factor = UNIT_FACTORS_NT[units]
     corrected = cal.correct(data.raw_nT)
     values = np.column_stack([corrected, np.linalg.norm(corrected, axis=1)]) / factor
-    with src.open("r", encoding="utf-8-sig", newline="") as handle:
-        lines = handle.read().splitlines(keepends=True)
-    head, body = lines[:skipped], lines[skipped:]
+    lines = source.data.decode("utf-8-sig").splitlines(keepends=True)
+    skipped = head.skipped
+    head_lines, body = lines[:skipped], lines[skipped:]
     header, rows = body[0], body[1:]
     eol = header[len(header.rstrip("\r\n")):] or "\n"
     digits = ".4f" if units == "nT" else ".10g"
@@ -454,7 +593,8 @@ def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = Fa
             written.append(line)
             continue
         if k >= len(values):
-            raise InputError(f"{src}: more data lines than rows read ({len(values)}): quoted line breaks are not supported")
+            raise InputError(f"{src}: more data lines than rows read ({len(values)}): quoted line breaks are not "
+                             "supported")
         ending = line[len(text):] or eol
         written.append(text + sep + sep.join(format(v, digits) for v in values[k]) + ending)
         k += 1
@@ -462,12 +602,13 @@ def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = Fa
         raise InputError(f"{src}: {k} data lines but {len(values)} rows read: quoted line breaks are not supported")
     note = [f"# calibration: {cal_name or 'calibration'} ({cal.method or cal.origin}, {cal.model} model, "
             f"data {cal.data_digest or 'unknown'}){eol}", f"# cal_units: {units}{eol}"]
-    if head and not head[-1].endswith(("\n", "\r")):
-        head[-1] += eol
-    text = "".join(head + note + [header.rstrip("\r\n") + sep + sep.join(CAL_COLUMNS) + eol] + written)
-    out.write_text(text, encoding="utf-8", newline="")
+    if head_lines and not head_lines[-1].endswith(("\n", "\r")):
+        head_lines[-1] += eol
+    text = "".join(head_lines + note + [header.rstrip("\r\n") + sep + sep.join(CAL_COLUMNS) + eol] + written)
+    atomic_write(out, text, [source, *inputs], force)
     f_cal_nT = values[:, 3] * factor
-    info = {"out": str(out), "n_rows": int(len(values)), "columns_added": list(CAL_COLUMNS), "units": units}
+    info = {"out": str(out), "n_rows": int(len(values)), "columns_added": list(CAL_COLUMNS), "units": units,
+            "input_sha256": source.sha256}
     if data.f_ref_nT is not None:
         info["rms_f_cal_minus_f_ref_nT"] = float(np.sqrt(np.mean((f_cal_nT - data.f_ref_nT) ** 2)))
     return info

@@ -341,7 +341,7 @@ class Calibrator:
         info: dict = {}
         rejections, notes = assess(objective, x, improved=status != "worse_than_start", robust=self.robust,
                                    closed_form=self.closed_form, physical_box=physical, limits=self.acceptance,
-                                   info=info)
+                                   info=info, t_s=dataset.t_s)
         uncertainty, noise = _uncertainty(info.get("inliers", objective), x, info.get("noise_nT"))
         if not self.closed_form:
             rejections += _at_bounds(x, lower, upper, model)

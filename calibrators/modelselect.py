@@ -4,17 +4,25 @@ Every candidate model the calibrator supports (``offset``, ``angles``, ``diag``,
 least squares (``lsq``) on the whole record and judged on two things:
 
 - **identifiability**: that full fit's acceptance checks (Cramér-Rao deviation of every parameter within
-  its tolerance, the offset's profile likelihood, the physical range).  A model the data do not determine
-  (``nine`` on a level turntable, say) is not eligible;
+  its tolerance, the offset's profile likelihood, the physical range, and a residual not far above the
+  noise estimated independently of the fit), and more distinct attitudes than parameters by
+  ``SPARE_ATTITUDES`` (repeated readings of one attitude are not coverage: three attitudes fit a
+  three-parameter model exactly, whatever the sensor).  A model the data do not determine (``nine`` on a
+  level turntable, say) is not eligible;
 - **held-out residual**: k-fold cross-validation (``folds``, 5; points shuffled with the seed): each fold's
   residuals come from the model fitted on the other folds, so a model gains only by what generalises.
 
-The best is the eligible model of least held-out mean square.  The choice is the *simplest* eligible model
-(fewest parameters; among equals, the lower held-out residual) that is within noise of the best: its
+The best is the candidate of least held-out mean square, eligible or not.  The choice is the *simplest*
+eligible model (fewest parameters; among equals, the lower held-out residual) that is within noise of the
+best: its
 held-out squared residuals, paired point by point with the best model's, exceed them on average by no
 more than ``Z_WITHIN_NOISE`` standard errors of that mean difference (a paired test), or by less than
 ``REL_WITHIN_NOISE`` of the best's mean square.  The calibrator then fits the chosen model; the result's
-``model_choice`` lists the candidates (held-out RMS, eligibility, rejections) and says why.
+``model_choice`` lists the candidates (held-out RMS, eligibility, rejections) and says why.  When the best
+is not eligible and a simpler eligible model is within noise of it, that fallback is stated in the
+result's ``warnings`` and in ``model_choice["fallback"]``.  When no eligible model is within noise of the
+best (or none is eligible), the calibration is rejected with the reason: a simpler model would leave
+structure the data show, and the richer one is not determined.
 """
 from __future__ import annotations
 
@@ -36,7 +44,27 @@ Z_WITHIN_NOISE = 2.0
 less than this many standard errors of the paired mean difference."""
 REL_WITHIN_NOISE = 1e-3
 """... or by less than this fraction of the best's held-out mean square."""
-IDENTIFIABILITY_WORDS = ("not determined", "outside the physical range", "ended on the search bound")
+IDENTIFIABILITY_WORDS = ("not determined", "outside the physical range", "ended on the search bound",
+                         "times the noise estimated independently")
+SPARE_ATTITUDES = 3
+"""A candidate needs at least this many distinct attitudes beyond its number of parameters."""
+REPEAT_FRACTION = 1e-3
+"""Readings closer than 0.1 % of the field belong to one attitude (as in the acceptance checks)."""
+
+
+def distinct_attitudes(raw_nT: np.ndarray, field_nT: float) -> int:
+    """The number of distinct attitudes: groups of readings linked by distances below ``REPEAT_FRACTION`` of
+    the field (connected components)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(raw_nT).query_pairs(REPEAT_FRACTION * field_nT, output_type="ndarray")
+    n = len(raw_nT)
+    if len(pairs) == 0:
+        return n
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    return int(connected_components(graph, directed=False)[0])
 
 
 def _refit(raw: np.ndarray, f_ref: np.ndarray, model: str, x_start: np.ndarray, box) -> np.ndarray:
@@ -70,6 +98,8 @@ def choose_model(dataset: Dataset, candidates=None, folds: int = FOLDS, seed: in
 
     candidates = [m for m in MODELS if m in (candidates or MODELS)]
     rows, results, sq = [], {}, {}
+    field = float(np.median(dataset.f_ref_nT)) if dataset.f_ref_nT is not None else 0.0
+    distinct = distinct_attitudes(dataset.raw_nT, field) if field > 0 else len(dataset)
     for model in candidates:
         row = {"model": model, "n_params": len(PARAM_NAMES[model])}
         try:
@@ -80,16 +110,21 @@ def choose_model(dataset: Dataset, candidates=None, folds: int = FOLDS, seed: in
             continue
         results[model] = res
         unidentified = [r for r in res.rejections if any(w in r for w in IDENTIFIABILITY_WORDS)]
+        if distinct < row["n_params"] + SPARE_ATTITUDES:
+            unidentified.insert(0, f"{model} is not determined by these data: {distinct} distinct attitude(s) for "
+                                   f"{row['n_params']} parameters (it needs {row['n_params'] + SPARE_ATTITUDES}; "
+                                   "repeated readings of one attitude are not coverage)")
         e = held_out_residuals(dataset, model, res.x, folds=min(folds, len(dataset)), seed=seed)
         sq[model] = e * e
         row.update(eligible=not unidentified, rms_heldout_nT=float(np.sqrt(np.mean(e * e))),
-                   rms_fit_nT=res.rms_after_nT, rejections=list(res.rejections))
+                   rms_fit_nT=res.rms_after_nT, rejections=unidentified + [r for r in res.rejections
+                                                                          if r not in unidentified])
         rows.append(row)
-    eligible = [r for r in rows if r["eligible"]]
-    if not eligible:
+    fitted = [r for r in rows if r["model"] in sq]
+    if not fitted:
         why = "; ".join(f"{r['model']}: {r['rejections'][0] if r['rejections'] else 'no fit'}" for r in rows)
-        raise InputError(f"model auto: no candidate model is determined by these data ({why})")
-    best = min(eligible, key=lambda r: r["rms_heldout_nT"])
+        raise InputError(f"model auto: no candidate model could be fitted to these data ({why})")
+    best = min(fitted, key=lambda r: r["rms_heldout_nT"])
     for r in rows:
         if r["model"] not in sq:
             continue
@@ -99,13 +134,28 @@ def choose_model(dataset: Dataset, candidates=None, folds: int = FOLDS, seed: in
         r["excess_ms_nT2"] = excess
         r["excess_se_nT2"] = se
         r["within_noise"] = bool(excess <= Z_WITHIN_NOISE * se or excess <= REL_WITHIN_NOISE * float(np.mean(sq[best["model"]])))
-    ordered = sorted(eligible, key=lambda r: (r["n_params"], r["rms_heldout_nT"]))
-    chosen = next(r for r in ordered if r["within_noise"])
-    reason = _reason(chosen, best, rows, folds)
-    record = {"requested": "auto", "chosen": chosen["model"], "reason": reason, "folds": folds,
+    ordered = sorted((r for r in fitted if r["eligible"]), key=lambda r: (r["n_params"], r["rms_heldout_nT"]))
+    chosen = next((r for r in ordered if r["within_noise"]), None)
+    record = {"requested": "auto", "folds": folds, "distinct_attitudes": distinct,
               "criterion": (f"simplest identifiable model whose {folds}-fold held-out mean square is within "
                             f"{Z_WITHIN_NOISE:g} paired standard errors of the best"),
               "candidates": rows}
+    if chosen is None:
+        why = "; ".join(f"{r['model']}: {r['rejections'][0] if r['rejections'] else 'not identifiable'}"
+                        for r in rows if not r["eligible"])
+        worse = [r["model"] for r in ordered]
+        lead = (f"the identifiable model(s) {', '.join(worse)} leave significantly more residual than {best['model']} "
+                f"({best['rms_heldout_nT']:.4g} nT held out), which these data do not determine" if worse else
+                "no candidate model is determined by these data")
+        record.update(chosen=best["model"], accepted=False, reason=f"{lead} ({why})")
+        return best["model"], record, results
+    record.update(chosen=chosen["model"], reason=_reason(chosen, best, rows, folds))
+    if not best["eligible"] and best is not chosen:
+        cause = best["rejections"][0] if best["rejections"] else "not identifiable"
+        record["fallback"] = {"from": best["model"], "to": chosen["model"], "why": cause}
+        record["warning"] = (f"model auto fell back from {best['model']} ({best['rms_heldout_nT']:.4g} nT held out) to "
+                             f"the simpler {chosen['model']} ({chosen['rms_heldout_nT']:.4g} nT, within noise of it): "
+                             f"{cause}")
     return chosen["model"], record, results
 
 
@@ -151,4 +201,9 @@ def fit_auto(calibrator, dataset: Dataset):
         result = results[model]
     else:
         result = chosen._fit_dataset(dataset)
+    if record.get("accepted") is False:
+        return replace(result, model_choice=record, accepted=False,
+                       rejections=(f"model auto: {record['reason']}",) + tuple(result.rejections))
+    if "warning" in record:
+        return replace(result, model_choice=record, warnings=tuple(result.warnings) + (record["warning"],))
     return replace(result, model_choice=record)

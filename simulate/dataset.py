@@ -21,6 +21,7 @@ FIELD_COLUMNS = ("bx", "by", "bz", "f_ref", "f_meas", "f_meas_before", "f_meas_a
 
 
 from magbench.errors import InputError  # noqa: E402  (re-exported: magbench.simulate.InputError)
+from magbench.safeio import InputBytes, atomic_write, check_output, read_input  # noqa: E402
 
 
 def readonly_copy(a, dtype=float, ndim=None, name="array"):
@@ -134,7 +135,7 @@ class Dataset:
         for key, value in self.meta.items():
             buf.write(f"# {key}: {value}\n")
         pd.DataFrame(cols).to_csv(buf, index=False, float_format=float_format, lineterminator="\n")
-        Path(path).write_text(buf.getvalue(), encoding="utf-8")
+        atomic_write(path, buf.getvalue(), force=True)
 
 
 @dataclass(frozen=True)
@@ -151,16 +152,6 @@ class ScalarSeries:
 
     def __len__(self) -> int:
         return len(self.f_meas_nT)
-
-
-def _parse_meta(lines: list[str]) -> dict:
-    meta = {}
-    for line in lines:
-        body = line.lstrip("#").strip()
-        if ":" in body:
-            key, value = body.split(":", 1)
-            meta[key.strip()] = value.strip()
-    return meta
 
 
 def guess_unit(median_magnitude: float, expected_nT: float) -> str:
@@ -184,51 +175,86 @@ ENCODINGS = ("utf-8-sig",)
 """UTF-8, with or without a byte-order mark (CONTRACT section 2)."""
 
 
-def writable_path(path, force: bool = False) -> Path:
-    """``path`` as a file a command may write: refused (``InputError``) when it is a directory, when its
-    directory does not exist, or when it exists and ``force`` is not given.  The one check every command
-    makes before writing an output."""
-    path = Path(path)
-    if path.is_dir():
-        raise InputError(f"{path} is a directory, not a file")
-    if not path.parent.exists():
-        raise InputError(f"directory {path.parent} does not exist")
-    if path.exists() and not force:
-        raise InputError(f"{path} exists; refusing to overwrite it (use --force)")
-    return path
+def writable_path(path, force: bool = False, inputs=()) -> Path:
+    """``path`` as a file a command may write: refused (``InputError``) when it is a directory or another
+    non-regular file, when its directory does not exist, when it exists and ``force`` is not given, and
+    when it is one of ``inputs`` (by inode: hard links count).  The one check every command makes before
+    writing an output (``magbench.safeio.check_output``)."""
+    return check_output(path, inputs, force)
 
 
-def _file_head(path: Path) -> tuple[dict, int, str]:
-    """The metadata of the ``#`` lines before the header, the number of lines before the header, and the
-    header line; refuses what is not a readable UTF-8 text file."""
-    if path.is_dir():
-        raise InputError(f"{path} is a directory, not a data file")
-    if not path.exists():
-        raise InputError(f"no such file: {path}")
-    meta_lines, skipped = [], 0
-    try:
-        with path.open("r", encoding=ENCODINGS[0], newline="") as handle:
-            for line in handle:
-                if line.startswith("#") or not line.strip():
-                    if line.startswith("#"):
-                        meta_lines.append(line.rstrip("\r\n"))
-                    skipped += 1
-                    continue
-                if "\x00" in line:
-                    raise InputError(f"{path} is not UTF-8 text (it has NUL bytes: UTF-16 or binary?)")
-                return _parse_meta(meta_lines), skipped, line.rstrip("\r\n")
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path} is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
-    raise InputError(f"{path} has no header row and no data")
+MAX_LINE_BYTES = 1024 * 1024
+"""The longest line read (1 MiB): a data row of a few numbers is a hundred bytes."""
+MAX_COLUMNS = 1000
+"""The most columns a header may name."""
+MAX_META_LINES = 10000
+"""The most ``#`` and blank lines before the header."""
 
 
-def _header(path: Path, line: str) -> tuple[str, list[str]]:
-    """The separator and the column names (stripped, lower case); duplicates in any case are refused."""
+@dataclass(frozen=True)
+class _Head:
+    meta: dict
+    skipped: int  # lines before the header
+    header: str
+    body_start: int  # byte offset of the first line after the header
+
+
+def _parse_meta(lines: list[str], where: str = "input") -> dict:
+    """``# key: value`` lines as a dict; a key given twice with different values is refused (which one
+    would be meant is ambiguous)."""
+    meta: dict = {}
+    for line in lines:
+        body = line.lstrip("#").strip()
+        if ":" in body:
+            key, value = body.split(":", 1)
+            key, value = key.strip(), value.strip()
+            if key in meta and meta[key] != value:
+                raise InputError(f"{where}: conflicting metadata lines '# {key}: {meta[key]}' and '# {key}: {value}': "
+                                 "keep one")
+            meta[key] = value
+    return meta
+
+
+def _parse_head(data: bytes, where: str) -> _Head:
+    """The ``#`` metadata before the header, the number of lines before it, the header line and where the
+    rows start; refuses what is not UTF-8 text, and an overlong header."""
+    pos, skipped, meta_lines = 0, 0, []
+    if data.startswith(b"\xef\xbb\xbf"):
+        pos = 3
+    while pos < len(data):
+        end = data.find(b"\n", pos)
+        end = len(data) if end < 0 else end
+        if end - pos > MAX_LINE_BYTES:
+            raise InputError(f"{where}: line {skipped + 1} is longer than {MAX_LINE_BYTES:,} bytes (the limit "
+                             "of a line): not a data file")
+        raw = data[pos:end]
+        if b"\x00" in raw:
+            raise InputError(f"{where} is not UTF-8 text (it has NUL bytes: UTF-16 or binary?)")
+        try:
+            line = raw.decode("utf-8").rstrip("\r")
+        except UnicodeDecodeError as exc:
+            raise InputError(f"{where} is not UTF-8 text ({exc.reason} at byte {pos + exc.start})") from None
+        if line.startswith("#") or not line.strip():
+            if line.startswith("#"):
+                meta_lines.append(line)
+            skipped += 1
+            if skipped > MAX_META_LINES:
+                raise InputError(f"{where}: more than {MAX_META_LINES:,} comment or blank lines before the header")
+            pos = end + 1
+            continue
+        return _Head(_parse_meta(meta_lines, where), skipped, line, min(end + 1, len(data)))
+    raise InputError(f"{where} has no header row and no data")
+
+
+def _header(path, line: str) -> tuple[str, list[str]]:
+    """The separator and the column names (stripped, lower case); duplicates in any case are refused, and
+    more than ``MAX_COLUMNS`` names."""
     sep = max(DELIMITERS, key=line.count)
     if line.count(sep) == 0:
         sep = ","
+    if line.count(sep) >= MAX_COLUMNS:
+        raise InputError(f"{path}: the header names {line.count(sep) + 1:,} columns, more than the limit of "
+                         f"{MAX_COLUMNS:,}")
     names = [c.strip().strip('"').strip().lower() for c in line.split(sep)]
     seen: dict[str, int] = {}
     for name in names:
@@ -240,24 +266,148 @@ def _header(path: Path, line: str) -> tuple[str, list[str]]:
     return sep, names
 
 
-def _table(path: Path, skipped: int, sep: str, names: list[str], numeric: list[str]):
+def _check_rows(where, data: bytes, offset: int, sep: str, n_names: int, first_line: int) -> int:
+    """The number of non-blank data lines of ``data[offset:]``; refuses a line longer than
+    ``MAX_LINE_BYTES`` and a line whose number of fields differs from the header's (vectorized over the
+    positions of line ends and separators, so memory stays a small fraction of the file's; with quoted
+    fields, Python's csv module counts instead)."""
+    arr = np.frombuffer(data, dtype=np.uint8)[offset:]
+    if arr.size == 0:
+        return 0
+    ends = np.flatnonzero(arr == 10)
+    if ends.size == 0 or ends[-1] != arr.size - 1:
+        ends = np.append(ends, arr.size)
+    starts = np.concatenate([[0], ends[:-1] + 1])
+    lengths = ends - starts
+    if lengths.max() > MAX_LINE_BYTES:
+        i = int(np.argmax(lengths > MAX_LINE_BYTES))
+        raise InputError(f"{where}: line {first_line + i} is longer than {MAX_LINE_BYTES:,} bytes (the limit of a "
+                         "line)")
+    first = arr[np.minimum(starts, arr.size - 1)]
+    blank = (lengths == 0) | ((lengths == 1) & (first == 13))
+    if data.find(b'"', offset) >= 0:
+        _check_quoted_rows(where, bytes(memoryview(data)[offset:]), sep, n_names, first_line)
+        return _nonblank(arr, starts, ends, blank, np.flatnonzero(~blank & (lengths <= 2 * n_names)))
+    fields = np.bincount(np.searchsorted(ends, np.flatnonzero(arr == ord(sep))), minlength=len(ends))[:len(ends)] + 1
+    wrong = np.flatnonzero((fields != n_names) & ~blank)
+    if wrong.size:
+        for i in wrong[:1000]:  # lines of spaces only are blank (the first thousand suspects are enough)
+            blank[i] = not bytes(arr[starts[i]:ends[i]]).strip()
+        wrong = np.flatnonzero((fields != n_names) & ~blank)
+    if wrong.size:
+        i = int(wrong[0])
+        raise InputError(f"{where} is not a readable CSV file: line {first_line + i} has {int(fields[i])} "
+                         f"field(s) but the header names {n_names} column(s)"
+                         + (f" (and {wrong.size - 1} more such lines)" if wrong.size > 1 else ""))
+    return int((~blank).sum())
+
+
+def _nonblank(arr, starts, ends, blank, suspects) -> int:
+    """Lines not blank, the ``suspects`` (short lines) checked for whitespace only."""
+    blank = blank.copy()
+    for i in suspects:
+        blank[i] = not bytes(arr[starts[i]:ends[i]]).strip()
+    return int((~blank).sum())
+
+
+def _check_quoted_rows(where, body: bytes, sep: str, n_names: int, first_line: int) -> None:
+    """With quoted fields (rare in data files): the records read by Python's csv module, which knows
+    quoting; a field that spans lines (an unbalanced quote, or a quoted line break) and a record whose
+    number of fields differs from the header's are refused, naming the line."""
+    import csv
+
+    try:
+        text = body.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{where} is not UTF-8 text ({exc.reason})") from None
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=sep, skipinitialspace=True, strict=False)
+    line = first_line
+    try:
+        for record in reader:
+            start, line = line, first_line + reader.line_num
+            if not record or all(not f.strip() for f in record) and len(record) <= 1:
+                continue
+            if line - start > 1 or any("\n" in f or "\r" in f for f in record):
+                raise InputError(f"{where}: a quoted field starting on line {start} spans {line - start} lines: an "
+                                 "unbalanced quote (\") joins lines into one field, or a field holds a line break")
+            if len(record) != n_names:
+                raise InputError(f"{where} is not a readable CSV file: line {start} has {len(record)} field(s) but "
+                                 f"the header names {n_names} column(s)")
+    except csv.Error as exc:
+        raise InputError(f"{where} is not a readable CSV file: {exc} (line {line})") from None
+
+
+def _table(path, data: bytes, head: _Head, sep: str, names: list[str], numeric: list[str]):
     """The data rows: the numeric columns parsed straight to floats (the fast path: two million rows in
     about a second, no string objects); when that fails, everything as text so that the bad value can be
-    named by ``_numeric``."""
+    named by ``_numeric``.  Parsed from the bytes already read; the row count is checked against the line
+    count, so a quote that swallows rows (or a quoted line break) is refused."""
+    import warnings
+
     import pandas as pd
 
-    options = dict(sep=sep, skiprows=skipped + 1, header=None, names=names, encoding=ENCODINGS[0],
+    body = memoryview(data)[head.body_start:]
+    n_lines = _check_rows(path, data, head.body_start, sep, len(names), head.skipped + 2)
+    options = dict(sep=sep, header=None, names=names, encoding=ENCODINGS[0],
                    skipinitialspace=True, comment=None, engine="c", skip_blank_lines=True, index_col=False)
     try:
-        try:
-            frame = pd.read_csv(path, dtype={n: np.float64 for n in numeric}, na_filter=False, **options)
-        except ValueError:
-            frame = pd.read_csv(path, dtype=str, na_filter=False, **options)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                frame = pd.read_csv(io.BytesIO(body), dtype={n: np.float64 for n in numeric}, na_filter=False,
+                                    **options)
+            except ValueError:
+                frame = pd.read_csv(io.BytesIO(body), dtype=str, na_filter=False, **options)
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path} is not UTF-8 text ({exc.reason})") from None
+    except MemoryError:
+        raise InputError(f"{path}: not enough memory to read it") from None
     except Exception as exc:  # pandas raises several parser errors
-        raise InputError(f"{path} is not a readable CSV file: {str(exc).splitlines()[0]}") from None
+        text = str(exc).strip()
+        why = text.splitlines()[0] if text else type(exc).__name__
+        raise InputError(f"{path} is not a readable CSV file: {why}") from None
     if len(frame) == 0:
         raise InputError(f"{path} has a header but no data rows")
+    if len(frame) != n_lines:
+        raise InputError(f"{path}: {n_lines} data lines but {len(frame)} rows parsed: an unbalanced quote "
+                         "(\") joins lines into one field")
+    text_cols = [c for c in frame.columns if frame[c].dtype == object]
+    for c in text_cols:
+        has_break = frame[c].astype(str).str.contains("[\r\n]", regex=True)
+        if has_break.any():
+            row = head.skipped + 2 + int(np.flatnonzero(has_break.to_numpy())[0])
+            raise InputError(f"{path}: column {c or '(unnamed)'} holds a line break inside quotes (row starting "
+                             f"on line {row}): fields may not span lines")
     return frame
+
+
+UNIT_META_KEYS = ("units", "unit")
+"""Metadata lines that state the unit of the field columns (``# units: uT``)."""
+COUNT_META_KEYS = ("gain", "gain_nt_per_count", "nt_per_count", "lsb_nt", "counts_per_nt", "counts_per_ut",
+                   "counts_per_gauss", "lsb_per_gauss", "resolution_nt_per_lsb", "adc_gain")
+"""Metadata lines that say the readings are ADC counts with a conversion factor."""
+COUNT_UNITS = ("counts", "count", "lsb", "adc", "raw", "digits")
+
+
+def _check_meta_units(where, meta: dict, units: str) -> None:
+    """Refuse a file whose metadata says its readings are in another unit than they are read in, or in
+    ADC counts (with a gain line): the unit is then stated, never guessed."""
+    lower = {k.strip().lower(): k for k in meta}
+    gain = next((lower[k] for k in COUNT_META_KEYS if k in lower), None)
+    stated = next((meta[lower[k]] for k in UNIT_META_KEYS if k in lower), None)
+    if gain is not None or (stated is not None and stated.strip().lower() in COUNT_UNITS):
+        line = f"'# {gain}: {meta[gain]}'" if gain is not None else f"'# units: {stated}'"
+        raise InputError(f"{where}: the readings are ADC counts ({line}), not {units}: convert them to nT with "
+                         "the gain first (counts x nT per count)")
+    if stated is not None:
+        canon = {"nt": "nT", "ut": "uT", "µt": "uT", "mg": "mG", "g": "G", "gauss": "G", "milligauss": "mG",
+                 "nanotesla": "nT", "microtesla": "uT"}.get(stated.strip().lower())
+        if canon is None:
+            raise InputError(f"{where}: metadata line '# units: {stated}' names no unit magbench reads "
+                             "(nT, uT, mG, G)")
+        if canon != units:
+            raise InputError(f"{where}: the file says its readings are in {canon} ('# units: {stated}') but they "
+                             f"are read as {units}: read it with units {canon}")
 
 
 def _numeric(path: Path, frame, name: str, first_line: int) -> np.ndarray:
@@ -296,31 +446,42 @@ def _meta_field_nT(path: Path, meta: dict) -> float | None:
     return value
 
 
-def read_csv(path, units: str = "nT", require_vector: bool = True, expected_field_nT: float | None = None):
+def read_csv(path, units: str = "nT", require_vector: bool = True, expected_field_nT: float | None = None,
+             source: InputBytes | None = None):
     """Read a data file (CONTRACT section 2) into a ``Dataset`` (or a ``ScalarSeries`` when the file has
     ``f_meas`` instead of bx, by, bz and ``require_vector`` is false).
 
     ``units`` applies to every field column of the file (bx, by, bz, f_ref, f_meas); the ``# field_nT:``
     metadata line is in nT by its name.  Refuses, with an ``InputError`` naming the line, non-numeric,
     non-finite or absurd values (beyond 1 T), duplicate column names in any letter case, a directory,
-    an unreadable or non-UTF-8 file, and a file whose magnitudes look like another unit than ``units``
-    (compared with ``expected_field_nT``, else the file's ``# field_nT:``, else the geomagnetic range).
-    The file is read once by pandas' C parser (two million rows in about a second).
+    FIFO or device, an unreadable or non-UTF-8 file, lines longer than ``MAX_LINE_BYTES``, more than
+    ``MAX_COLUMNS`` columns, rows whose field count differs from the header's, a quote that joins lines,
+    conflicting metadata lines, metadata that states another unit or ADC counts, and a file whose
+    magnitudes look like another unit than ``units`` (compared with ``expected_field_nT``, else the
+    file's ``# field_nT:``, else the geomagnetic range).
+
+    The file is read once (``magbench.safeio.read_input``; or ``source``, bytes read already) and parsed
+    from those bytes by pandas' C parser (two million rows in about a second); the metadata records its
+    sha256 (``file_sha256``).
     """
     path = Path(path)
     if units not in UNIT_FACTORS_NT:
         raise InputError(f"unknown unit {units!r}: use one of nT, uT, mG, G")
-    meta, skipped, header_line = _file_head(path)
-    sep, names = _header(path, header_line)
+    src = source if source is not None else read_input(path, "data file")
+    data = src.data
+    head = _parse_head(data, str(path))
+    sep, names = _header(path, head.header)
+    _check_meta_units(path, head.meta, units)
     numeric = [c for c in names if c in NUMERIC_COLUMNS]
-    frame = _table(path, skipped, sep, names, numeric)
-    first_line = skipped + 2
     has_vector = all(c in names for c in ("bx", "by", "bz"))
     scalar_col = next((c for c in ("f_meas", "f_meas_before") if c in names), None)
     if not has_vector and (require_vector or scalar_col is None):
         missing = [c for c in ("bx", "by", "bz") if c not in names]
         extra = " (it is a scalar-only series: use 'magbench diagnose')" if scalar_col else ""
         raise InputError(f"{path} lacks column(s) {', '.join(missing)}{extra}")
+    frame = _table(path, data, head, sep, names, numeric)
+    first_line = head.skipped + 2
+    meta = head.meta
 
     def column(name):
         return _numeric(path, frame, name, first_line) if name in names else None
@@ -336,7 +497,7 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
         expected_field_nT = field_meta
 
     common = dict(t_s=column("t"), temp_C=column("temp"), heading_deg=column("heading_deg"))
-    meta = {**meta, "source_file": str(path), "units_read": units}
+    meta = {**meta, "source_file": str(path), "units_read": units, "file_sha256": src.sha256}
     if has_vector:
         raw = np.column_stack([column(c) for c in ("bx", "by", "bz")])
         magnitude = float(np.median(np.sqrt(np.einsum("ij,ij->i", raw, raw))))
@@ -370,5 +531,6 @@ def check_units(magnitude: float, units: str, expected_field_nT: float | None = 
         raise InputError(f"{where}: median field magnitude {magnitude:.4g} {units} is implausible{ref}; {hint}")
 
 
-def write_truth(truth: Truth, path) -> None:
-    Path(path).write_text(json.dumps(truth.as_dict(), indent=2) + "\n", encoding="utf-8")
+def write_truth(truth: Truth, path, inputs=()) -> None:
+    """The truth as JSON, written atomically (never over one of ``inputs``)."""
+    atomic_write(path, json.dumps(truth.as_dict(), indent=2) + "\n", inputs=inputs, force=True)

@@ -377,3 +377,27 @@ def test_field_auto_on_a_level_turntable_uses_the_angles_estimate():
     assert "plane" in res.reference["source"]
     assert abs(res.reference["median_nT"] - float(np.median(data.f_ref_nT))) < 5.0
     np.testing.assert_allclose(res.x, data.truth.params.to_vector("angles"), atol=2e-4)
+
+
+def test_export_is_atomic_and_never_over_an_input(recordings, tmp_path):
+    """Python API: an export onto a hard link of the data file is refused (by inode) and leaves it intact;
+    a .mat export goes through a temporary file that does not remain; the input's digest is unchanged."""
+    import hashlib
+    import os
+
+    a, _ = recordings
+    before = hashlib.sha256(a.read_bytes()).hexdigest()
+    cal = make("lsq", model="nine").fit(simulate("sphere9", 0)).calibration()
+    link = tmp_path / "link.json"
+    os.link(a, link)
+    with pytest.raises(InputError, match="is the input file"):
+        export(cal, link, "json", force=True, inputs=[a])
+    assert hashlib.sha256(a.read_bytes()).hexdigest() == before
+    for fmt in ("json", "matlab", "ardupilot", "px4"):
+        path = export(cal, tmp_path / f"cal_{fmt}", fmt, inputs=[a])
+        assert path.stat().st_size > 0
+        if fmt in ("json", "matlab"):
+            np.testing.assert_allclose(load_calibration(path).matrix, cal.matrix, atol=1e-12)
+    assert not [p.name for p in tmp_path.iterdir() if ".tmp" in p.name]
+    out = apply_to_csv(cal, a, tmp_path / "applied.csv")
+    assert out["input_sha256"] == before

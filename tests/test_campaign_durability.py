@@ -275,3 +275,113 @@ def test_force_clears_the_campaign_outputs_and_nothing_else(tmp_path):
         assert (out / name).read_text() == "old\n", name
     assert (out / "summary.tex").read_text() != "old\n" and (out / "traces.csv").read_text() != "old\n"
     assert json.loads((out / "manifest.json").read_text())["complete"] is True
+
+
+# ------------------------------------------------------------------ integrity: lock and checksums (issue 19)
+def _small(out, *extra):
+    return ["compare", "--scenarios", "sphere9", "--methods", "lsq", "--trials", "3", "--seed", "5", "--out", str(out),
+            "--no-figures", "--quiet", *extra]
+
+
+def test_a_second_campaign_on_a_locked_folder_is_refused_naming_the_holder(tmp_path, capsys):
+    from magbench.benchmarks.campaign import LOCK, campaign_lock
+
+    out = tmp_path / "camp"
+    with campaign_lock(out, "magbench compare --the-first-one"):
+        capsys.readouterr()
+        assert main(_small(out)) == 2
+        captured = capsys.readouterr()
+        lines = captured.err.strip().splitlines()
+        assert len(lines) == 1 and "in use by another campaign" in lines[0], lines
+        assert f"process {os.getpid()}" in lines[0] and "--the-first-one" in lines[0]
+        assert captured.out == ""
+        assert sorted(os.listdir(out)) == [LOCK]  # nothing written by the refused one
+    assert not (out / LOCK).exists()  # released
+    assert main(_small(out)) == 0  # negative control: free again
+
+
+def test_a_lock_left_by_a_dead_process_is_taken_over(tmp_path):
+    from magbench.benchmarks.campaign import LOCK
+
+    out = tmp_path / "camp"
+    out.mkdir()
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    (out / LOCK).write_text(json.dumps({"pid": int(dead.stdout), "host": "here", "command": "magbench compare"}))
+    assert main(_small(out)) == 0
+    assert json.loads((out / "manifest.json").read_text())["complete"] is True and not (out / LOCK).exists()
+
+
+def _interrupted_checkpoint(tmp_path, monkeypatch, n_done=3):
+    real, calls = campaign_module.run_task, []
+
+    def interrupted(task):
+        calls.append(task)
+        if len(calls) == n_done + 1:
+            raise KeyboardInterrupt
+        return real(task)
+
+    camp = Campaign(("sphere9",), (MethodSpec("lsq"),), trials=5, seed=5)
+    monkeypatch.setattr(campaign_module, "run_task", interrupted)
+    with pytest.raises(CampaignInterrupted):
+        run_campaign(camp, tmp_path, progress=False)
+    monkeypatch.setattr(campaign_module, "run_task", real)
+    return camp
+
+
+def test_tampered_and_foreign_checkpoint_lines_are_rerun_with_a_warning(tmp_path, monkeypatch, capsys):
+    camp = _interrupted_checkpoint(tmp_path, monkeypatch)
+    lines = (tmp_path / CHECKPOINT).read_text().splitlines()
+    assert len(lines) == 4 and all("sha256" in json.loads(ln) for ln in lines[1:])
+    tampered = json.loads(lines[1])
+    tampered["row"]["rms_after_nT"] = 0.001  # well-formed, plausible, and false
+    other = Campaign(("sphere9",), (MethodSpec("lsq"),), trials=5, seed=6)  # a line of another campaign
+    foreign = json.loads(lines[2])
+    from magbench.benchmarks.campaign import campaign_digest, line_checksum
+
+    foreign["sha256"] = line_checksum(campaign_digest(other.definition()), foreign["key"], foreign["row"])
+    edited = [lines[0], json.dumps(tampered), json.dumps(foreign), lines[3]]
+    (tmp_path / CHECKPOINT).write_text("\n".join(edited) + "\n")
+    header, done, refused = Checkpoint.read_checked(tmp_path / CHECKPOINT)
+    assert refused == 2 and len(done) == 1
+    capsys.readouterr()
+    runs = run_campaign(camp, tmp_path, progress=False, resume=True)
+    err = capsys.readouterr().err
+    assert "2 line(s)" in err and "failed their checksum" in err
+    assert (runs.attrs["n_resumed"], runs.attrs["n_new"]) == (1, 4)
+    assert 0.001 not in set(runs["rms_after_nT"])
+
+
+def test_a_corrupt_checkpoint_header_is_named_as_such(tmp_path, monkeypatch, capsys):
+    _interrupted_checkpoint(tmp_path, monkeypatch)
+    path = tmp_path / CHECKPOINT
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(['{"garbage": tru'] + lines[1:]) + "\n")
+    saved = path.read_bytes()
+    args = ["compare", "--scenarios", "sphere9", "--methods", "lsq", "--trials", "5", "--seed", "5", "--out",
+            str(tmp_path), "--no-figures", "--quiet", "--resume"]
+    capsys.readouterr()
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is not a magbench checkpoint header" in err[0] and "no runs.partial" not in err[0]
+    assert path.read_bytes() == saved
+
+
+def test_a_campaign_started_while_another_process_runs_one_is_refused(tmp_path, capsys):
+    """The race of issue 19 with two real processes: the second campaign (another seed, --force) on the
+    folder of a running one exits 2 naming it, and the running one's checkpoint is untouched."""
+    out = tmp_path / "camp"
+    proc = start(compare_args(out, "--quiet"), tmp_path, "first")
+    try:
+        wait_for_runs(proc, out, 1)
+        capsys.readouterr()
+        assert main(compare_args(out, "--force", "--quiet", seed=SEED + 1)) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "in use by another campaign" in err[0] and f"process {proc.pid}" in err[0], err
+        assert (out / CHECKPOINT).is_file()  # --force did not clear the running campaign's outputs
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=60) == 130
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    header, done = Checkpoint.read(out / CHECKPOINT)
+    assert header["campaign"]["seed"] == SEED and done

@@ -47,3 +47,35 @@ def test_lu2014_matches_the_paper_setup():
 def test_wrong_shape_refused():
     with pytest.raises(InputError):
         Dataset(np.ones((5, 2)))
+
+
+def test_read_csv_parses_the_bytes_it_read_once_and_records_their_digest(tmp_path):
+    """A file rewritten after it was read cannot mix into the dataset: read_csv parses the bytes given
+    (``source``) and records their sha256."""
+    import hashlib
+
+    from magbench.safeio import read_input
+
+    data = simulate("sphere9", 0)
+    path = tmp_path / "s.csv"
+    data.to_csv(path)
+    src = read_input(path)
+    path.write_text(path.read_text().replace("bx,by,bz", "bz,by,bx"))  # rewritten meanwhile
+    back = read_csv(path, source=src)
+    np.testing.assert_allclose(back.raw_nT, data.raw_nT, atol=1e-4)
+    assert back.meta["file_sha256"] == src.sha256 == hashlib.sha256(src.data).hexdigest()
+    assert read_csv(path).meta["file_sha256"] != src.sha256  # negative control: the new bytes differ
+
+
+@pytest.mark.parametrize("meta,fragment", [
+    ("# field_nT: 50000\n# field_nT: 45000\n", "conflicting metadata lines"),
+    ("# units: counts\n", "ADC counts"),
+    ("# lsb_nT: 0.3\n", "ADC counts ('# lsb_nT: 0.3')"),
+    ("# units: uT\n", "read as nT"),
+])
+def test_ambiguous_metadata_is_refused_by_the_python_reader(tmp_path, meta, fragment):
+    path = tmp_path / "m.csv"
+    path.write_text(meta + "bx,by,bz\n30000,20000,35000\n")
+    with pytest.raises(InputError, match="m.csv") as exc:
+        read_csv(path)
+    assert fragment in str(exc.value)

@@ -77,6 +77,25 @@ def _half_uT():
     return _csv(raw, fmt="{:.6g}")
 
 
+def _quoted(opening, closing):
+    """GOOD with a text column ``note``; a quote opens on data row ``opening`` and closes on row ``closing``
+    (the same row: balanced; None: never)."""
+    lines = GOOD.splitlines()
+    first = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
+    lines[first] += ",note"
+    for k in range(first + 1, len(lines)):
+        row = k - first - 1
+        text = "x"
+        if row == opening and row == closing:
+            text = '"a, quoted note"'
+        elif row == opening:
+            text = '"opens'
+        elif row == closing:
+            text = 'closes"'
+        lines[k] += "," + text
+    return "\n".join(lines) + "\n"
+
+
 # (id, file content (str or bytes) or None for no file, extra arguments, expected status, message fragment)
 CASES = [
     # encodings
@@ -89,7 +108,7 @@ CASES = [
     ("semicolon", _csv(RAW, sep=";"), [], 0, ""),
     ("tab", _csv(RAW, sep="\t"), [], 0, ""),
     ("header-comma-rows-semicolon", _csv(RAW, sep=";").replace("bx;by;bz;f_ref", "bx,by,bz,f_ref"), [], 2,
-     "non-numeric"),
+     "has 1 field(s) but the header names 4"),
     ("extra-field-in-a-row", _edit_row(GOOD, 5, "1,2,3,50000,9"), [], 2, "not a readable CSV"),
     ("spaces-around-values", GOOD.replace(",", " , "), [], 0, ""),
     ("quoted-header", GOOD.replace("bx,by,bz,f_ref", '"bx","by","bz","f_ref"'), [], 0, ""),
@@ -99,7 +118,7 @@ CASES = [
     ("duplicate-same-case", GOOD.replace("bx,by,bz,f_ref", "bx,by,bx,f_ref"), [], 2, "more than once"),
     ("missing-bz", GOOD.replace("bx,by,bz,f_ref", "bx,by,bq,f_ref"), [], 2, "lacks column"),
     ("no-header", "\n".join(GOOD.splitlines()[2:]) + "\n", [], 2, "lacks column"),
-    ("extra-columns", GOOD.replace("bx,by,bz,f_ref", "bx,by,bz,f_ref,comment").replace("\n", ",x\n")
+    ("extra-columns", GOOD.replace("\n", ",x\n").replace("bx,by,bz,f_ref,x", "bx,by,bz,f_ref,comment")
      .replace("# field_nT: 50000,x", "# field_nT: 50000"), [], 0, ""),
     ("upper-case-names", GOOD.replace("bx,by,bz,f_ref", "BX,BY,BZ,F_REF"), [], 0, ""),
     ("other-order", _csv(RAW[:, [2, 0, 1]], header=("bz", "bx", "by", "f_ref")), [], 0, ""),
@@ -176,6 +195,34 @@ CASES = [
      "--igrf"),
     ("directory", "DIRECTORY", [], 2, "is a directory"),
     ("missing-file", None, [], 2, "no such file"),
+    # ambiguous input (issue 19): metadata, quotes, field counts, units
+    ("conflicting-field-meta", _csv(RAW, header=("bx", "by", "bz"), meta=("# field_nT: 50000", "# field_nT: 57000")),
+     [], 2, "conflicting metadata lines '# field_nT: 50000' and '# field_nT: 57000'"),
+    ("same-field-meta-twice", _csv(RAW, header=("bx", "by", "bz"), meta=("# field_nT: 50000", "# field_nT: 50000")),
+     [], 0, ""),
+    ("quote-swallows-rows", _quoted(20, 290), [], 2, "unbalanced quote"),
+    ("quote-to-end-of-file", _quoted(20, None), [], 2, "starting on line 23 spans 280 lines: an unbalanced quote"),
+    ("header-missing-a-column-quoted", _quoted(20, 20).replace("bx,by,bz,f_ref,note", "bx,by,bz,note"), [], 2,
+     "has 5 field(s) but the header names 4"),
+    ("quoted-line-break", _quoted(20, 21), [], 2, "unbalanced quote"),
+    ("balanced-quotes", _quoted(20, 20), [], 0, ""),
+    ("header-missing-a-column", GOOD.replace("bx,by,bz,f_ref", "bx,by,bz"), [], 2,
+     "has 4 field(s) but the header names 3"),
+    ("row-missing-a-field", _edit_row(GOOD, 11, "1,2,50000"), [], 2, "line 14 has 3 field(s)"),
+    ("counts-with-gain-line", _csv(np.round(RAW / 3.0517578125), meta=("# gain_nT_per_count: 3.0517578125",),
+                                   fmt="{:.0f}"), [], 2, "ADC counts ('# gain_nT_per_count: 3.0517578125')"),
+    ("units-counts-line", _csv(np.round(RAW / 3.0517578125), meta=("# units: counts",), fmt="{:.0f}"), [], 2,
+     "ADC counts ('# units: counts')"),
+    ("units-line-disagrees", _csv(RAW / 1000.0, f_ref=50.0, fmt="{:.6g}", meta=("# units: uT",)), [], 2,
+     "read as nT: read it with units uT"),
+    ("units-line-agrees", _csv(RAW / 1000.0, f_ref=50.0, fmt="{:.6g}", meta=("# units: uT",)), ["--units", "uT"], 0,
+     ""),
+    ("units-line-unknown", _csv(RAW, meta=("# units: furlongs",)), [], 2, "names no unit"),
+    # bounded reads (issue 19)
+    ("overlong-line", _edit_row(GOOD, 4, "1," * 600_000 + "1"), [], 2, "longer than 1,048,576 bytes"),
+    ("overlong-header", "#\n" + "a," * 2_000_000 + "bx\n1\n", [], 2, "longer than 1,048,576 bytes"),
+    ("too-many-columns", ",".join(["bx", "by", "bz", "f_ref"] + [f"c{i}" for i in range(5000)]) + "\n1,2,3,4\n",
+     [], 2, "more than the limit of 1,000"),
 ]
 
 
@@ -261,3 +308,333 @@ def test_igrf_warnings_never_reach_stdout(tmp_path, capsys):
     code = main(["calibrate", str(path), "--method", "lsq", "--json", "--igrf", "34.26,108.94,0.4,1850-01-01"])
     out, err = capsys.readouterr()
     assert code == 2 and out == ""
+
+
+# ------------------------------------------------------------------ issue 19: the second hostile corpus
+def _run(capsys, args):
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    assert "Traceback" not in out + err
+    return code, out, err
+
+
+def _refused(capsys, args, fragment):
+    """Exit 2, one line on stderr holding ``fragment``, nothing on stdout."""
+    code, out, err = _run(capsys, args)
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert code == 2, f"exit {code}: {err}"
+    assert len(lines) == 1, lines
+    assert out == ""
+    assert fragment in err, err
+    return err
+
+
+def _digest(path):
+    return hashlib.sha256(open(path, "rb").read()).hexdigest()
+
+
+def _smooth_record(n=2000, seed=0, step_nT=None, pink_nT=0.0, noise=3.0):
+    """A record in time (a smooth tumble, 3 nT noise), optionally with the offsets stepping halfway by
+    ``step_nT`` (a vector) or with 1/f noise of RMS ``pink_nT`` added to every axis."""
+    rng = np.random.default_rng(seed)
+    att = attitude.tumble(n, rng)
+    raw = np.array(SensorModel(NINE, noise_nT=noise).measure(att.body_field(np.asarray(FIELD.vector_nT)), rng))
+    if step_nT is not None:
+        raw[n // 2:] += step_nT
+    if pink_nT:
+        spec = np.fft.rfft(rng.normal(size=(n, 3)), axis=0)
+        f = np.maximum(np.arange(spec.shape[0]), 1)
+        pink = np.fft.irfft(spec / np.sqrt(f)[:, None], n=n, axis=0)
+        raw += pink_nT * pink / pink.std(axis=0)
+    lines = ["t,bx,by,bz,f_ref"] + [f"{t:.3f},{x:.4f},{y:.4f},{z:.4f},{F_NT:.1f}" for t, (x, y, z) in zip(att.t_s, raw)]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("method", ["lsq", "ellipsoid"])
+def test_a_step_in_the_offsets_is_rejected_and_located(tmp_path, capsys, method):
+    path = tmp_path / "step.csv"
+    path.write_text(_smooth_record(step_nT=np.array([700.0, -350.0, 210.0])))
+    before = _digest(path)
+    code, out, err = _run(capsys, ["calibrate", path, "--method", method])
+    assert code == 3, err
+    assert "a step in the residual at row 1,000" in err and "times the noise estimated independently" in err
+    assert "offsets jump by about" in out
+    assert _digest(path) == before
+
+
+@pytest.mark.parametrize("pink", [0.0, 5.0, 15.0], ids=["white", "pink-5nT", "pink-15nT"])
+def test_clean_records_are_accepted_with_white_or_1_over_f_noise(tmp_path, capsys, pink):
+    """Negative controls of the step test: the same record without the step passes."""
+    path = tmp_path / "clean.csv"
+    path.write_text(_smooth_record(pink_nT=pink))
+    code, out, err = _run(capsys, ["calibrate", path, "--method", "lsq", "--json"])
+    assert code == 0, err
+    import json
+
+    obj = json.loads(out)
+    assert obj["accepted"] and not [w for w in obj["warnings"] if "independently" in w]
+    assert obj["input_sha256"] == _digest(path)  # the digest of the bytes read, recorded
+
+
+def test_without_time_or_repeats_the_warning_says_the_noise_is_not_independent(tmp_path, capsys):
+    path = tmp_path / "plain.csv"
+    path.write_text(GOOD)
+    code, out, err = _run(capsys, ["calibrate", path, "--method", "lsq"])
+    assert code == 0 and "the noise could not be estimated independently of the fit" in out
+
+
+def _vehicle_csv(tilt_deg=5.0, n=720, seed=3):
+    rng = np.random.default_rng(seed)
+    att = attitude.vehicle(n, rng, pitch_roll_deg=tilt_deg, turns=2.0)
+    raw = SensorModel(NINE, noise_nT=3.0).measure(att.body_field(np.asarray(FIELD.vector_nT)), rng)
+    lines = ["t,bx,by,bz,f_ref"] + [f"{t:.1f},{x:.4f},{y:.4f},{z:.4f},{F_NT:.1f}" for t, (x, y, z) in zip(att.t_s, raw)]
+    return "\n".join(lines) + "\n"
+
+
+def _three_attitudes_csv(n_each=100, seed=1):
+    from scipy.spatial.transform import Rotation
+
+    rot = Rotation.random(3, random_state=seed)[np.repeat(np.arange(3), n_each)]
+    b = rot.apply(np.tile(FIELD.vector_nT, (3 * n_each, 1)), inverse=True)
+    raw = SensorModel(NINE, noise_nT=3.0).measure(b, np.random.default_rng(seed))
+    return _csv(raw)
+
+
+@pytest.mark.parametrize("content", [_vehicle_csv(), _three_attitudes_csv()], ids=["planar-5deg", "three-attitudes"])
+def test_model_auto_never_accepts_an_unidentifiable_offset_model(tmp_path, capsys, content):
+    import json
+
+    path = tmp_path / "auto.csv"
+    path.write_text(content)
+    before = _digest(path)
+    code, out, err = _run(capsys, ["calibrate", path, "--method", "lsq", "--model", "auto", "--json"])
+    assert code == 3, err
+    obj = json.loads(out)
+    assert obj["accepted"] is False and obj["rejections"][0].startswith("model auto:")
+    assert "not determined" in obj["rejections"][0]
+    assert "calibration rejected: model auto" in err
+    assert _digest(path) == before
+
+
+def test_model_auto_on_a_sphere_still_chooses_and_accepts(tmp_path, capsys):
+    """Negative control: full coverage gives an accepted choice."""
+    path = tmp_path / "sphere.csv"
+    path.write_text(GOOD)
+    code, out, err = _run(capsys, ["calibrate", path, "--method", "lsq", "--model", "auto"])
+    assert code == 0 and "model auto -> nine" in out
+
+
+def test_a_header_field_ten_percent_low_warns_about_the_mean_scale(tmp_path, capsys):
+    path = tmp_path / "low.csv"
+    path.write_text(_csv(RAW, header=("bx", "by", "bz"), meta=("# field_nT: 45000",)))
+    code, out, err = _run(capsys, ["calibrate", path, "--method", "lsq"])
+    assert code == 0 and "the mean scale factor is 1.1" in out and "units are likely wrong" in out
+    path.write_text(_csv(RAW, header=("bx", "by", "bz")))  # the right field: no such warning
+    code, out, err = _run(capsys, ["calibrate", path, "--method", "lsq"])
+    assert code == 0 and "mean scale factor" not in out
+
+
+# special files and bombs: refused at once, without reading them
+def test_a_fifo_is_refused_without_blocking(tmp_path, capsys):
+    import os
+    import time
+
+    fifo = tmp_path / "pipe.csv"
+    os.mkfifo(fifo)
+    t0 = time.monotonic()
+    _refused(capsys, ["calibrate", fifo, "--method", "lsq"], "is a FIFO (named pipe), not a data file")
+    assert time.monotonic() - t0 < 5
+
+
+def test_a_symlink_to_dev_zero_is_refused_at_once(tmp_path, capsys):
+    import os
+    import time
+
+    link = tmp_path / "zero.csv"
+    os.symlink("/dev/zero", link)
+    t0 = time.monotonic()
+    _refused(capsys, ["calibrate", link, "--method", "lsq"], "is a character device, not a data file")
+    _refused(capsys, ["apply", link, GOOD_PATH(tmp_path), "--out", tmp_path / "o.csv"], "character device")
+    assert time.monotonic() - t0 < 5
+
+
+def GOOD_PATH(tmp_path):  # noqa: N802 - a constant-like helper
+    path = tmp_path / "good.csv"
+    if not path.exists():
+        path.write_text(GOOD)
+    return path
+
+
+def _saved_calibration(tmp_path, capsys, *extra):
+    cal = tmp_path / "cal.json"
+    code, _, err = _run(capsys, ["calibrate", GOOD_PATH(tmp_path), "--method", "lsq", "--save", cal, *extra])
+    assert code == 0, err
+    return cal
+
+
+def test_json_bombs_are_refused(tmp_path, capsys):
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 200_000 + "]" * 200_000)
+    _refused(capsys, ["apply", deep, GOOD_PATH(tmp_path), "--out", tmp_path / "o.csv"], "nested 200,000 deep")
+    digits = tmp_path / "digits.json"
+    digits.write_text('{"schema": "magbench.calibration", "schema_version": 1' + "0" * 5000 + "}")
+    _refused(capsys, ["apply", digits, GOOD_PATH(tmp_path), "--out", tmp_path / "o.csv"],
+             "a number of 5,001 characters")
+    wrong = tmp_path / "wrong.json"
+    obj = __import__("json").loads(_saved_calibration(tmp_path, capsys).read_text())
+    obj["accepted"] = "yes"
+    wrong.write_text(__import__("json").dumps(obj))
+    _refused(capsys, ["apply", wrong, GOOD_PATH(tmp_path), "--out", tmp_path / "o.csv"],
+             "'accepted' has the wrong type")
+    assert not (tmp_path / "o.csv").exists()
+
+
+def test_a_mat_bomb_is_refused_before_it_inflates(tmp_path, capsys):
+    from scipy.io import savemat
+
+    bomb = tmp_path / "bomb.mat"
+    savemat(bomb, {"A": np.eye(3), "b": np.zeros((1, 3)), "pad": np.zeros((3000, 1000))}, do_compression=True)
+    assert bomb.stat().st_size < 200_000
+    _refused(capsys, ["apply", bomb, GOOD_PATH(tmp_path), "--out", tmp_path / "o.csv"],
+             "inflates to more than 16,777,216")
+    ok = tmp_path / "ok.mat"  # negative control: a small compressed magcal file is read
+    savemat(ok, {"A": np.eye(3), "b": np.zeros((1, 3)), "expmfs": F_NT}, do_compression=True)
+    code, out, err = _run(capsys, ["apply", ok, GOOD_PATH(tmp_path), "--out", tmp_path / "o.csv"])
+    assert code == 0, err
+
+
+def test_a_memory_error_without_text_is_one_line(tmp_path, capsys, monkeypatch):
+    import pandas as pd
+
+    def no_memory(*args, **kwargs):
+        raise MemoryError()
+
+    monkeypatch.setattr(pd, "read_csv", no_memory)
+    _refused(capsys, ["calibrate", GOOD_PATH(tmp_path), "--method", "lsq"], "not enough memory")
+
+
+# outputs: never over an input (hard links included), atomic, OSError as exit 2
+def test_save_onto_a_hard_link_of_the_input_is_refused(tmp_path, capsys):
+    import os
+
+    src = GOOD_PATH(tmp_path)
+    link = tmp_path / "link.json"
+    os.link(src, link)
+    before = _digest(src)
+    _refused(capsys, ["calibrate", src, "--method", "lsq", "--save", link, "--force"], "is the input file")
+    assert _digest(src) == before and _digest(link) == before
+
+
+def test_simulate_truth_onto_a_hard_link_of_out_is_refused(tmp_path, capsys):
+    import os
+
+    out = tmp_path / "x.csv"
+    assert main(["simulate", "--scenario", "sphere9", "--out", str(out)]) == 0
+    capsys.readouterr()
+    link = tmp_path / "truth.json"
+    os.link(out, link)
+    before = _digest(out)
+    _refused(capsys, ["simulate", "--scenario", "sphere9", "--out", out, "--truth", link, "--force"], "same file")
+    assert _digest(out) == before
+
+
+def test_apply_out_onto_its_inputs_is_refused(tmp_path, capsys):
+    import os
+
+    cal = _saved_calibration(tmp_path, capsys)
+    src = GOOD_PATH(tmp_path)
+    link = tmp_path / "link.csv"
+    os.link(src, link)
+    before, cal_before = _digest(src), _digest(cal)
+    _refused(capsys, ["apply", cal, src, "--out", link, "--force"], "is the input file")
+    _refused(capsys, ["apply", cal, src, "--out", cal, "--force"], "is the input file")
+    assert _digest(src) == before and _digest(cal) == cal_before
+
+
+@pytest.mark.parametrize("target,fragment", [("/dev/full", "is a character device"),
+                                             ("/proc/magbench-out.csv", "cannot write /proc/magbench-out.csv")])
+def test_unwritable_outputs_are_exit_2_with_the_reason(tmp_path, capsys, target, fragment):
+    cal = _saved_calibration(tmp_path, capsys)
+    before = _digest(GOOD_PATH(tmp_path))
+    _refused(capsys, ["apply", cal, GOOD_PATH(tmp_path), "--out", target, "--force"], fragment)
+    _refused(capsys, ["simulate", "--scenario", "sphere9", "--out", target, "--force"], fragment)
+    assert _digest(GOOD_PATH(tmp_path)) == before
+
+
+def test_a_full_disk_leaves_no_truncated_or_empty_output(tmp_path, capsys, monkeypatch):
+    import errno
+    import io
+
+    from magbench import safeio
+
+    cal = _saved_calibration(tmp_path, capsys)
+    old = tmp_path / "old.csv"
+    old.write_text("the previous output\n")
+
+    class Full(io.FileIO):
+        def write(self, b):
+            super().write(bytes(b)[:10])
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(safeio, "open", lambda path, mode="rb": Full(path, mode.replace("b", "")), raising=False)
+    _refused(capsys, ["apply", cal, GOOD_PATH(tmp_path), "--out", old, "--force"], "No space left on device")
+    assert old.read_text() == "the previous output\n"
+    _refused(capsys, ["simulate", "--scenario", "sphere9", "--out", tmp_path / "new.csv"], "No space left")
+    assert not (tmp_path / "new.csv").exists()
+    assert not [p.name for p in tmp_path.iterdir() if ".tmp" in p.name], "a temporary file was left behind"
+
+
+# apply: guards and one read
+def test_apply_refuses_a_rejected_calibration_unless_accept_any(tmp_path, capsys):
+    import json
+
+    spike = tmp_path / "spike.csv"
+    spike.write_text(_csv(_spike(RAW, [17], 5e6)))
+    cal = tmp_path / "rejected.json"
+    code, _, _ = _run(capsys, ["calibrate", spike, "--method", "lsq", "--save", cal, "--accept-any"])
+    assert code == 0 and json.loads(cal.read_text())["accepted"] is False
+    out = tmp_path / "o.csv"
+    _refused(capsys, ["apply", cal, GOOD_PATH(tmp_path), "--out", out], "was rejected by its acceptance checks")
+    assert not out.exists()
+    code, text, err = _run(capsys, ["apply", cal, GOOD_PATH(tmp_path), "--out", out, "--accept-any"])
+    assert code == 0 and "warning: applied by --accept-any" in text and out.exists()
+
+
+def test_apply_refuses_an_ill_conditioned_calibration(tmp_path, capsys):
+    import json
+
+    cal = tmp_path / "flat.json"
+    cal.write_text(json.dumps({"A": [[1, 0, 0], [0, 1, 0], [0, 0, 1e-30]], "b": [0, 0, 0], "expmfs": F_NT}))
+    out = tmp_path / "o.csv"
+    _refused(capsys, ["apply", cal, GOOD_PATH(tmp_path), "--out", out],
+             "ill-conditioned (condition number 1e+30, |determinant| 1e-30; the limits are a condition number of 100")
+    good = _saved_calibration(tmp_path, capsys)  # negative control
+    code, _, err = _run(capsys, ["apply", good, GOOD_PATH(tmp_path), "--out", out])
+    assert code == 0, err
+
+
+def test_apply_reads_the_data_file_once(tmp_path, capsys, monkeypatch):
+    import builtins
+
+    from magbench import safeio
+    from magbench.calibrators import artifacts
+
+    cal = _saved_calibration(tmp_path, capsys)
+    src = GOOD_PATH(tmp_path)
+    before = _digest(src)
+    reads, real_read, real_open = [], safeio.read_input, builtins.open
+
+    def counting(path, *args, **kwargs):
+        reads.append(str(path))
+        return real_read(path, *args, **kwargs)
+
+    def no_second_open(path, *args, **kwargs):
+        assert str(path) != str(src), "the data file was opened a second time"
+        return real_open(path, *args, **kwargs)
+
+    monkeypatch.setattr(artifacts, "read_input", counting)
+    monkeypatch.setattr(builtins, "open", no_second_open)
+    code, out, err = _run(capsys, ["apply", cal, src, "--out", tmp_path / "o.csv", "--json"])
+    assert code == 0, err
+    assert reads.count(str(src)) == 1
+    assert __import__("json").loads(out)["input_sha256"] == before
