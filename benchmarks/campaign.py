@@ -1,10 +1,12 @@
 """Campaigns: scenarios x calibrators x trials, each run one flat row (nevergrad's benchmark rows).
 
-Seeds: one root ``SeedSequence(seed)`` spawns a child per scenario, a grandchild per trial (the data
-seed and the validation-data seed, shared by every calibrator of that trial so that they are compared
-on the same data) and, under it, one per calibrator configuration (the calibrator's own seed).  Every
-(scenario, calibrator, trial) therefore has its own seed, and the table does not depend on the order
-or the machine the runs are executed on (serially, ``--jobs N`` local processes, or a Dask cluster).
+Seeds follow identity, never list position (COCO): a trial's data and validation-data seeds come from
+(root seed, scenario name, trial index), shared by every calibrator of that trial so that they are
+compared on the same data, and a calibrator's own seed from (root seed, scenario name, trial index,
+configuration label) (``identity_seed``).  Reordering or adding scenarios or methods changes no other run,
+so a campaign can grow (``--resume`` with added methods runs only those), and the table does not depend
+on the order or the machine the runs are executed on (serially, ``--jobs N`` local processes, or a Dask
+cluster).
 
 Durability: every finished run is appended, as it completes, to ``runs.partial.jsonl`` in the output
 folder (a header line with the campaign's definition, then one JSON line per run keyed by (scenario,
@@ -96,6 +98,20 @@ class MethodSpec:
         return cls(name.strip(), tuple(params))
 
 
+def _name_key(name: str) -> int:
+    """A stable 64-bit integer for a name (sha256, not Python's salted ``hash``)."""
+    return int.from_bytes(hashlib.sha256(name.encode("utf-8")).digest()[:8], "little")
+
+
+def identity_seed(root: int, scenario: str, trial: int, configuration: str | None = None) -> np.random.SeedSequence:
+    """The seed of one run from its identity, never from list positions (COCO seeds an instance from the
+    function and instance numbers): the data of (root, scenario, trial), and a calibrator's own seed from
+    (root, scenario, trial, configuration label).  Reordering or adding scenarios or methods leaves every
+    other run's numbers unchanged."""
+    key = [_name_key(scenario), int(trial)] + ([] if configuration is None else [_name_key(configuration)])
+    return np.random.SeedSequence(int(root), spawn_key=tuple(key))
+
+
 @dataclass(frozen=True)
 class Campaign:
     scenarios: tuple[str, ...]
@@ -123,35 +139,22 @@ class Campaign:
         for spec in self.methods:
             if spec.name not in cals:
                 raise InputError(f"unknown calibrator {spec.name!r}; known: {', '.join(sorted(cals))}")
-        root = np.random.SeedSequence(self.seed)
-        for scenario, s_seq in zip(self.scenarios, root.spawn(len(self.scenarios))):
+        for scenario in self.scenarios:
             model = get_scenario(scenario).model
-            for trial, t_seq in enumerate(s_seq.spawn(self.trials)):
-                data_seed, val_seed = (int(v) for v in t_seq.generate_state(2))
-                for spec, m_seq in zip(self.methods, t_seq.spawn(len(self.methods))):
+            for trial in range(self.trials):
+                data_seed, val_seed = (int(v) for v in identity_seed(self.seed, scenario, trial).generate_state(2))
+                for spec in self.methods:
                     if model not in cals[spec.name].supported_models:
                         if trial == 0:
                             skipped.append({"scenario": scenario, "configuration": spec.label,
                                             "reason": f"{spec.name} does not estimate the {model} model"})
                         continue
+                    seed = int(identity_seed(self.seed, scenario, trial, spec.label).generate_state(1)[0])
                     tasks.append({"scenario": scenario, "method": spec.name, "params": dict(spec.params),
                                   "configuration": spec.label, "model": model, "trial": trial,
-                                  "data_seed": data_seed, "validation_seed": val_seed,
-                                  "seed": int(m_seq.generate_state(1)[0]),
+                                  "data_seed": data_seed, "validation_seed": val_seed, "seed": seed,
                                   "keep_trace": self.traces, "keep_fields": self.traces and trial == 0})
         return tasks, skipped
-
-
-def _with_budget(params: dict) -> dict:
-    """``budget=N`` in a method spec (``ga:budget=5000``, or ``compare --budgets``) is an evaluation budget."""
-    from magbench.calibrators import Budget
-
-    budget = params.get("budget")
-    if isinstance(budget, bool) or not isinstance(budget, int):
-        return params
-    if budget < 1:
-        raise InputError(f"budget must be a positive number of evaluations, got {budget}")
-    return {**params, "budget": Budget(max_evaluations=budget)}
 
 
 def run_task(task: dict) -> dict:
@@ -167,7 +170,7 @@ def run_task(task: dict) -> dict:
         scenario = get_scenario(task["scenario"])
         data = scenario.build(task["data_seed"])
         validation = scenario.build(task["validation_seed"])
-        calibrator = make(task["method"], model=task["model"], seed=task["seed"], **_with_budget(task["params"]))
+        calibrator = make(task["method"], model=task["model"], seed=task["seed"], **task["params"])
         result = calibrator.fit(data)
         row.update(run_metrics(result, data, validation))
         row["error"] = budget_violation(result, calibrator.budget)
@@ -468,6 +471,15 @@ def stored_definition(out: Path) -> tuple[dict | None, str]:
     return None, ""
 
 
+def grows(stored: dict, campaign: Campaign) -> bool:
+    """Whether ``campaign`` is the stored one with scenarios or configurations added (same trials, root seed
+    and traces): with seeds from identity its runs are the stored runs plus new ones."""
+    here = campaign.definition()
+    same = all(json.loads(json.dumps(stored.get(k))) == here[k] for k in ("trials", "seed", "traces"))
+    return (same and set(stored.get("scenarios", ())) <= set(here["scenarios"])
+            and set(stored.get("configurations", ())) <= set(here["configurations"]) and stored != here)
+
+
 def _check_same_campaign(stored: dict, campaign: Campaign, out: Path, source: str) -> None:
     here = campaign.definition()
     names = {"scenarios": "--scenarios", "configurations": "--methods", "trials": "--trials", "seed": "--seed",
@@ -635,9 +647,11 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
     tasks, skipped = campaign.tasks()
     ckpt_path = out / CHECKPOINT
     done: dict | None = None
+    growing = False
     if resume:
         stored, source = stored_definition(out)
-        if stored is not None:
+        growing = stored is not None and source == CHECKPOINT and grows(stored, campaign)
+        if stored is not None and not growing:
             _check_same_campaign(stored, campaign, out, source)
         if source == CHECKPOINT:
             keys = {task_key(t) for t in tasks}
@@ -646,19 +660,27 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
             if refused:
                 sys.stderr.write(f"magbench: warning: {refused} line(s) of {ckpt_path} failed their checksum "
                                  "(edited, corrupt, or from another campaign): those runs are run again\n")
+            elif not growing and len(done) == len(tasks):
+                finished = _complete_tables(out)
+                if finished is not None:
+                    return finished
         elif stored is not None:
-            man = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
-            if man.get("complete", True) and (out / "runs.csv").is_file():
-                runs = pd.read_csv(out / "runs.csv", keep_default_na=False)
-                runs.attrs.update(n_new=0, n_resumed=len(runs), already_complete=True, n_missing=0)
-                return runs
+            runs_done = _complete_tables(out)
+            if runs_done is not None:
+                return runs_done
             raise InputError(f"cannot resume: {out} has no {CHECKPOINT} holding its finished runs; "
                              "use --force to start over")
         elif out.is_dir() and any(out.iterdir()):
             raise InputError(f"cannot resume: {out} holds no campaign (no readable {CHECKPOINT} or manifest.json)")
     out.mkdir(parents=True, exist_ok=True)
     header = {"magbench_checkpoint": CHECKPOINT_VERSION, "campaign": campaign.definition(), "command": command}
-    checkpoint = Checkpoint(ckpt_path, header, done)
+    if growing:  # the stored runs, signed again under the grown campaign's definition
+        checkpoint = Checkpoint(ckpt_path, header)
+        by_key = {task_key(t): t for t in tasks}
+        for key, row in (done or {}).items():
+            checkpoint.add(by_key[key], row)
+    else:
+        checkpoint = Checkpoint(ckpt_path, header, done)
     todo = [t for t in tasks if task_key(t) not in checkpoint.done]
     n_resumed = len(tasks) - len(todo)
     t0 = time.perf_counter()
@@ -677,11 +699,24 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
     runs = _write_campaign_tables(campaign, out, rows, skipped, command, wall, jobs, dask_address, n_missing)
     runs.attrs.update(n_new=len(rows) - n_resumed, n_resumed=n_resumed, already_complete=False,
                       n_missing=n_missing)
-    if n_missing == 0:
-        ckpt_path.unlink(missing_ok=True)  # the tables hold everything now
+    # the checkpoint stays: it is the campaign's exact record, from which ``--resume`` with added scenarios
+    # or methods grows it (the tables round their numbers)
     if interrupted is not None:
         raise CampaignInterrupted(out, len(rows), len(tasks), getattr(interrupted, "signum", signal.SIGINT)) \
             from interrupted
+    return runs
+
+
+def _complete_tables(out: Path) -> pd.DataFrame | None:
+    """runs.csv of a finished campaign (manifest says complete), marked ``already_complete``; else None."""
+    try:
+        man = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not (man.get("complete", True) and (out / "runs.csv").is_file()):
+        return None
+    runs = pd.read_csv(out / "runs.csv", keep_default_na=False)
+    runs.attrs.update(n_new=0, n_resumed=len(runs), already_complete=True, n_missing=0)
     return runs
 
 

@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 from magbench.calibrators.base import CalibrationResult
 from magbench.calibrators.core.objective import ScalarObjective
 from magbench.calibrators.fisher import crb_std
+from magbench.calibrators.params import as_budget
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import PARAM_NAMES, ErrorParams
 
@@ -60,9 +61,9 @@ def budget_violation(result: CalibrationResult, budget) -> str:
     if result.n_overrun_calls:
         return (f"budget overrun: the solver asked {result.n_overrun_calls} more time(s) after the counter "
                 "said the budget was spent")
-    limit = getattr(budget, "max_evaluations", None)
+    limit = as_budget(budget).max_evaluations
     if limit is not None and result.n_evaluations > limit:
-        return f"budget overrun: {result.n_evaluations} evaluations with a budget of {limit}"
+        return f"budget overrun: {result.n_evaluations} evaluation-equivalents with a budget of {limit}"
     return ""
 
 
@@ -78,6 +79,7 @@ def run_metrics(result: CalibrationResult, data: Dataset, validation: Dataset | 
     """Flat metrics of a fitted result (no truth needed for the RMS ones)."""
     p = result.params
     row = {"success": result.success, "status": result.status, "n_evaluations": result.n_evaluations,
+           "n_function_evaluations": result.n_function_evaluations, "n_jacobians": result.n_jacobians,
            "evaluation_mode": result.evaluation_mode,
            "accepted": result.accepted, "rejections": "; ".join(result.rejections),
            "runtime_s": result.runtime_s, "rms_before_nT": result.rms_before_nT,

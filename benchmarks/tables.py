@@ -50,10 +50,11 @@ def summarize(runs: pd.DataFrame) -> pd.DataFrame:
                     row[f"efficiency_{a}"] = float(np.mean(ok[crb] ** 2) / np.mean(ok[col] ** 2))
         for col in ("scale_err_max", "offset_err_max_nT", "rms_before_nT", "rms_after_nT", "val_rms_after_nT",
                     "rms_reduction_pct", "val_rms_reduction_pct", "heading_err_before_deg", "heading_err_after_deg",
-                    "n_evaluations", "runtime_s"):
+                    "n_evaluations", "n_function_evaluations", "n_jacobians", "runtime_s"):
             if col in ok and ok[col].notna().any():
                 row[f"median_{col}"] = float(ok[col].median())
-                if col not in ("n_evaluations", "runtime_s", "rms_before_nT", "heading_err_before_deg"):
+                if col not in ("n_evaluations", "n_function_evaluations", "n_jacobians", "runtime_s", "rms_before_nT",
+                               "heading_err_before_deg"):
                     row[f"iqr_{col}"] = _iqr(ok[col])
         if {"efficiency_alpha", "efficiency_beta", "efficiency_gamma"} <= set(row):
             row["efficiency_min_angle"] = min(row[f"efficiency_{a}"] for a in ANGLES)
@@ -139,14 +140,15 @@ COLUMNS = {
     "heading": Column("median_heading_err_after_deg", "heading error", "°", "heading error", r"\degree",
                       "iqr_heading_err_after_deg"),
     "efficiency": Column("efficiency_min_angle", "efficiency", "", "efficiency"),
-    "evals": Column("median_n_evaluations", "evaluations", kind="evals", tex_title="evaluations"),
+    "evals": Column("median_n_evaluations", "evaluations (equiv.)", kind="evals", tex_title="evaluations"),
+    "jacobians": Column("median_n_jacobians", "Jacobians", kind="evals", tex_title="Jacobians"),
     "runtime": Column("median_runtime_s", "runtime", "s", "runtime", r"\second"),
 }
 MARKDOWN_VIEW = [*ANGLE_COLUMNS, *(COLUMNS[k] for k in ("scale", "offset", "rms_fit", "rms_val", "heading",
-                                                          "efficiency", "evals", "runtime"))]
+                                                          "efficiency", "evals", "jacobians", "runtime"))]
 TEX_ANGLES = [COLUMNS["runs"], COLUMNS["success"], *ANGLE_COLUMNS, COLUMNS["efficiency"]]
 TEX_PARAMETERS = [*(COLUMNS[k] for k in ("scale", "offset", "heading"))]
-TEX_COST = [*(COLUMNS[k] for k in ("rms_fit", "rms_val", "evals", "runtime"))]
+TEX_COST = [*(COLUMNS[k] for k in ("rms_fit", "rms_val", "evals", "jacobians", "runtime"))]
 
 
 def _g(v: float) -> str:

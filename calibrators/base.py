@@ -7,9 +7,11 @@ state is kept on the calibrator.
 """
 from __future__ import annotations
 
+import contextvars
 import hashlib
 import inspect
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import partial
 from typing import ClassVar
@@ -35,6 +37,7 @@ from .core.problem import (  # noqa: F401
 )
 from .fisher import coverage, crb_std
 from .inputs import algebraic_vector, as_dataset
+from .params import BUDGET, SEED, Options, as_budget, validate_params
 
 
 @dataclass(frozen=True)
@@ -42,8 +45,10 @@ class CalibrationResult:
     """What ``fit`` returns: the estimate in CONTRACT section 1 form and how it was obtained.
 
     Names follow ``scipy.optimize.OptimizeResult`` where they overlap (``x``, ``success``, ``status``,
-    ``message``, ``fun``, ``nit``); ``n_evaluations`` counts objective evaluations through the shared
-    counter, ``n_jacobians`` the analytic Jacobian/gradient evaluations.
+    ``message``, ``fun``, ``nit``).  Counts come from the framework's one evaluator, never from the
+    calibrator: ``n_evaluations`` in evaluation-equivalents (the budget's unit: one per objective value or
+    residual vector, p per Jacobian or gradient of p free parameters), ``n_function_evaluations`` and
+    ``n_jacobians`` separately (scipy's ``nfev`` and ``njev``).
     """
 
     method: str
@@ -78,6 +83,7 @@ class CalibrationResult:
     model_choice: dict | None = None  # model "auto": the candidates, their held-out RMS and the reason
     data_digest: str = ""  # sha256 of the readings and reference fitted (calibration files name their data)
     n_points: int = 0
+    n_function_evaluations: int = 0  # objective values and residual vectors computed
 
     def __post_init__(self):
         for name in ("x", "solver_x"):
@@ -121,6 +127,7 @@ class CalibrationResult:
             "runtime_s": self.runtime_s,
             "n_evaluations": self.n_evaluations,
             "evaluation_mode": self.evaluation_mode,
+            "n_function_evaluations": self.n_function_evaluations,
             "n_jacobians": self.n_jacobians,
             "nit": self.nit,
             "seed": self.seed,
@@ -152,7 +159,27 @@ def _jsonable(v):
     return v
 
 
-class Calibrator:
+SEALED = ("fit", "_fit_dataset")
+"""The framework's entry points: no subclass defines them, and no one replaces them on a class or instance."""
+
+
+class _Sealed(type):
+    """Metaclass of ``Calibrator``: ``fit`` and ``_fit_dataset`` cannot be assigned or deleted on any
+    calibrator class after its creation (``Cls.fit = ...`` raises ``TypeError``)."""
+
+    def __setattr__(cls, name, value):
+        if name in SEALED:
+            raise TypeError(f"{cls.__name__}.{name} cannot be replaced: Calibrator.fit is the one entry point "
+                            "(it validates the data, counts every evaluation and checks the answer)")
+        super().__setattr__(name, value)
+
+    def __delattr__(cls, name):
+        if name in SEALED:
+            raise TypeError(f"{cls.__name__}.{name} cannot be deleted")
+        super().__delattr__(name)
+
+
+class Calibrator(metaclass=_Sealed):
     """Base class: subclasses set ``name``, list their hyper-parameters as keyword arguments of
     ``__init__`` (stored as attributes of the same names, nothing else) and implement ``_solve``."""
 
@@ -167,6 +194,11 @@ class Calibrator:
     # A robust calibrator screens outliers itself: the acceptance check then warns instead of rejecting.
     robust: ClassVar[bool] = False
     acceptance: ClassVar[AcceptanceLimits] = DEFAULT_LIMITS
+    # What each hyper-parameter may be (calibrators/params.py); a subclass extends it with its own
+    # (``_parameter_constraints = {**Calibrator._parameter_constraints, "population": [Interval(Integral, 2, None)]}``).
+    # Hyper-parameters without an entry are checked against the constructor's annotations.
+    _parameter_constraints: ClassVar[dict] = {"model": [Options(MODELS + ("auto",))], "seed": list(SEED),
+                                              "budget": list(BUDGET)}
     # Tolerances the conformance battery allows this method on low-noise data (angle rad, scale, nT).
     check_tolerance: ClassVar[dict] = {"angle_rad": 2e-5, "scale": 2e-5, "offset_nT": 0.5}
 
@@ -174,6 +206,11 @@ class Calibrator:
         self.model = model
         self.seed = seed
         self.budget = budget
+
+    def __setattr__(self, name, value):
+        if name in SEALED:
+            raise TypeError(f"{type(self).__name__}.{name} cannot be replaced on an instance either")
+        super().__setattr__(name, value)
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -214,12 +251,14 @@ class Calibrator:
 
     @classmethod
     def check_param_values(cls, params: dict) -> None:
-        """Refuse hyper-parameter values of the wrong type, judged by the constructor's annotations
+        """Refuse hyper-parameter values that break the class's declared ``_parameter_constraints``, and,
+        for those without one, values of the wrong type judged by the constructor's annotations
         (``population: int`` refuses ``"abc"`` and ``2.5``; ``float`` takes integers; ``X | None`` takes
-        None); annotations naming other types are not checked here."""
+        None); annotations naming other types are not checked."""
+        validate_params(cls.name or cls.__name__, cls._parameter_constraints, params)
         sig = inspect.signature(cls.__init__)
         for name, value in params.items():
-            if name not in sig.parameters:
+            if name not in sig.parameters or name in cls._parameter_constraints:
                 continue
             allowed = _annotation_types(sig.parameters[name].annotation)
             if allowed is None or isinstance(value, allowed) and not (isinstance(value, bool) and bool not in allowed):
@@ -295,6 +334,7 @@ class Calibrator:
         MATLAB magcal's ``expmfs``; the overall gain then stays relative, see ``calibrators/inputs.py``),
         else the data's own (a Dataset's ``f_ref_nT``, a DataFrame's ``f_ref`` column).  With the model
         ``auto`` the candidate models are compared first (``calibrators/modelselect.py``)."""
+        self.check_param_values(self.get_params())
         dataset = as_dataset(data, f_ref_nT=f_ref_nT, field=field, units=units, model=self.model)
         if self.model == "auto":
             from .modelselect import fit_auto
@@ -306,7 +346,8 @@ class Calibrator:
         warnings = self.validate(dataset)
         model = self.model
         objective = ScalarObjective(dataset.raw_nT, dataset.f_ref_nT, model)
-        evaluator = Evaluator(objective, self.budget)
+        budget = as_budget(self.budget)
+        evaluator = Evaluator(objective, budget)
         lower, upper = search_bounds(model, dataset.f_ref_nT, **self.search_box())
         x0 = identity_vector(model)
         rng = np.random.default_rng(self.seed)
@@ -322,7 +363,8 @@ class Calibrator:
                 # The start is the first counted evaluation, so the counter's best point (what a run cut
                 # short by its budget returns) is never worse than no calibration.
                 evaluator.values(x0[None, :])
-            out = self._solve(problem)
+            with _decoys_exposed(objective):
+                out = self._solve(problem)
         except BudgetExhausted as exc:
             if evaluator.best_x is None:
                 raise
@@ -345,11 +387,13 @@ class Calibrator:
         uncertainty, noise = _uncertainty(info.get("inliers", objective), x, info.get("noise_nT"))
         if not self.closed_form:
             rejections += _at_bounds(x, lower, upper, model)
+        rejections += _budget_breaches(evaluator, budget)
         warnings += notes
         return CalibrationResult(
             method=self.name, model=model, params=ErrorParams.from_vector(x, model), x=x,
             success=bool(success), status=status, message=out.message, fun=float(f_x),
-            n_evaluations=evaluator.n_evaluations, n_jacobians=evaluator.n_jacobians, nit=int(out.nit),
+            n_evaluations=evaluator.n_evaluations, n_jacobians=evaluator.n_jacobians,
+            n_function_evaluations=evaluator.n_function_evaluations, nit=int(out.nit),
             runtime_s=runtime, seed=self.seed, rms_before_nT=float(np.sqrt(f_start)),
             rms_after_nT=float(np.sqrt(f_x)), warnings=tuple(warnings),
             hyperparameters=self.get_params(), trace=tuple(evaluator.trace), extra=dict(out.extra),
@@ -386,6 +430,47 @@ def _annotation_types(annotation) -> tuple | None:
             return None
         types += _ANNOTATION_TYPES[part]
     return types
+
+
+def _budget_breaches(evaluator: Evaluator, budget: Budget) -> list[str]:
+    """The framework's re-check of its own counter after the solver returned (nevergrad's ``xpbase``): the
+    budget object is the one it was given and the evaluation-equivalents spent are within it."""
+    out = []
+    if evaluator.budget is not budget:
+        out.append("the calibrator replaced its evaluation budget; its counts cannot be trusted")
+    if budget.max_evaluations is not None and evaluator.n_evaluations > budget.max_evaluations:
+        out.append(f"{evaluator.n_evaluations} evaluation-equivalents exceed the budget of {budget.max_evaluations}")
+    return out
+
+
+_DECOYS: contextvars.ContextVar = contextvars.ContextVar("magbench_decoy_readings", default=None)
+
+
+@contextmanager
+def expose_decoys(make_decoy):
+    """Within this block, while a solver runs, the shared objective's public ``raw_nT`` and ``f_ref_nT``
+    hold ``make_decoy(raw_nT, f_ref_nT)`` instead of the readings (the objective computes from private
+    references, so honest solvers see no difference).  The conformance battery's honeypot: a calibrator
+    that reaches around its ``Problem`` to the readings fits the decoy, and its answer betrays it."""
+    token = _DECOYS.set(make_decoy)
+    try:
+        yield
+    finally:
+        _DECOYS.reset(token)
+
+
+@contextmanager
+def _decoys_exposed(objective: ScalarObjective):
+    make_decoy = _DECOYS.get()
+    if make_decoy is None:
+        yield
+        return
+    raw, f_ref = objective.raw_nT, objective.f_ref_nT
+    objective.raw_nT, objective.f_ref_nT = make_decoy(raw, f_ref)
+    try:
+        yield
+    finally:
+        objective.raw_nT, objective.f_ref_nT = raw, f_ref
 
 
 AT_BOUND_REL = 1e-6

@@ -113,3 +113,45 @@ def test_lu2014_tables_from_a_campaign(tmp_path):
     run_campaign(Campaign(("lu2014",), (MethodSpec("lsq"),), trials=2, seed=3), tmp_path, progress=False)
     text = lu2014_tables(tmp_path, tmp_path / "lu.md").read_text()
     assert "Table 1" in text and "Table 2" in text and "lsq" in text
+
+
+def _rows(frame, scenarios, configurations):
+    keep = frame[frame["scenario"].isin(scenarios) & frame["configuration"].isin(configurations)]
+    keep = keep.drop(columns=[c for c in RUNTIME if c in keep]).dropna(axis=1, how="all")
+    return keep[sorted(keep.columns)].sort_values(["scenario", "configuration", "trial"]).reset_index(drop=True)
+
+
+def test_seeds_follow_identity_not_list_position(tmp_path):
+    """Reordering scenarios and methods, and adding one of each, leaves every shared run identical."""
+    a = Campaign(("lu2014", "sphere9"), tuple(MethodSpec.parse(m) for m in ("lsq", "aco:iterations=30")),
+                 trials=2, seed=5)
+    b = Campaign(("cap9", "sphere9", "lu2014"),
+                 tuple(MethodSpec.parse(m) for m in ("ga:generations=20", "aco:iterations=30", "lsq")),
+                 trials=2, seed=5)
+    ra = run_campaign(a, tmp_path / "a", jobs=1, progress=False)
+    rb = run_campaign(b, tmp_path / "b", jobs=1, progress=False)
+    shared = (["lu2014", "sphere9"], ["lsq", "aco iterations=30"])
+    left, right = _rows(ra, *shared), _rows(rb, *shared)
+    assert len(left) == 8
+    pd.testing.assert_frame_equal(left, right)
+    # negative control: another root seed changes the shared runs
+    c = Campaign(a.scenarios, a.methods, trials=2, seed=6)
+    rc = run_campaign(c, tmp_path / "c", jobs=1, progress=False)
+    assert not np.allclose(_rows(rc, *shared)["rms_after_nT"], left["rms_after_nT"])
+
+
+def test_resume_with_added_methods_runs_only_the_new_configurations(tmp_path):
+    methods = ("lsq", "ellipsoid")
+    first = Campaign(("lu2014", "sphere9"), tuple(MethodSpec.parse(m) for m in methods), trials=2, seed=9)
+    ra = run_campaign(first, tmp_path, jobs=1, progress=False)
+    grown = Campaign(first.scenarios, first.methods + (MethodSpec.parse("tls"),), trials=2, seed=9)
+    rb = run_campaign(grown, tmp_path, jobs=1, progress=False, resume=True)
+    assert rb.attrs["n_resumed"] == len(ra) and rb.attrs["n_new"] == 2  # tls on sphere9 only (nine-parameter)
+    assert set(rb["configuration"]) == {"lsq", "ellipsoid", "tls"}
+    pd.testing.assert_frame_equal(_rows(rb, first.scenarios, methods), _rows(ra, first.scenarios, methods))
+    assert json.loads((tmp_path / "manifest.json").read_text())["campaign"]["configurations"] == \
+        ["lsq", "ellipsoid", "tls"]
+    # another seed is not a grown campaign: refused
+    with pytest.raises(Exception, match="another campaign"):
+        run_campaign(Campaign(first.scenarios, grown.methods, trials=2, seed=10), tmp_path, jobs=1,
+                     progress=False, resume=True)

@@ -152,7 +152,7 @@ def test_ctrl_c_keeps_finished_runs_and_resume_gives_the_uninterrupted_tables(un
         pd.testing.assert_frame_equal(table(out / name), table(uninterrupted / name))
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["complete"] is True and manifest["n_missing"] == 0 and manifest["n_runs"] == N_RUNS
-    assert not (out / CHECKPOINT).exists()  # the tables hold everything now
+    assert (out / CHECKPOINT).exists()  # kept: the exact record a grown campaign resumes from
 
 
 def test_killed_campaign_process_leaves_no_worker(tmp_path):

@@ -153,6 +153,55 @@ class AcceptsAnything(_Good):
         return []
 
 
+class PeeksThenConfirms(_Good):
+    """The honeypot's prey: fits the readings it finds by introspection, then has its answer evaluated once
+    through the counter so that the counting checks see it."""
+
+    name = "peeks"
+    supported_models = ("nine",)
+
+    def _solve(self, problem):
+        objective = problem._evaluator._objective
+        x = ellipsoid_params(objective.raw_nT, objective.f_ref_nT).to_vector("nine")
+        problem.value(x)
+        problem.value(x)
+        return SolveOutput(x)
+
+
+class EditsItsCounters(_Good):
+    """Does its work honestly, then rewrites the evaluator's counters to look cheap."""
+
+    name = "edits-counters"
+
+    def _solve(self, problem):
+        out = super()._solve(problem)
+        object.__setattr__(problem._evaluator, "_n_f", 2)
+        object.__setattr__(problem._evaluator, "_n_j", 0)
+        return out
+
+
+class RaisesItsBudget(_Good):
+    """Replaces its budget by a larger one, then searches as long as it likes."""
+
+    name = "raises-budget"
+
+    def _solve(self, problem):
+        from magbench.calibrators import Budget
+
+        object.__setattr__(problem._evaluator, "_budget", Budget(max_evaluations=10**9))
+        for _ in range(10):
+            problem.values(problem.x0 + np.zeros((10, 3)))
+        return super()._solve(problem)
+
+
+class ReplacedFit(_Good):
+    name = "replaced-fit"
+
+
+# going around Calibrator's guard on purpose: what check_entry_point_intact must catch
+type.__setattr__(ReplacedFit, "fit", lambda self, data, **kw: None)
+
+
 class WrongShape(_Good):
     name = "wrong-shape"
 
@@ -162,8 +211,12 @@ class WrongShape(_Good):
 
 
 CONTROLS = [
-    (ReadsAroundTheCounter, C.check_counts_through_the_counter, "nine", "never evaluated through the counter"),
-    (EvaluatesUncounted, C.check_counts_through_the_counter, "angles", "never evaluated through the counter"),
+    (ReadsAroundTheCounter, C.check_counts_through_the_counter, "nine", "did not come through the objective"),
+    (EvaluatesUncounted, C.check_counts_through_the_counter, "angles", "the objective computed"),
+    (EditsItsCounters, C.check_counts_through_the_counter, "angles", "the objective computed"),
+    (PeeksThenConfirms, C.check_no_hidden_data, "nine", "decoy readings"),
+    (RaisesItsBudget, C.check_budget_respected, "angles", "with a budget of 37"),
+    (ReplacedFit, C.check_entry_point_intact, "angles", "is not Calibrator.fit"),
     (ChangesItsHyperparameters, C.check_fit_keeps_hyperparameters, "angles", "max_nfev"),
     (WorseThanStart, C.check_not_worse_than_start, "angles", "solver's answer has rms"),
     (IgnoresItsSeed, C.check_seed_used, "angles", "seed is ignored"),
@@ -174,7 +227,7 @@ CONTROLS = [
     (StarArgs, C.check_hyperparameters, "angles", r"\*args"),
     (WrongAnswer, C.check_recovers_known_errors, "angles", "known errors not recovered|rms only"),
     (AcceptsAnything, C.check_refuses_bad_input, "angles", "did not refuse"),
-    (WrongShape, C.check_result_fields, "angles", "not a finite vector"),
+    (WrongShape, C.check_answer_is_a_vector, "angles", "not a finite vector"),
 ]
 
 
@@ -241,3 +294,38 @@ def test_fit_cannot_be_overridden():
         class OwnFit(_Good):  # noqa: F841
             def fit(self, dataset):
                 return None
+
+
+def test_fit_cannot_be_replaced_after_class_creation():
+    class Honest(_Good):
+        name = "honest"
+
+    with pytest.raises(TypeError, match="cannot be replaced"):
+        Honest.fit = lambda self, data: None
+    with pytest.raises(TypeError, match="cannot be replaced"):
+        Calibrator.fit = lambda self, data: None
+    with pytest.raises(TypeError, match="cannot be replaced"):
+        Honest(model="angles").fit = lambda data: None
+    with pytest.raises(TypeError, match="cannot be deleted"):
+        del Honest._fit_dataset
+    assert Honest.fit is Calibrator.fit
+
+
+def test_the_framework_flags_a_replaced_budget_outside_the_battery():
+    res = RaisesItsBudget(model="angles", budget=40).fit(C.check_dataset("angles"))
+    assert not res.accepted and any("replaced its evaluation budget" in r for r in res.rejections)
+
+
+def test_jacobians_are_charged_p_evaluation_equivalents():
+    from magbench.calibrators import make
+
+    res = make("lsq", model="nine").fit(C.check_dataset("nine"))
+    assert res.n_jacobians > 0
+    assert res.n_evaluations == res.n_function_evaluations + 9 * res.n_jacobians
+    d = res.as_dict()
+    assert (d["n_evaluations"], d["n_function_evaluations"], d["n_jacobians"]) == \
+        (res.n_evaluations, res.n_function_evaluations, res.n_jacobians)
+    # the budget is in the same unit: a Jacobian that does not fit in what is left is refused
+    assert res.n_evaluations > 11
+    small = make("lsq", model="nine", budget=11).fit(C.check_dataset("nine"))
+    assert small.n_evaluations <= 11 and small.status == "budget"

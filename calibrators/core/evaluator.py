@@ -27,16 +27,40 @@ class BudgetExhausted(Exception):
     """Raised by the counter when the budget is spent; the calibrator returns the best seen."""
 
 
-_AUDIT: contextvars.ContextVar[list | None] = contextvars.ContextVar("magbench_evaluation_audit", default=None)
+_AUDIT: contextvars.ContextVar[Audit | None] = contextvars.ContextVar("magbench_evaluation_audit", default=None)
+
+
+class Audit:
+    """What every ``Evaluator`` created inside ``audit_evaluations`` saw: the parameter vectors whose
+    objective value or residuals it computed (``points``, one (m, p) array per call) and the points of its
+    Jacobians and gradients (``jacobian_points``).  Kept apart from the evaluator's own counters, so that
+    the conformance battery can re-check the counts a result reports (nevergrad's ``xpbase`` re-check)."""
+
+    def __init__(self):
+        self.points: list[np.ndarray] = []
+        self.jacobian_points: list[np.ndarray] = []
+
+    def __iter__(self):  # the function-evaluated points, call by call
+        return iter(self.points)
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    @property
+    def n_function_evaluations(self) -> int:
+        return int(sum(len(x) for x in self.points))
+
+    @property
+    def n_jacobians(self) -> int:
+        return len(self.jacobian_points)
 
 
 @contextmanager
 def audit_evaluations():
-    """Within this block every ``Evaluator`` also keeps each parameter vector it evaluates, in the list
-    this context manager yields (one (m, p) array per call).  The conformance battery uses it to check
-    that the answer a solver returns went through the counter (nevergrad's benchmark re-checks the
-    optimizer's calls the same way); outside it nothing is recorded and nothing costs."""
-    log: list = []
+    """Within this block every ``Evaluator`` also keeps each parameter vector it evaluates in the ``Audit``
+    this context manager yields.  The conformance battery uses it to check that the answer a solver
+    returns went through the counter; outside it nothing is recorded and nothing costs."""
+    log = Audit()
     token = _AUDIT.set(log)
     try:
         yield log
@@ -48,20 +72,28 @@ class Evaluator:
     """The one evaluation counter (pymoo's ``Evaluator``, COCO's observer): every objective value,
     residual vector and Jacobian a calibrator sees passes through it.
 
-    Counts every parameter vector evaluated (one per population row, one per residual vector) and the
-    Jacobian/gradient evaluations separately; enforces the ``Budget`` exactly (a batch that would overrun
-    it is evaluated only up to the budget, then ``BudgetExhausted`` is raised); counts the calls a solver
-    makes after it was told the budget is spent (``n_overrun_calls``: a solver that swallows
-    ``BudgetExhausted`` and keeps asking is caught); keeps the best point seen and a convergence trace of
-    (evaluations, best F, batch mean F) per call.  The objective itself is private: a calibrator gets a
-    ``Problem`` that exposes only the counted functions.
+    Counts in evaluation-equivalents, the budget's unit (CONTRACT section 3): one per parameter vector
+    whose value or residuals are computed (``n_function_evaluations``), and p per Jacobian or gradient of
+    the p free parameters (``n_jacobians``; the finite-difference convention: a forward-difference
+    Jacobian costs p evaluations), so that a method that uses derivatives pays for them like one that
+    does not.  ``n_evaluations = n_function_evaluations + p * n_jacobians``.
+
+    Enforces the ``Budget`` exactly (a batch that would overrun it is evaluated only up to the budget, a
+    Jacobian that does not fit in what is left is refused, then ``BudgetExhausted`` is raised); counts the
+    calls a solver makes after it was told the budget is spent (``n_overrun_calls``: a solver that
+    swallows ``BudgetExhausted`` and keeps asking is caught); keeps the best point seen and a convergence
+    trace of (evaluation-equivalents, best F, batch mean F) per call.  The objective itself is private: a
+    calibrator gets a ``Problem`` that exposes only the counted functions.
     """
+
+    __slots__ = ("_objective", "_budget", "_n_f", "_n_j", "n_overrun_calls", "_exhausted", "best_x", "best_f",
+                 "trace", "_audit", "_t0")
 
     def __init__(self, objective, budget: Budget | None = None):
         self._objective = objective
-        self.budget = budget or Budget()
-        self.n_evaluations = 0
-        self.n_jacobians = 0
+        self._budget = budget or Budget()
+        self._n_f = 0
+        self._n_j = 0
         self.n_overrun_calls = 0
         self._exhausted = False
         self.best_x: np.ndarray | None = None
@@ -71,8 +103,30 @@ class Evaluator:
         self._t0 = time.perf_counter()
 
     @property
+    def budget(self) -> Budget:
+        return self._budget
+
+    @property
     def n_params(self) -> int:
         return self._objective.n_params
+
+    @property
+    def n_function_evaluations(self) -> int:
+        return self._n_f
+
+    @property
+    def n_jacobians(self) -> int:
+        return self._n_j
+
+    @property
+    def jacobian_cost(self) -> int:
+        """Evaluation-equivalents one Jacobian or gradient costs: the number of free parameters."""
+        return int(self._objective.n_params)
+
+    @property
+    def n_evaluations(self) -> int:
+        """Evaluation-equivalents spent: function evaluations plus p per Jacobian."""
+        return self._n_f + self.jacobian_cost * self._n_j
 
     def _refuse(self, why: str):
         if self._exhausted:
@@ -80,8 +134,10 @@ class Evaluator:
         self._exhausted = True
         raise BudgetExhausted(why)
 
-    def _allowance(self, m: int) -> int:
-        b = self.budget
+    def _allowance(self, m: int, jacobians: int = 0) -> int:
+        """How many of ``m`` function evaluations may be made now (with ``jacobians`` Jacobians, which must
+        fit whole); raises ``BudgetExhausted`` when nothing may."""
+        b = self._budget
         if self._exhausted:
             self._refuse("the budget was already spent")
         if b.max_evaluations is None and b.max_time_s is None:
@@ -91,19 +147,20 @@ class Evaluator:
         if b.max_evaluations is None:
             return m
         left = b.max_evaluations - self.n_evaluations
-        if left <= 0:
-            self._refuse(f"evaluation budget of {b.max_evaluations} reached")
-        return min(m, left)
+        need_j = jacobians * self.jacobian_cost
+        if left <= 0 or need_j > left or (need_j and left - need_j < m):
+            self._refuse(f"evaluation budget of {b.max_evaluations} evaluation-equivalents reached")
+        return min(m, left - need_j)
 
     @property
     def evaluations_left(self) -> int | None:
-        b = self.budget
+        b = self._budget
         return None if b.max_evaluations is None else max(0, b.max_evaluations - self.n_evaluations)
 
     def _record(self, x: np.ndarray, f: np.ndarray) -> None:
-        self.n_evaluations += len(f)
+        self._n_f += len(f)
         if self._audit is not None:
-            self._audit.append(np.array(x, dtype=float, copy=True))
+            self._audit.points.append(np.array(x, dtype=float, copy=True))
         i = f.argmin()
         fi = f[i]
         if fi != fi:  # argmin prefers NaN: look again among the finite values
@@ -115,8 +172,13 @@ class Evaluator:
             self.best_x = x[i].copy()
         self.trace.append((self.n_evaluations, self.best_f, f.sum() / len(f)))
 
+    def _record_jacobian(self, x: np.ndarray) -> None:
+        self._n_j += 1
+        if self._audit is not None:
+            self._audit.jacobian_points.append(np.array(x, dtype=float, copy=True))
+
     def values(self, x: np.ndarray) -> np.ndarray:
-        """F for a population (m, p) -> (m,); counts m evaluations."""
+        """F for a population (m, p) -> (m,); costs m evaluations."""
         if not (isinstance(x, np.ndarray) and x.ndim == 2 and x.dtype == np.float64):
             x = np.atleast_2d(np.asarray(x, dtype=float))
         k = self._allowance(x.shape[0])
@@ -124,29 +186,30 @@ class Evaluator:
         f = self._objective.values(x_k)
         self._record(x_k, f)
         if k < x.shape[0]:
-            self._refuse(f"evaluation budget of {self.budget.max_evaluations} reached")
+            self._refuse(f"evaluation budget of {self._budget.max_evaluations} evaluation-equivalents reached")
         return f
 
     def value(self, x: np.ndarray) -> float:
         return float(self.values(np.asarray(x, dtype=float)[None, :])[0])
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
-        """Residual vector at one point; counts one evaluation."""
+        """Residual vector at one point; costs one evaluation."""
         self._allowance(1)
         r = self._objective.residuals(x)
         self._record(np.asarray(x, dtype=float)[None, :], np.array([np.mean(r * r)]))
         return r
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
-        self._allowance(0)
-        self.n_jacobians += 1
+        """The residuals' Jacobian (n, p) at one point; costs p evaluation-equivalents."""
+        self._allowance(0, jacobians=1)
+        self._record_jacobian(np.asarray(x, dtype=float))
         return self._objective.jacobian(x)
 
     def normal_equations(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-        """``(J^T J, J^T r, r^T r)`` at one point: one counted evaluation and one Jacobian."""
-        self._allowance(1)
+        """``(J^T J, J^T r, r^T r)`` at one point: one evaluation and one Jacobian (1 + p)."""
+        self._allowance(1, jacobians=1)
         out = self._objective.normal_equations(x)
-        self.n_jacobians += 1
+        self._record_jacobian(np.asarray(x, dtype=float))
         n = self._objective.raw_nT.shape[0]
         self._record(np.asarray(x, dtype=float)[None, :], np.array([out[2] / n]))
         return out
@@ -156,6 +219,7 @@ class Evaluator:
         return self._objective.raw_nT.shape[0]
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
-        self._allowance(0)
-        self.n_jacobians += 1
+        """dF/dx at one point; costs p evaluation-equivalents, as a forward-difference gradient would."""
+        self._allowance(0, jacobians=1)
+        self._record_jacobian(np.asarray(x, dtype=float))
         return self._objective.gradient(x)

@@ -105,11 +105,15 @@ class ScalarObjective:
             raise ValueError(f"unknown model {model!r}")
         self.raw_nT = np.asarray(raw_nT, dtype=float)
         self.f_ref_nT = np.broadcast_to(np.asarray(f_ref_nT, dtype=float), (self.raw_nT.shape[0],))
+        # The computations read these private references only: the public attributes are what other modules
+        # read (acceptance, Fisher information); the conformance battery's honeypot replaces them with decoys
+        # while a solver runs (calibrators/checks.py, check_no_hidden_data).
+        self._raw, self._f_ref = self.raw_nT, self.f_ref_nT
         self.model = model
         self.base = base_model(model)
         self._free = None if model == self.base else list(FREE[model])  # Jacobian columns kept
         self.n_params = n_params(model)
-        self._raw_t = np.ascontiguousarray(self.raw_nT.T)  # (3, n): one contiguous row per axis
+        self._raw_t = np.ascontiguousarray(self._raw.T)  # (3, n): one contiguous row per axis
         self._design_cache: np.ndarray | None = None  # built on the first population call
 
     @property
@@ -117,14 +121,14 @@ class ScalarObjective:
         """The quadric design (6 or 10, n) of the population form, built once when first needed (local
         methods on large records never need it)."""
         if self._design_cache is None:
-            x, y, z = self.raw_nT.T
+            x, y, z = self._raw.T
             cols = [x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z]
             if self.base == "nine":
                 cols += [x, y, z, np.ones_like(x)]
             self._design_cache = np.ascontiguousarray(np.array(cols))
             self._design_mean = self._design_cache.mean(axis=1)
-            self._f_scaled = 2.0 * self.f_ref_nT / self.raw_nT.shape[0]
-            self._f2_mean = float(np.mean(self.f_ref_nT**2))
+            self._f_scaled = 2.0 * self._f_ref / self._raw.shape[0]
+            self._f2_mean = float(np.mean(self._f_ref**2))
         return self._design_cache
 
     def values(self, x: np.ndarray, exact: bool | None = None) -> np.ndarray:
@@ -160,11 +164,11 @@ class ScalarObjective:
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Residuals at one point, computed directly as |M (raw - o)| - F (the reference form), block by block."""
         mat, o = correction_matrices(np.asarray(x, dtype=float)[None, :], self.model)
-        out = np.empty(self.raw_nT.shape[0])
+        out = np.empty(self._raw.shape[0])
         for rows in self._blocks():
             c = _lower_times(mat[0], self._raw_t[:, rows] - o[0][:, None])
             out[rows] = np.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])
-        out -= self.f_ref_nT
+        out -= self._f_ref
         return out
 
     def _block(self, x: np.ndarray, rows: slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -199,15 +203,15 @@ class ScalarObjective:
             jt[6:9] = -mtu
         if self._free is not None:
             jt = jt[self._free]
-        return norm - self.f_ref_nT[rows], jt, mtu[0] * mtu[0] + mtu[1] * mtu[1] + mtu[2] * mtu[2]
+        return norm - self._f_ref[rows], jt, mtu[0] * mtu[0] + mtu[1] * mtu[1] + mtu[2] * mtu[2]
 
     def _blocks(self):
-        n = self.raw_nT.shape[0]
+        n = self._raw.shape[0]
         return [slice(i, min(i + CHUNK_ROWS, n)) for i in range(0, n, CHUNK_ROWS)]
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         """d r_i / d x (n, p), analytic (see ``_block``), computed block by block."""
-        out = np.empty((self.n_params, self.raw_nT.shape[0]))
+        out = np.empty((self.n_params, self._raw.shape[0]))
         for rows in self._blocks():
             out[:, rows] = self._block(x, rows)[1]
         return out.T
@@ -233,7 +237,7 @@ class ScalarObjective:
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """dF/dx of eq. 3: (2/N) J^T r."""
-        return 2.0 * self.normal_equations(x)[1] / self.raw_nT.shape[0]
+        return 2.0 * self.normal_equations(x)[1] / self._raw.shape[0]
 
 
 def _lower_times(mat: np.ndarray, d: np.ndarray) -> np.ndarray:

@@ -73,6 +73,11 @@ class Problem:
         return self._evaluator.n_evaluations
 
     @property
+    def jacobian_cost(self) -> int:
+        """Evaluation-equivalents one Jacobian or gradient costs (the number of free parameters)."""
+        return self._evaluator.jacobian_cost
+
+    @property
     def evaluations_left(self) -> int | None:
         """Evaluations the budget still allows (None: no evaluation budget)."""
         return self._evaluator.evaluations_left

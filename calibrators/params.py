@@ -1,0 +1,114 @@
+"""Declarative hyper-parameter constraints (scikit-learn's ``_parameter_constraints`` and
+``validate_parameter_constraints``, ``sklearn/utils/_param_validation.py``): each calibrator declares, beside
+its constructor, what each hyper-parameter may be; one function checks them for every entry point
+(``make``, ``set_params``, ``fit``, ``calibrate --param``, ``compare``'s ``ga:budget=5000``), with messages
+in Python's words.  A constraint is a Python type, ``None``, an ``Interval`` or an ``Options``; a
+hyper-parameter is valid when it satisfies any one of its constraints."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from numbers import Integral, Real
+
+from magbench.errors import InputError
+
+from .core.evaluator import Budget
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A number of ``kind`` (``Integral`` or ``Real``) between ``left`` and ``right`` (None: unbounded),
+    ``closed`` on "both", "left", "right" or "neither" ends; never NaN or infinite."""
+
+    kind: type
+    left: float | None
+    right: float | None
+    closed: str = "both"
+
+    def accepts(self, value) -> bool:
+        if isinstance(value, bool) or not isinstance(value, self.kind):
+            return False
+        if not math.isfinite(float(value)):
+            return False
+        lo_ok = self.left is None or (value >= self.left if self.closed in ("both", "left") else value > self.left)
+        hi_ok = self.right is None or (value <= self.right if self.closed in ("both", "right") else value < self.right)
+        return lo_ok and hi_ok
+
+    def __str__(self) -> str:
+        what = "an int" if self.kind is Integral else "a float"
+        lo = "" if self.left is None else ("[" if self.closed in ("both", "left") else "(") + f"{self.left:g}"
+        hi = "" if self.right is None else f"{self.right:g}" + ("]" if self.closed in ("both", "right") else ")")
+        if self.left is not None and self.right is not None:
+            return f"{what} in {lo}, {hi}"
+        if self.left is not None:
+            return f"{what} {'>=' if self.closed in ('both', 'left') else '>'} {self.left:g}"
+        if self.right is not None:
+            return f"{what} {'<=' if self.closed in ('both', 'right') else '<'} {self.right:g}"
+        return what
+
+
+@dataclass(frozen=True)
+class Options:
+    """One of a fixed set of values."""
+
+    values: tuple
+
+    def accepts(self, value) -> bool:
+        return isinstance(value, type(self.values[0])) and value in self.values
+
+    def __str__(self) -> str:
+        return "one of " + ", ".join(repr(v) for v in self.values)
+
+
+BUDGET = (Interval(Integral, 1, None), Budget, None)
+"""An evaluation budget: a number of evaluation-equivalents (an int), a ``Budget``, or None (none)."""
+SEED = (Interval(Integral, 0, None), None)
+
+
+def _accepts(constraint, value) -> bool:
+    if constraint is None:
+        return value is None
+    if isinstance(constraint, (Interval, Options)):
+        return constraint.accepts(value)
+    if isinstance(constraint, type):
+        if constraint is float:
+            return isinstance(value, Real) and not isinstance(value, bool) and math.isfinite(float(value))
+        if constraint is int:
+            return isinstance(value, Integral) and not isinstance(value, bool)
+        return isinstance(value, constraint)
+    raise TypeError(f"unknown constraint {constraint!r}")
+
+
+def _describe(constraint) -> str:
+    if constraint is None:
+        return "None"
+    if isinstance(constraint, type):
+        return {"float": "a float", "int": "an int", "str": "a str", "bool": "a bool"}.get(
+            constraint.__name__, f"a {constraint.__name__}")
+    return str(constraint)
+
+
+def validate_params(owner: str, constraints: dict, params: dict) -> None:
+    """Raise ``InputError`` for the first hyper-parameter in ``params`` that satisfies none of its
+    constraints (names without constraints are not checked here)."""
+    for name, value in params.items():
+        allowed = constraints.get(name)
+        if allowed is None:
+            continue
+        if not isinstance(allowed, (tuple, list)):
+            allowed = (allowed,)
+        if any(_accepts(c, value) for c in allowed):
+            continue
+        wanted = " or ".join(_describe(c) for c in allowed)
+        raise InputError(f"{owner}: hyper-parameter {name} must be {wanted}, not {value!r}")
+
+
+def as_budget(budget) -> Budget:
+    """The ``Budget`` a hyper-parameter ``budget`` stands for: an int is a number of evaluation-equivalents."""
+    if budget is None:
+        return Budget()
+    if isinstance(budget, Budget):
+        return budget
+    if isinstance(budget, Integral) and not isinstance(budget, bool) and budget >= 1:
+        return Budget(max_evaluations=int(budget))
+    raise InputError(f"budget must be an int >= 1 (evaluation-equivalents) or a Budget, not {budget!r}")
