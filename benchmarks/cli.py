@@ -718,7 +718,9 @@ def _add_compare_parser(sub) -> None:
     p.add_argument("--budgets", type=_positive_int, nargs="+", metavar="N",
                    help="run every iterative method at each of these evaluation budgets (fixed-budget comparison); "
                         "closed-form methods run once")
-    p.add_argument("--seed", type=_seed, default=0, help="root seed, a non-negative integer; every run's seed is spawned from it (default 0)")
+    p.add_argument("--seed", type=_seed, default=0,
+                   help="root seed, a non-negative integer; every run's seed follows from it and the run's identity "
+                        "(scenario, trial, configuration), never from list positions (default 0)")
     p.add_argument("--out", required=True, metavar="DIR", help="campaign folder: tables, figures, report.html")
     p.add_argument("--jobs", type=int, default=1, help="local worker processes (with --dask local: Dask workers)")
     p.add_argument("--dask", metavar="ADDRESS|local",

@@ -65,6 +65,7 @@ class AcceptanceLimits:
     fitness_ratio: float = 2.0
     fitness_floor_fraction: float = 1e-7
     profile_chi2: float = 9.0
+    physical_range: bool = True  # the fluxgate's physical range applies (a magcal-style general ellipsoid: False)
 
     def tolerance(self, name: str, field_nT: float) -> float:
         if name.endswith("_rad"):
@@ -105,12 +106,16 @@ def identifiability(objective: ScalarObjective, x: np.ndarray, noise_nT: float, 
 
 
 def physical_range(x: np.ndarray, model: str, physical_lower: np.ndarray, physical_upper: np.ndarray) -> list[str]:
+    """The fluxgate's physical range (``PHYSICAL_BOX``), each parameter outside it named with the limit it
+    exceeds."""
     names = PARAM_NAMES[model]
-    bad = [f"{names[i]} = {x[i]:.4g}" for i in np.flatnonzero(~((x > physical_lower) & (x < physical_upper)))]
+    bad = [f"{names[i]} = {x[i]:.4g} (limit {physical_lower[i]:.4g} .. {physical_upper[i]:.4g})"
+           for i in np.flatnonzero(~((x > physical_lower) & (x < physical_upper)))]
     if not bad:
         return []
-    return [f"{', '.join(bad)} outside the physical range (angles within 0.5 rad, scales 0.5..2, offsets "
-            "within twice the field): the fit absorbed something else (outliers, wrong units, too little coverage)"]
+    return [f"{', '.join(bad)} outside a fluxgate's physical range (angles within 0.5 rad, scales 0.5..2, offsets "
+            "within twice the field): the fit absorbed something else (outliers, wrong units, too little coverage); "
+            "for a general ellipsoid use --method sym"]
 
 
 def reference_fit(objective: ScalarObjective, x: np.ndarray, physical_box: tuple[np.ndarray, np.ndarray],
@@ -362,7 +367,8 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
             warnings.append(what + ": screened by the robust method")
         else:
             rejections.append(what + ": remove them or use --method ransac")
-    rejections += physical_range(x, objective.model, *physical_box)
+    if limits.physical_range:
+        rejections += physical_range(x, objective.model, *physical_box)
     n, p = int((~mask).sum()), len(x)
     info["n_outliers"] = n_out
     if n <= p:

@@ -527,7 +527,8 @@ def export_text(cal: Calibration, fmt: str, path: Path) -> str | None:
         return "\n".join(lines) + "\n"
     lines = ["# " + head[0],
              "# PX4 calibration::Magnetometer::Correct: corrected = R * (S * (data_G - CAL_MAG0_OFF)),",
-             "# S = [[XSCALE, XODIAG, YODIAG], [XODIAG, YSCALE, ZODIAG], [YODIAG, ZODIAG, ZSCALE]]; offsets in gauss, subtracted.",
+             "# S = [[XSCALE, XODIAG, YODIAG], [XODIAG, YSCALE, ZODIAG], [YODIAG, ZODIAG, ZSCALE]];",
+             "# offsets in gauss, subtracted.",
              "# S = sqrtm(M^T M): same corrected magnitude; the rotation scalar data cannot see is dropped.",
              "# CAL_MAG0_ID (the device id) must be set on the vehicle.",
              "# Vehicle-Id Component-Id Name Value Type"]

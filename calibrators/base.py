@@ -265,7 +265,8 @@ class Calibrator(metaclass=_Sealed):
                 if isinstance(value, float) and not np.isfinite(value):
                     raise InputError(f"{cls.name}: hyper-parameter {name} must be finite, not {value}")
                 continue
-            wanted = " or ".join(sorted({t.__name__ for t in allowed} - {"NoneType"} | ({"None"} if type(None) in allowed else set())))
+            names = {t.__name__ for t in allowed} - {"NoneType"} | ({"None"} if type(None) in allowed else set())
+            wanted = " or ".join(sorted(names))
             raise InputError(f"{cls.name}: hyper-parameter {name} must be {wanted}, not {value!r}")
 
     def set_params(self, **params) -> Calibrator:

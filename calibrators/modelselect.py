@@ -178,7 +178,8 @@ def _reason(chosen: dict, best: dict, rows: list[dict], folds: int) -> str:
         elif not r["within_noise"] and r["rms_heldout_nT"] > best["rms_heldout_nT"]:
             parts.append(f"{r['model']} is significantly worse ({r['rms_heldout_nT']:.4g} nT held out)")
         elif not r["eligible"]:
-            better = " although it fits better" if r["rms_heldout_nT"] < chosen["rms_heldout_nT"] and not r["within_noise"] else ""
+            fits_better = r["rms_heldout_nT"] < chosen["rms_heldout_nT"] and not r["within_noise"]
+            better = " although it fits better" if fits_better else ""
             parts.append(f"{r['model']} ({r['rms_heldout_nT']:.4g} nT held out) is not determined by these data{better} "
                          f"({cause})")
         elif r["n_params"] > chosen["n_params"]:

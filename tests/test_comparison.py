@@ -83,7 +83,9 @@ def test_write_comparison_on_a_campaign(tmp_path):
     text = (tmp_path / "comparison.md").read_text()
     assert "too few trials" in text and "| calibrator |" in text
     ert = pd.read_csv(tmp_path / "comparison" / "ert.csv")
-    assert (ert[ert.configuration == "lsq"].success_rate == 1).all()
+    # lsq's answer is each trial's optimum, so it reaches every RMS target; the angle targets (multiples of the
+    # Cramér-Rao deviation) are met by chance at the tightest level
+    assert (ert[(ert.configuration == "lsq") & (ert.kind == "rms")].success_rate == 1).all()
     assert not math.isnan(ert.ert_evaluations.iloc[0])
 
 

@@ -16,6 +16,12 @@ FIGURE_SIZE_IN = (8, 4.5)
 FIGURE_DPI = 200
 
 
+
+def _measure_note(result: dict) -> str:
+    """'; MAD scale ...' when the remainder was measured robustly, else nothing."""
+    measure = result.get("remainder_measure", "mean square")
+    return "" if measure == "mean square" else "; " + measure
+
 def _table(result: dict, source: str) -> list[str]:
     lines = [f"diagnosis of {source} ({result['n_points']} points, base model: {result['base_model']})",
              f"  residual RMS {result['rms_fit_nT']:.3f} nT on the fit, {result['rms_base_nT']:.3f} nT held out; "
@@ -34,7 +40,7 @@ def _table(result: dict, source: str) -> list[str]:
     if "remainder_nT" in result:
         lines.append(f"  remainder after the selected effects: {result['remainder_nT']:.3f} nT "
                      f"(z {result['remainder_z']:.1f}, {'significant' if result['remainder_significant'] else 'not significant'}"
-                     f"{'; ' + result['remainder_measure'] if result.get('remainder_measure', 'mean square') != 'mean square' else ''})")
+                     f"{_measure_note(result)})")
     if result.get("base_fit", "lsq") != "lsq":
         lines.append(f"  base fit: {result['base_fit']} (spikes pulled the least-squares fit)")
     if "power" in result:

@@ -8,6 +8,11 @@ import numpy as np
 from magbench.errors import InputError
 from magbench.simulate.sensor import ErrorParams
 
+ELLIPSOID_K_MAX = 256.0
+"""The largest k of the constraint ``k J - I² = 1`` tried: k = 4 guarantees an ellipsoid when its shortest
+semi-axis is at least half the longest; where it finds none, k is doubled (Li & Griffiths 2004, section 4,
+search k upwards), up to this bound."""
+
 
 def fit_ellipsoid(raw_nT: np.ndarray, k: float = 4.0) -> tuple[np.ndarray, np.ndarray]:
     """Li-Griffiths fit: returns (A, center) with ``(x - center)^T A (x - center) = 1``.
@@ -36,6 +41,8 @@ def fit_ellipsoid(raw_nT: np.ndarray, k: float = 4.0) -> tuple[np.ndarray, np.nd
     eigval, eigvec = np.real(eigval), np.real(eigvec)
     positive = np.flatnonzero(eigval > 0)
     if positive.size == 0:
+        if k < ELLIPSOID_K_MAX:  # Li & Griffiths, section 4: a larger k admits more elongated ellipsoids
+            return fit_ellipsoid(raw, 2.0 * k)
         raise InputError("the ellipsoid fit has no admissible solution (no positive eigenvalue)")
     v1 = eigvec[:, positive[np.argmax(eigval[positive])]]
     v2 = -s22_inv_s21 @ v1
@@ -114,3 +121,35 @@ def axis_ellipsoid_fit(raw_nT: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if not g > 0:
         raise InputError("the readings fit no axis-aligned ellipsoid")
     return mu + s * centre, s * np.sqrt(g / quad)
+
+
+def fit_quadric(raw_nT: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The general least-squares ellipsoid (algebraic distance, unit-norm coefficients): the right singular
+    vector of the smallest singular value of the quadric design ``[x², y², z², 2xy, 2xz, 2yz, 2x, 2y, 2z, 1]``
+    on normalized readings (the fit behind MATLAB magcal's ``sym`` option).  Unlike the Li-Griffiths fit it
+    has no ellipsoid-specific constraint, so elongated ellipsoids (radii in ratio beyond 2) are fitted too;
+    returns (A, centre) with ``(x - centre)^T A (x - centre) = 1``, or raises ``InputError`` when the quadric
+    is not an ellipsoid."""
+    raw = np.asarray(raw_nT, dtype=float)
+    if raw.shape[0] < 10:
+        raise InputError(f"a general ellipsoid fit needs at least 10 points, got {raw.shape[0]}")
+    norm, mu, s = normalize(raw)
+    x, y, z = norm.T
+    design = np.column_stack([x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z, 2 * x, 2 * y, 2 * z,
+                              np.ones_like(x)])
+    try:
+        v = np.linalg.svd(design, full_matrices=False)[2][-1]
+    except np.linalg.LinAlgError:
+        raise InputError("the readings do not determine an ellipsoid (singular design)") from None
+    a, b, c, h, g, f = v[:6]
+    shape, centre_n = quadric_to_ellipsoid(np.array([[a, h, g], [h, b, f], [g, f, c]]), v[6:9], v[9])
+    return shape / (s * s), mu + s * centre_n
+
+
+def volume_radius(shape: np.ndarray) -> float:
+    """The radius of the sphere of the ellipsoid ``x^T A x = 1``'s volume: the geometric mean of its semi-axes
+    (MATLAB magcal's ``expmfs``)."""
+    det = float(np.linalg.det(shape))
+    if not det > 0:
+        raise InputError("the fitted quadric is not an ellipsoid")
+    return det ** (-1.0 / 6.0)
