@@ -108,10 +108,13 @@ def load_dataset(args, require_vector: bool = True):
 
     cli_ref = _reference_from_args(args)
     data = read_csv(args.file, units=args.units, require_vector=require_vector, expected_field_nT=cli_ref)
+    ignored = None
     if data.f_ref_nT is not None:
         source = "the file's f_ref column"
         if cli_ref is not None:
-            source += f" (it takes precedence over {'--field' if args.field is not None else '--igrf'})"
+            flag = "--field" if args.field is not None else "--igrf"
+            source += f" (it takes precedence over {flag})"
+            ignored = f"{flag} was not used: the file's f_ref column comes first (CONTRACT section 2)"
     else:
         ref, source = cli_ref, (f"--field {args.field:g}" if args.field is not None else
                                 f"--igrf {args.igrf} (IGRF-14)" if args.igrf else None)
@@ -120,7 +123,8 @@ def load_dataset(args, require_vector: bool = True):
         if ref is not None:
             data = data.with_reference(np.full(len(data), ref))
     if source is not None and hasattr(data, "meta"):
-        data = replace(data, meta={**data.meta, "reference_source": source})
+        data = replace(data, meta={**data.meta, "reference_source": source,
+                                   **({"reference_ignored": ignored} if ignored else {})})
     return data
 
 

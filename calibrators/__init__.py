@@ -10,9 +10,11 @@ from magbench.simulate.sensor import ErrorParams
 
 from .artifacts import Calibration, export, load_calibration
 from .base import CalibrationResult, Calibrator
+from .checks import check_calibrator
 from .core.evaluator import Budget, BudgetExhausted, Evaluator, audit_evaluations
 from .core.objective import ScalarObjective
 from .core.problem import Problem, ReadingsProblem, SolveOutput, search_bounds
+from .modelselect import choose_model  # noqa: F401  (installs the chooser behind model='auto')
 from .registry import ENTRY_POINT_GROUP, available, get, make, register
 
 __all__ = [
@@ -23,8 +25,3 @@ __all__ = [
 ]
 
 
-def check_calibrator(calibrator, **kwargs):
-    """Run the conformance battery on a calibrator class or instance (see ``calibrators.checks``)."""
-    from .checks import check_calibrator as _check
-
-    return _check(calibrator, **kwargs)

@@ -78,6 +78,7 @@ from typing import Any
 
 import numpy as np
 
+from magbench import __version__
 from magbench.errors import InputError
 from magbench.safeio import InputBytes, atomic_output, atomic_write, check_output, read_input
 from magbench.simulate.dataset import UNIT_FACTORS_NT, _header, _parse_head, read_csv
@@ -151,8 +152,6 @@ class Calibration:
     # -- building --------------------------------------------------------------------------------------
     @classmethod
     def from_result(cls, result) -> Calibration:
-        from magbench import __version__
-
         return cls(model=result.model, matrix=result.params.matrix, offset_nT=result.params.offset_nT,
                    params=result.params, uncertainty=dict(result.uncertainty), noise_nT=float(result.noise_nT),
                    reference=dict(result.reference), data_digest=result.data_digest, n_points=int(result.n_points),

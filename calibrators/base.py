@@ -159,6 +159,11 @@ def _jsonable(v):
     return v
 
 
+MODEL_CHOOSER: list = []
+"""The function behind ``model="auto"``, installed by ``calibrators.modelselect`` (which compares the candidate
+models with lsq, a method: the framework's base cannot import it without a cycle, so the dependency is
+inverted).  Importing any module of ``magbench.calibrators`` imports the package, which installs it."""
+
 SEALED = ("fit", "_fit_dataset")
 """The framework's entry points: no subclass defines them, and no one replaces them on a class or instance."""
 
@@ -338,13 +343,15 @@ class Calibrator(metaclass=_Sealed):
         self.check_param_values(self.get_params())
         dataset = as_dataset(data, f_ref_nT=f_ref_nT, field=field, units=units, model=self.model)
         if self.model == "auto":
-            from .modelselect import fit_auto
-
-            return fit_auto(self, dataset)
+            if not MODEL_CHOOSER:
+                raise InputError("model auto needs magbench.calibrators.modelselect, which installs the chooser")
+            return MODEL_CHOOSER[0](self, dataset)
         return self._fit_dataset(dataset)
 
     def _fit_dataset(self, dataset: Dataset) -> CalibrationResult:
         warnings = self.validate(dataset)
+        if dataset.meta.get("reference_ignored") and "reference_estimated" not in dataset.meta:
+            warnings.append(dataset.meta["reference_ignored"])
         model = self.model
         objective = ScalarObjective(dataset.raw_nT, dataset.f_ref_nT, model)
         budget = as_budget(self.budget)
@@ -496,8 +503,8 @@ def _reference_of(dataset: Dataset) -> dict:
            "estimated": "reference_estimated" in dataset.meta}
     if out["estimated"]:
         out["relative"] = dataset.meta["reference_estimated"]
-        if dataset.meta.get("reference_ignored"):
-            out["ignored"] = dataset.meta["reference_ignored"]
+    if dataset.meta.get("reference_ignored"):
+        out["ignored"] = dataset.meta["reference_ignored"]
     return out
 
 

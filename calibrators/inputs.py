@@ -62,6 +62,15 @@ def as_dataset(data, f_ref_nT=None, field=None, units: str = "nT", model: str = 
             raise InputError(f"field must be a number of nT or 'auto', not {field!r}")
         return with_estimated_field(dataset, model)
     ref = f_ref_nT if f_ref_nT is not None else field
+    if ref is not None and dataset.f_ref_nT is not None:
+        # one order of reference sources for Python and the command line (CONTRACT section 2): the data's own
+        # f_ref comes first, so an explicit value is not used; the result says so
+        given_as = "f_ref_nT=" if f_ref_nT is not None else "field="
+        return Dataset(dataset.raw_nT, dataset.f_ref_nT, dataset.t_s, dataset.temp_C, dataset.heading_deg,
+                       dataset.truth, {**dataset.meta,
+                                       "reference_source": f"the data's own f_ref (it takes precedence over {given_as})",
+                                       "reference_ignored": f"{given_as} was not used: the data's own f_ref comes "
+                                                            "first (CONTRACT section 2)"})
     if ref is not None:
         try:
             arr = np.asarray(ref, dtype=float)

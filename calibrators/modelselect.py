@@ -35,8 +35,10 @@ from magbench.numerics import lm_normal
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
+from .base import MODEL_CHOOSER
 from .core.objective import ScalarObjective
 from .core.problem import PHYSICAL_BOX, search_bounds
+from .methods.lsq import LeastSquares
 
 FOLDS = 5
 Z_WITHIN_NOISE = 2.0
@@ -94,8 +96,6 @@ def held_out_residuals(dataset: Dataset, model: str, x_full: np.ndarray, folds: 
 def choose_model(dataset: Dataset, candidates=None, folds: int = FOLDS, seed: int | None = 0) -> tuple[str, dict, dict]:
     """Fit every candidate with lsq, cross-validate, choose.  Returns the chosen model, the record of the
     choice (``model_choice``) and the lsq results by model."""
-    from .methods.lsq import LeastSquares
-
     candidates = [m for m in MODELS if m in (candidates or MODELS)]
     rows, results, sq = [], {}, {}
     field = float(np.median(dataset.f_ref_nT)) if dataset.f_ref_nT is not None else 0.0
@@ -208,3 +208,6 @@ def fit_auto(calibrator, dataset: Dataset):
     if "warning" in record:
         return replace(result, model_choice=record, warnings=tuple(result.warnings) + (record["warning"],))
     return replace(result, model_choice=record)
+
+
+MODEL_CHOOSER[:] = [fit_auto]

@@ -7,6 +7,7 @@ from importlib import metadata
 from magbench.errors import InputError
 
 from .base import Calibrator
+from .methods import BUILTINS
 
 ENTRY_POINT_GROUP = "magbench.calibrators"
 
@@ -29,6 +30,10 @@ def register(cls: type) -> type:
                          f"({_REGISTRY[name].__module__}.{_REGISTRY[name].__qualname__})")
     _REGISTRY[name] = cls
     return cls
+
+
+for _cls in BUILTINS:
+    register(_cls)
 
 
 def unregister(name: str) -> None:
@@ -60,8 +65,6 @@ def _load_plugins() -> None:
 
 def available() -> dict[str, type]:
     """All registered calibrators, built-in and plug-in, by name."""
-    from . import methods  # noqa: F401  (registers the built-ins)
-
     _load_plugins()
     return dict(_REGISTRY)
 

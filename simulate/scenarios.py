@@ -13,6 +13,7 @@ from functools import cache
 import numpy as np
 
 from magbench import paper
+from magbench.errors import InputError
 
 from . import attitude as att
 from .dataset import Dataset, Truth
@@ -126,8 +127,6 @@ def get_scenario(name: str) -> Scenario:
     try:
         return _SCENARIOS[name]
     except KeyError:
-        from .dataset import InputError
-
         raise InputError(f"unknown scenario {name!r}; known: {', '.join(sorted(_SCENARIOS))}") from None
 
 

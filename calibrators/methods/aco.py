@@ -24,12 +24,10 @@ from magbench.errors import InputError
 
 from ..base import Calibrator
 from ..core.problem import Problem, SolveOutput, population_box
-from ..registry import register
 
 TOL = 1e-6
 
 
-@register
 class AntColony(Calibrator):
     """ACO_R (Socha & Dorigo 2008) with archive size, q and xi as hyper-parameters; stops after
     ``iterations`` or when the whole archive's values agree within ``tol`` relative (converged)."""

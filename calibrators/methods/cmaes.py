@@ -25,12 +25,10 @@ from magbench.errors import InputError
 
 from ..base import Calibrator
 from ..core.problem import Problem, SolveOutput, population_box
-from ..registry import register
 
 TOLFUN_REL = 1e-6
 
 
-@register
 class CMAES(Calibrator):
     """CMA-ES (Hansen & Ostermeier 2001; pycma) on the shared objective, population per generation.  Stops
     on pycma's criteria: ``tolfun`` in nT² of the objective, ``tolx`` in the normalized box (1e-8 of the

@@ -13,10 +13,8 @@ from magbench.errors import InputError
 
 from ..base import Calibrator
 from ..core.problem import Problem, SolveOutput, population_box
-from ..registry import register
 
 
-@register
 class DifferentialEvolution(Calibrator):
     """SciPy's differential evolution (best1bin by default), vectorized over the population.  It stops when
     the population's objective values agree to ``tol`` relative (SciPy's criterion; 1e-6 puts the answer

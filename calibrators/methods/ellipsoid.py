@@ -13,10 +13,8 @@ from __future__ import annotations
 from ..base import Calibrator
 from ..core.algebra import ellipsoid_params
 from ..core.problem import ReadingsProblem, SolveOutput
-from ..registry import register
 
 
-@register
 class EllipsoidFit(Calibrator):
     """Algebraic ellipsoid-specific fit (Li and Griffiths 2004), closed form, no iterations."""
 

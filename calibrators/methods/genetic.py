@@ -15,13 +15,11 @@ from magbench.errors import InputError
 
 from ..base import Calibrator
 from ..core.problem import Problem, SolveOutput, population_box
-from ..registry import register
 from . import _gakernel
 from ._gakernel import adaptive_probability  # noqa: F401  (seed 000's eq. 4-5, part of this module's API)
 from .lsq import levenberg_marquardt
 
 
-@register
 class AdaptiveGA(Calibrator):
     """The adaptive genetic algorithm of seed 000 (Lu et al. 2014, sections 2.1-2.2), as written.
 
@@ -130,7 +128,6 @@ class AdaptiveGA(Calibrator):
                                   "resolution": step.tolist()})
 
 
-@register
 class AdaptiveGAPolished(AdaptiveGA):
     """The paper's AGA improved where it falls short (results/aga_quality.md): elitism (the best
     individual survives each generation) and a Levenberg-Marquardt polish of the best individual, so the
@@ -156,7 +153,6 @@ class AdaptiveGAPolished(AdaptiveGA):
 _COPY_PARENTS = np.array([0.0, 1.0])[:, None, None]  # s for pairs that do not cross: child 1 = pa, 2 = pb
 
 
-@register
 class RealGA(Calibrator):
     """A plain real-coded GA with fixed crossover and mutation probabilities.
 
@@ -325,7 +321,6 @@ def _operator_loop(obj, ga, u, x, f, lo, span) -> None:
         u = children
 
 
-@register
 class ElitistRealGA(RealGA):
     """Seed 002's real-coded elitist GA (MATLAB ``ga`` defaults, which its figures come from): fitness
     = the objective itself (eq. of section 3.2), rank scaling with stochastic-universal selection,

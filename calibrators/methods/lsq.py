@@ -16,7 +16,6 @@ from magbench.numerics import lm_normal
 
 from ..base import Calibrator
 from ..core.problem import Problem, SolveOutput
-from ..registry import register
 
 
 def levenberg_marquardt(problem: Problem, x_start: np.ndarray, tol: float = 1e-12, max_nfev: int = 200,
@@ -37,7 +36,6 @@ def levenberg_marquardt(problem: Problem, x_start: np.ndarray, tol: float = 1e-1
                            f"stopped after {calls} evaluations (max_nfev)")
 
 
-@register
 class LeastSquares(Calibrator):
     """Least squares on the scalar residuals, analytic Jacobian: Levenberg-Marquardt on the normal
     equations, inside the physical box (``bounded``, default) or unbounded.

@@ -20,7 +20,6 @@ from magbench.simulate.sensor import ErrorParams
 from ..base import Calibrator
 from ..core.algebra import normalize, quadric_to_ellipsoid, shape_to_params
 from ..core.problem import ReadingsProblem, SolveOutput
-from ..registry import register
 
 REFERENCE_VARIES = 1e-6
 """Relative spread of F below which the reference is treated as constant (its weight is then not fitted)."""
@@ -58,7 +57,6 @@ def merayo_params(raw_nT: np.ndarray, f_ref_nT: np.ndarray) -> ErrorParams:
     return shape_to_params(shape_n / (s * s), mu + s * centre_n, f)
 
 
-@register
 class Merayo(Calibrator):
     """Merayo et al. (2000) non-iterative scalar calibration: closed form."""
 

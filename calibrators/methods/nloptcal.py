@@ -16,7 +16,6 @@ from magbench.errors import InputError
 from ..base import Calibrator
 from ..core.evaluator import BudgetExhausted
 from ..core.problem import Problem, SolveOutput, population_box
-from ..registry import register
 
 RESULT_NAMES = {1: "success", 2: "stopval_reached", 3: "ftol_reached", 4: "xtol_reached", 5: "maxeval_reached",
                 6: "maxtime_reached"}
@@ -26,7 +25,6 @@ STOCHASTIC_NLOPT = ("CRS2", "ISRES", "ESCH", "MLSL", "STOGO_RAND")
 """NLopt algorithms that draw random numbers (seeded with ``nlopt.srand``); the others ignore the seed."""
 
 
-@register
 class NLoptCalibrator(Calibrator):
     """Any NLopt algorithm on the shared objective (``algorithm`` is NLopt's name, e.g. LN_BOBYQA)."""
 

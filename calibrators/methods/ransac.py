@@ -25,7 +25,6 @@ from magbench.errors import InputError
 from ..base import Calibrator
 from ..core.algebra import ellipsoid_params
 from ..core.problem import ReadingsProblem, SolveOutput
-from ..registry import register
 
 
 def ransac_iterations(confidence: float, inlier_fraction: float, sample_size: int) -> int:
@@ -36,7 +35,6 @@ def ransac_iterations(confidence: float, inlier_fraction: float, sample_size: in
     return max(1, math.ceil(math.log(1.0 - confidence) / math.log(1.0 - p_good)))
 
 
-@register
 class RansacEllipsoid(Calibrator):
     """RANSAC with the ellipsoid fit as the model (seed 003)."""
 

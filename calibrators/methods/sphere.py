@@ -7,10 +7,8 @@ from __future__ import annotations
 from ..base import Calibrator
 from ..core.algebra import sphere_fit
 from ..core.problem import ReadingsProblem, SolveOutput
-from ..registry import register
 
 
-@register
 class SphereFit(Calibrator):
     """Least-squares sphere: offsets only, closed form, no iterations."""
 

@@ -18,10 +18,8 @@ from ..acceptance import DEFAULT_LIMITS
 from ..base import Calibrator
 from ..core.algebra import fit_quadric, shape_to_params, volume_radius
 from ..core.problem import ReadingsProblem, SolveOutput
-from ..registry import register
 
 
-@register
 class SymmetricEllipsoid(Calibrator):
     """magcal-style symmetric ellipsoid fit: closed form, no iterations."""
 

@@ -21,7 +21,6 @@ from magbench.errors import InputError
 from ..base import Calibrator
 from ..core.algebra import normalize, quadric_to_ellipsoid, shape_to_params
 from ..core.problem import ReadingsProblem, SolveOutput
-from ..registry import register
 
 N_UNKNOWNS = 9
 CORNER_MIN_DISTANCE = 0.05
@@ -111,7 +110,6 @@ class _LinearizedFit(Calibrator):
                            extra={"condition_number_A": cond, "truncation": k, "l_curve": curve})
 
 
-@register
 class TotalLeastSquares(_LinearizedFit):
     """Total least squares of the linearized calibration equations (seed 004, eq. 8-10)."""
 
@@ -123,7 +121,6 @@ class TotalLeastSquares(_LinearizedFit):
         self.normalize = normalize
 
 
-@register
 class TruncatedTLS(_LinearizedFit):
     """Truncated TLS, the truncation level from the L-curve corner (seed 004); ``truncation`` > 0 fixes it."""
 

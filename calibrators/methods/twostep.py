@@ -24,7 +24,6 @@ from magbench.simulate.sensor import ErrorParams
 from ..base import Calibrator
 from ..core.evaluator import BudgetExhausted
 from ..core.problem import ReadingsProblem, SolveOutput
-from ..registry import register
 
 
 def centred_estimate(raw_nT: np.ndarray, f_ref_nT: np.ndarray, model: str) -> np.ndarray:
@@ -71,7 +70,6 @@ def centred_estimate(raw_nT: np.ndarray, f_ref_nT: np.ndarray, model: str) -> np
     return ErrorParams.from_correction(m, offset_n * scale).to_vector("nine")
 
 
-@register
 class TwoStep(Calibrator):
     """TWOSTEP (Alonso & Shuster 2002): the centred linear estimate, then Gauss-Newton on the counted
     scalar residual."""
