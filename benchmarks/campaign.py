@@ -181,7 +181,7 @@ def run_task(task: dict) -> dict:
                 trace = trace[np.unique(np.geomspace(1, len(trace), TRACE_POINTS).astype(int) - 1)]
             extra["trace"] = trace.tolist()
         if task.get("keep_fields", task.get("keep_trace") and task["trial"] == 0) and data.heading_deg is not None:
-            extra["fields"] = {"heading_deg": data.heading_deg.tolist(), "f_ref_nT": data.f_ref_nT.tolist(),
+            extra["fields"] = {"heading_deg": data.heading_deg.tolist(), "f_ref_nT": data.f_ref_nT.tolist(),  # type: ignore[assignment]
                                "f_before_nT": np.linalg.norm(data.raw_nT, axis=1).tolist(),
                                "f_after_nT": np.linalg.norm(result.correct(data.raw_nT), axis=1).tolist()}
     except Exception as exc:  # a failed run is a row with its error text
@@ -345,7 +345,7 @@ def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, p
                     finish([i], [run_task(task)])
     finally:
         bar.close()
-    return results
+    return results  # type: ignore[return-value]
 
 
 # ------------------------------------------------------------------------------------ checkpoint
@@ -619,7 +619,7 @@ def manifest(campaign: Campaign, skipped: list[dict], command: str) -> dict:
         try:
             versions[pkg] = metadata.version(pkg)
         except metadata.PackageNotFoundError:
-            versions[pkg] = None
+            versions[pkg] = None  # type: ignore[assignment]
     configs = {}
     for spec in campaign.methods:
         hp = make(spec.name, **dict(spec.params)).get_params()

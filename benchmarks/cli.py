@@ -109,6 +109,7 @@ def load_dataset(args, require_vector: bool = True):
     cli_ref = _reference_from_args(args)
     data = read_csv(args.file, units=args.units, require_vector=require_vector, expected_field_nT=cli_ref)
     ignored = None
+    source: str | None
     if data.f_ref_nT is not None:
         source = "the file's f_ref column"
         if cli_ref is not None:

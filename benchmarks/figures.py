@@ -231,7 +231,7 @@ def fig_errors(runs: pd.DataFrame, scenario: str, styles: dict) -> Figure | None
             ax.axvspan(floor / 10, 1.0, color=BOUND_GREY, alpha=0.12, lw=0, zorder=0)
             ax.axvline(1.0, color=BOUND_GREY, lw=1.2, ls="--", zorder=1)
         if data:
-            _boxplot_h(ax, data, pos, cols)
+            _boxplot_h(ax, data, pos, cols)  # type: ignore[arg-type]
             for v, p, c in zip(data, pos, [configs[i] for i in pos]):
                 ax.scatter(v, p + rng.uniform(-0.18, 0.18, v.size), s=8, color=styles[c]["color"],
                            marker=styles[c]["marker"], alpha=0.75, lw=0, zorder=3)
@@ -241,8 +241,8 @@ def fig_errors(runs: pd.DataFrame, scenario: str, styles: dict) -> Figure | None
         ax.set_title(f"{GREEK[a]}")
         ax.set_xlabel("|estimate − truth| / Cramér-Rao σ" if relative else "|estimate − truth| (arcsec)")
     hi = max((float(np.max(v)) for v in every if v.size), default=1.0)
-    pos = _positive(np.concatenate(every)) if every else np.array([])
-    lo = floor / 2 if any((v == 0).any() for v in every) or not pos.size else pos.min() / 2
+    pos = _positive(np.concatenate(every)) if every else np.array([])  # type: ignore[assignment]
+    lo = floor / 2 if any((v == 0).any() for v in every) or not pos.size else pos.min() / 2  # type: ignore[attr-defined]
     axes[0].set_xlim(min(lo, 0.5), max(hi, 1.0) * 2)
     axes[0].set_yticks(range(n), [_wrap(c) for c in configs])
     axes[0].set_ylim(n - 0.5, -0.5)
@@ -386,7 +386,7 @@ def fig_convergence(data: tuple, scenario: str, styles: dict) -> Figure | None:
     ax.set_xlabel("objective evaluations")
     ax.set_ylabel("RMS total-field residual of the best point so far, √F (nT)")
     ax.set_title(f"Convergence — {scenario} (median over trials)")
-    handles.append(Patch(color="0.6", alpha=0.3, label="inter-quartile band"))
+    handles.append(Patch(color="0.6", alpha=0.3, label="inter-quartile band"))  # type: ignore[arg-type]
     fig.legend(handles=handles, loc="outside right upper", title="calibrator")
     if n_trials < 5:
         _few_trials_note(fig, n_trials, "the median and band rest on very few runs")
@@ -556,7 +556,7 @@ def make_figures(campaign_dir: str | Path, out_dir: str | Path | None = None, fo
     with matplotlib.rc_context(), tqdm(jobs, desc="figures", unit="fig", disable=not progress, file=sys.stderr,
                                        leave=False, dynamic_ncols=True) as bar:
         mpl_style.use("default")
-        matplotlib.rcParams.update(RC)
+        matplotlib.rcParams.update(RC)  # type: ignore[arg-type]
         for scenario, kind, build, key in bar:
             data = of(frames[key], scenario)
             if data.empty:

@@ -171,7 +171,8 @@ def blind_check(n: int, progress: bool = False, jobs: int = 1) -> str:
     outcomes = ("right", "partly", "honest_unexplained", "wrong", "missed", "false_alarm")
 
     def summary(part: list[dict]) -> list[str]:
-        table, below = {}, Counter()
+        table: dict[str, Counter] = {}
+        below: Counter = Counter()
         for c in part:
             table.setdefault(c["category"], Counter())[c["outcome"]] += 1
             if c["outcome"] == "missed" and c["beyond_base_nT"] < c["min_detectable_nT"]:

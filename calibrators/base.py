@@ -14,7 +14,7 @@ import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import partial
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -360,6 +360,7 @@ class Calibrator(metaclass=_Sealed):
         x0 = identity_vector(model)
         rng = np.random.default_rng(self.seed)
         start = None if model == "angles" else partial(_algebraic_start, dataset.raw_nT, dataset.f_ref_nT, model)
+        problem: Problem
         if self.closed_form:
             problem = ReadingsProblem(evaluator, model, x0, lower, upper, rng, self.seed, dataset.raw_nT,
                                       dataset.f_ref_nT, start)
@@ -419,7 +420,8 @@ class Calibrator(metaclass=_Sealed):
                 return ["a scale factor is not positive: the estimate is not physical"]
         return []
 
-    def _solve(self, problem: Problem) -> SolveOutput:  # pragma: no cover - abstract
+    def _solve(self, problem: Any) -> SolveOutput:  # pragma: no cover - abstract
+        """The method: a ``Problem`` (a ``ReadingsProblem`` when ``closed_form``) in, a ``SolveOutput`` out."""
         raise NotImplementedError
 
 

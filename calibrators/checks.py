@@ -44,7 +44,7 @@ def check_dataset(model: str, noise_nT: float = 0.05, n: int = 240, seed: int = 
 
 
 def _instance(calibrator, model: str, **overrides) -> Calibrator:
-    cls = calibrator if isinstance(calibrator, type) else type(calibrator)
+    cls: type[Calibrator] = calibrator if isinstance(calibrator, type) else type(calibrator)
     params = {} if isinstance(calibrator, type) else calibrator.get_params()
     params = {**params, **cls.checking_params(), "model": model, **overrides}
     return cls(**params)

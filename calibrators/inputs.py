@@ -180,7 +180,7 @@ def _angles_field(raw: np.ndarray) -> float:
     f = float(np.mean(np.linalg.norm(raw, axis=1)))
     x = np.zeros(3)
     for _ in range(10):
-        obj = ScalarObjective(raw, f, "angles")
+        obj = ScalarObjective(raw, np.full(len(raw), f), "angles")
         with np.errstate(all="ignore"):
             x, _, _ = lm_normal(obj.normal_equations, x, -0.5 * np.ones(3), 0.5 * np.ones(3), tol=1e-12, max_iter=50)
         new = float(np.mean(obj.residuals(x) + f))

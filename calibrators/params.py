@@ -28,10 +28,11 @@ class Interval:
     def accepts(self, value) -> bool:
         if isinstance(value, bool) or not isinstance(value, self.kind):
             return False
-        if not math.isfinite(float(value)):
+        v = float(value)  # type: ignore[arg-type]  # an Integral or Real, checked above
+        if not math.isfinite(v):
             return False
-        lo_ok = self.left is None or (value >= self.left if self.closed in ("both", "left") else value > self.left)
-        hi_ok = self.right is None or (value <= self.right if self.closed in ("both", "right") else value < self.right)
+        lo_ok = self.left is None or (v >= self.left if self.closed in ("both", "left") else v > self.left)
+        hi_ok = self.right is None or (v <= self.right if self.closed in ("both", "right") else v < self.right)
         return lo_ok and hi_ok
 
     def __str__(self) -> str:
@@ -109,6 +110,6 @@ def as_budget(budget) -> Budget:
         return Budget()
     if isinstance(budget, Budget):
         return budget
-    if isinstance(budget, Integral) and not isinstance(budget, bool) and budget >= 1:
+    if isinstance(budget, Integral) and not isinstance(budget, bool) and int(budget) >= 1:
         return Budget(max_evaluations=int(budget))
     raise InputError(f"budget must be an int >= 1 (evaluation-equivalents) or a Budget, not {budget!r}")

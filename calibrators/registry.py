@@ -11,7 +11,7 @@ from .methods import BUILTINS
 
 ENTRY_POINT_GROUP = "magbench.calibrators"
 
-_REGISTRY: dict[str, type] = {}
+_REGISTRY: dict[str, type[Calibrator]] = {}
 _plugins_loaded = False
 _plugin_errors: dict[str, str] = {}
 
@@ -57,7 +57,7 @@ def _load_plugins() -> None:
             continue
         try:
             if isinstance(cls, type) and not getattr(cls, "name", ""):
-                cls.name = ep.name
+                cls.name = ep.name  # type: ignore[attr-defined]  # checked by register() next
             register(cls)
         except ValueError as exc:
             _plugin_errors[ep.name] = f"{where} refused: {exc}"
@@ -75,7 +75,7 @@ def plugin_errors() -> dict[str, str]:
     return dict(_plugin_errors)
 
 
-def get(name: str) -> type:
+def get(name: str) -> type[Calibrator]:
     calibrators = available()
     if name in calibrators:
         return calibrators[name]

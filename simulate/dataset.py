@@ -11,6 +11,7 @@ import json
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -40,8 +41,8 @@ def readonly_copy(a, dtype=float, ndim=None, name="array"):
 class Truth:
     """What was simulated: the true correction (canonical form), the sensor as specified, the field."""
 
-    params: object  # simulate.sensor.ErrorParams: what an ideal calibrator reports
-    sensor: object  # simulate.sensor.SensorModel as simulated
+    params: Any  # simulate.sensor.ErrorParams: what an ideal calibrator reports
+    sensor: Any  # simulate.sensor.SensorModel as simulated
     field_ned_nT: tuple[float, float, float]
     scenario: str = ""
     seed: int | None = None
@@ -500,15 +501,12 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
     meta = {**meta, "source_file": str(path), "units_read": units, "file_sha256": src.sha256}
     if has_vector:
         raw = np.column_stack([column(c) for c in ("bx", "by", "bz")])
-        magnitude = float(np.median(np.sqrt(np.einsum("ij,ij->i", raw, raw))))
-    else:
-        raw = None
-        magnitude = float(np.median(column(scalar_col)))
-    check_units(magnitude, units, expected_field_nT, where=str(path))
-    if has_vector:
+        check_units(float(np.median(np.sqrt(np.einsum("ij,ij->i", raw, raw)))), units, expected_field_nT,
+                    where=str(path))
         return Dataset(raw * factor, f_ref_nT=f_ref, meta=meta, **common)
-    extra = {c: column(c) * factor for c in FIELD_COLUMNS if c in names and c not in ("f_ref",)}
-    return ScalarSeries(column(scalar_col) * factor, f_ref_nT=f_ref, extra=extra, meta=meta, **common)
+    check_units(float(np.median(column(scalar_col))), units, expected_field_nT, where=str(path))
+    others = {c: column(c) * factor for c in FIELD_COLUMNS if c in names and c not in ("f_ref",)}
+    return ScalarSeries(column(scalar_col) * factor, f_ref_nT=f_ref, extra=others, meta=meta, **common)
 
 
 def check_units(magnitude: float, units: str, expected_field_nT: float | None = None, where: str = "input") -> None:

@@ -207,7 +207,7 @@ class Normalization:
 
     def tau(self, t_s: np.ndarray) -> np.ndarray:
         """Time mapped onto [-1, 1] (the Legendre domain)."""
-        return 2.0 * (t_s - self.t0_s) / self.t_span_s - 1.0
+        return 2.0 * (t_s - self.t0_s) / self.t_span_s - 1.0  # type: ignore[operator]
 
 
 # ---------------------------------------------------------------------------------------------- registry

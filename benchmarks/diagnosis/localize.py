@@ -38,7 +38,7 @@ def cv_explained(design, r: np.ndarray, fold: np.ndarray, k: int) -> float | Non
     """Share (%) of the residual variance that a linear model (with a constant) in ``design(sl)`` explains
     on held-out folds, from per-fold Gram matrices (blocks of rows); None with too few points."""
     n = len(r)
-    grams = None
+    grams: np.ndarray | None = None
     for s in range(0, n, BLOCK_ROWS):
         sl = slice(s, min(n, s + BLOCK_ROWS))
         x = design(sl)
@@ -51,6 +51,8 @@ def cv_explained(design, r: np.ndarray, fold: np.ndarray, k: int) -> float | Non
         for f in range(k):
             zf = z[fl == f]
             grams[f] += zf.T @ zf
+    if grams is None:
+        return None
     p = grams.shape[1] - 1
     tot = grams.sum(axis=0)
     sse = 0.0
@@ -95,7 +97,7 @@ def harmonics(heading_deg: np.ndarray, r: np.ndarray, k_max: int = HEADING_HARMO
 
 
 def _poly(v: np.ndarray, degree: int) -> np.ndarray:
-    s = unit_span(v) * 2 - 1
+    s = unit_span(v) * 2 - 1  # type: ignore[operator]
     return legendre.legvander(s, degree)[:, 1:]
 
 
@@ -103,7 +105,7 @@ def localize(r: np.ndarray, unit: np.ndarray, d: Columns, heading_deg, k: int, s
              gravity: np.ndarray | None = None) -> dict:
     """The localization block of the diagnosis (module docstring)."""
     fold = folds(len(r), k, seed + LOCALIZE_SEED_OFFSET)
-    loc = {}
+    loc: dict = {}
     for deg in range(1, MAX_DEGREE + 1):
         loc[f"attitude_deg{deg}_explained_pct"] = cv_explained(lambda sl, g=deg: spherical_design(unit[sl], g), r,
                                                                fold, k)

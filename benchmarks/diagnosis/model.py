@@ -205,7 +205,7 @@ class ExtendedModel:
                 break
         return x
 
-    def fit_robust(self, x_start: np.ndarray, free: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    def fit_robust(self, x_start: np.ndarray, free: list[int]) -> tuple[np.ndarray, np.ndarray | None]:
         """The fit with samples beyond SPIKE_SIGMA robust sigma trimmed, re-trimmed until the mask settles
         (at most TRIM_ROUNDS times), starting from the spikes of ``x_start``'s residual; (x, spike mask over
         all rows).  On long records the fit uses a subset of the rows (``fit_subset``) and the mask then

@@ -72,7 +72,7 @@ def _checked(series: ScalarSeries) -> ScalarFit:
 def scalar_heldout(cls, s: ScalarFit) -> np.ndarray | None:
     """Leave-one-out residuals with the effect's signature fitted (spikes: explained away); None without one."""
     if cls.robust:
-        return np.where(OutlierEffect.spike_mask(s.r), 0.0, s.base_cv)
+        return np.where(OutlierEffect.spike_mask(s.r), 0.0, s.base_cv)  # type: ignore[arg-type]
     cols = cls.scalar_columns(s.heading_rad, s.tau)
     return None if cols is None else s.loo(cols)
 
@@ -84,7 +84,7 @@ def score_scalar_effects(s: ScalarFit, rms_base: float, floor: float) -> list[di
         cv = scalar_heldout(cls, s)
         if cv is None:
             continue
-        z = paired_z(s.base_cv, cv)
+        z = paired_z(s.base_cv, cv)  # type: ignore[arg-type]
         shrink = shrink_pct(rms_base, rms(cv), floor)
         effects.append({"name": cls.name, "rms_heldout_nT": rms(cv), "shrink_pct": shrink,
                         "significant": bool(z > Z_SIGNIFICANT and shrink > MIN_SIGNIFICANT_SHRINK_PCT), "z": z})
@@ -111,7 +111,7 @@ def diagnose_scalar(series: ScalarSeries, folds: int = 0, seed: int = 0) -> dict
     """The scalar-series diagnosis (module docstring); ``folds`` and ``seed`` are unused (leave-one-out)."""
     s = _checked(series)
     n = len(s.r)
-    rms_base = rms(s.base_cv)
+    rms_base = rms(s.base_cv)  # type: ignore[arg-type]
     floor = second_difference_floor(s.r[s.order])
     effects = score_scalar_effects(s, rms_base, floor)
     rms_both = rms(s.loo(together_columns(s.heading_rad, s.tau)))
@@ -200,15 +200,15 @@ def fit_geometry(series: ScalarSeries) -> dict | None:
             sol = least_squares(resid, th0, method="lm", max_nfev=4000)
             if best is None or sol.cost < best.cost:
                 best = sol
-    th = best.x
+    th = best.x  # type: ignore[union-attr]
     fb, fa = _series(th, h, f, p_after)
-    jac = best.jac[:2 * len(h)]
+    jac = best.jac[:2 * len(h)]  # type: ignore[union-attr]
     sv = np.linalg.svd(jac / np.maximum(np.linalg.norm(jac, axis=0), 1e-300), compute_uv=False)
     rank = int(np.sum(sv > 1e-3 * sv[0]))
     # causes sharing a harmonic: their signatures in the 'after' series (Jacobian columns at the fit)
     causes = {"scale mismatch (kx - ky)": (3, 4, -1), "x-y non-orthogonality (gamma)": (2, None, 1),
               "in-plane soft iron": (13, None, 1), "cubic response (x and y)": (14, 15, 1)}
-    ja = best.jac[len(h):2 * len(h)]
+    ja = best.jac[len(h):2 * len(h)]  # type: ignore[union-attr]
     sig = {}
     for name, (i, j, sgn) in causes.items():
         col = ja[:, i] + (sgn * ja[:, j] if j is not None else 0)

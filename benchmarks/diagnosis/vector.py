@@ -257,7 +257,7 @@ class Diagnosis:
         for names in (every, []):
             free = model.free_indices(names)
             if len(model.d) >= 3 * len(free):
-                return model.fit_robust(x_lin, free)[1]
+                return model.fit_robust(x_lin, free)[1]  # type: ignore[return-value]
         return np.zeros(len(model.d), bool)
 
     def _select(self, every, base_res, rms_base, floor, n):

@@ -3,6 +3,7 @@ closed-form variant ``ReadingsProblem``, the ``SolveOutput`` it returns, and the
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -117,7 +118,7 @@ class ReadingsProblem(Problem):
 
 @dataclass(frozen=True)
 class SolveOutput:
-    x: np.ndarray
+    x: Any  # the parameter vector; anything else (None, a wrong shape) is caught by fit
     status: str = "converged"
     message: str = ""
     nit: int = 0

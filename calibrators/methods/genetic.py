@@ -120,7 +120,7 @@ class AdaptiveGA(Calibrator):
         # step 7: the best individual of all generations (kept by the shared counter)
         x_best = problem.best_x
         if self.polish:  # not in the paper: Levenberg-Marquardt from the GA's best individual
-            levenberg_marquardt(problem, x_best, bounded=False)
+            levenberg_marquardt(problem, np.asarray(x_best), bounded=False)
             x_best = problem.best_x
         return SolveOutput(x_best, status="converged" if stop != "max_generations" else "max_generations",
                            message=f"{k} generations; stop: {stop}", nit=k,
@@ -266,7 +266,9 @@ def _kernel_operators(ga) -> tuple[int, int, int] | None:
     codes = ({RealGA._select: _gakernel.TOURNAMENT, ElitistRealGA._select: _gakernel.RANK_SUS}.get(kind._select),
              {RealGA._crossover: _gakernel.BLX, ElitistRealGA._crossover: _gakernel.SCATTERED}.get(kind._crossover),
              {RealGA._mutate: _gakernel.NONUNIFORM, ElitistRealGA._mutate: _gakernel.GAUSSIAN}.get(kind._mutate))
-    return None if None in codes else codes
+    if codes[0] is None or codes[1] is None or codes[2] is None:
+        return None
+    return codes[0], codes[1], codes[2]
 
 
 def _kernel_loop(obj, ga, operators, u, x, f, lo, span) -> None:

@@ -32,7 +32,7 @@ answer (``gauge_fixed``): the gradient condition fixes M1 and M2 only up to a co
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -68,7 +68,7 @@ MIN_POPULATION = 4
 MUTATION_SHRINK_POWER = 2.0
 """The Gaussian mutation's sigma shrinks as (1 - t)^2 over the run (ours)."""
 
-GA_DEFAULTS = {
+GA_DEFAULTS: dict[str, Any] = {
     "population": 60,
     "generations": 150,
     "n_rotations": PAPER_ROTATIONS,
@@ -315,7 +315,7 @@ def _solve_row(counter: Evaluator, settings: RowGA, x0: np.ndarray, neighbourhoo
     try:
         x, status = real_ga(problem, settings).x, "max_generations"
     except BudgetExhausted:
-        x, status = row_counter.best_x, "budget"
+        x, status = row_counter.best_x, "budget"  # type: ignore[assignment]  # None only before any evaluation
         if row_counter.evaluations_left != 0:  # the calibration's budget (time) ran out, not the share
             status = "budget: stopped"
     if x is None:

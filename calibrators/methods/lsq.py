@@ -27,7 +27,7 @@ def levenberg_marquardt(problem: Problem, x_start: np.ndarray, tol: float = 1e-1
     if left is not None:
         max_nfev = max(1, min(max_nfev, left))
     lo, hi = (problem.lower, problem.upper) if bounded else (None, None)
-    if bounded:
+    if lo is not None and hi is not None:
         x_start = np.clip(x_start, lo + 1e-12, hi - 1e-12)
     x, cost, calls = lm_normal(problem.normal_equations, x_start, lo, hi, tol=tol, max_iter=max(max_nfev - 1, 0))
     done = calls < max_nfev

@@ -48,7 +48,7 @@ def l_curve_corner(sv: np.ndarray, vt: np.ndarray) -> tuple[int, list[dict]]:
     the first and last points on the side of the origin (the triangle method of the L-curve corner).
     Where no point lies clearly on that side (by more than ``CORNER_MIN_DISTANCE`` of the unit square)
     the curve has no corner and k = n (plain TLS) is kept."""
-    pts = []
+    pts: list[dict] = []
     for k in range(1, N_UNKNOWNS + 1):
         try:
             xk = ttls_solution(vt, k)
@@ -57,7 +57,7 @@ def l_curve_corner(sv: np.ndarray, vt: np.ndarray) -> tuple[int, list[dict]]:
         resid = float(np.sqrt(np.sum(sv[k:] ** 2)))
         pts.append({"k": k, "residual_norm": resid, "solution_norm": float(np.linalg.norm(xk))})
     if len(pts) < 3:
-        return pts[-1]["k"], pts
+        return int(pts[-1]["k"]), pts
     xy = np.log([[max(p["residual_norm"], 1e-300), max(p["solution_norm"], 1e-300)] for p in pts])
     span = np.ptp(xy, axis=0)
     xy = (xy - xy.min(axis=0)) / np.where(span > 0, span, 1.0)
@@ -70,7 +70,7 @@ def l_curve_corner(sv: np.ndarray, vt: np.ndarray) -> tuple[int, list[dict]]:
     for p, d in zip(pts, dist):
         p["corner_distance"] = float(d)
     i = int(np.argmax(dist))
-    return (pts[i]["k"] if dist[i] > CORNER_MIN_DISTANCE else pts[-1]["k"]), pts
+    return int(pts[i]["k"] if dist[i] > CORNER_MIN_DISTANCE else pts[-1]["k"]), pts
 
 
 class _LinearizedFit(Calibrator):
@@ -78,6 +78,8 @@ class _LinearizedFit(Calibrator):
     check_tolerance = {"angle_rad": 1e-4, "scale": 1e-4, "offset_nT": 2.0}
     closed_form = True
     truncate = False
+    normalize: bool  # hyper-parameters of the subclasses
+    truncation: int
 
     def min_points(self, model: str) -> int:
         return 10
@@ -91,7 +93,7 @@ class _LinearizedFit(Calibrator):
         sv_a = np.linalg.svd(a, compute_uv=False)
         cond = float(sv_a[0] / sv_a[-1]) if sv_a[-1] > 0 else np.inf
         _, sv, vt = np.linalg.svd(np.column_stack([a, b]), full_matrices=False)
-        curve = []
+        curve: list[dict] = []
         if self.truncate:
             k, curve = (l_curve_corner(sv, vt) if self.truncation == 0 else (int(self.truncation), []))
             if not 1 <= k <= N_UNKNOWNS:
