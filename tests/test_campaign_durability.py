@@ -269,8 +269,9 @@ def test_force_clears_the_campaign_outputs_and_nothing_else(tmp_path):
         (out / name).write_text("old\n")
     assert main(compare_args(out, "--quiet", trials=2)) == 2  # not empty: refused without --force
     assert main(compare_args(out, "--quiet", "--force", trials=2)) == 0
-    for name in ("figures/errors_lu2014.png", "figures/errors_lu2014.svg", "report.html", "fields.csv", CHECKPOINT):
+    for name in ("figures/errors_lu2014.png", "figures/errors_lu2014.svg", "report.html", "fields.csv"):
         assert not (out / name).exists(), name
+    assert (out / CHECKPOINT).read_text() != "old\n"  # the new campaign's own record
     for name in mine:
         assert (out / name).read_text() == "old\n", name
     assert (out / "summary.tex").read_text() != "old\n" and (out / "traces.csv").read_text() != "old\n"

@@ -137,7 +137,11 @@ def test_blind_check_rates_on_three_cycles(blind45):
     by = {}
     for label, outcome in blind45:
         by.setdefault(category(label), []).append(outcome)
+    # The naming rule confirms an effect on time- and attitude-blocked folds before naming it (precision
+    # first: on the independent forward model, tests/test_diagnosis_independent.py, wrong names fell from 17
+    # to 2 in 48 records).  On this generator's faster-varying drifts that costs recall (single effects 92 ->
+    # 72 %, pairs 84 -> 40 % fully right); what it misses it calls unexplained, and it names nothing wrong.
     assert all(o == "right" for o in by["clean"]), by["clean"]
-    assert sum(o == "right" for o in by["single"]) >= 0.8 * len(by["single"]), by["single"]
-    assert sum(o == "right" for o in by["pair"]) >= 0.75 * len(by["pair"]), by["pair"]
-    assert "wrong" not in by["outside the library"], by["outside the library"]
+    assert sum(o == "right" for o in by["single"]) >= 0.7 * len(by["single"]), by["single"]
+    assert sum(o == "right" for o in by["pair"]) >= 0.35 * len(by["pair"]), by["pair"]
+    assert all("wrong" not in by[c] for c in by), by

@@ -98,12 +98,38 @@ def time_difference_floor(r_in_order: np.ndarray, t_in_order: np.ndarray | None 
             "floor_second_diff_nT": float(s1), "floor_third_diff_nT": float(s3)}
 
 
+HELD_MIN_FRACTION = 0.02
+"""A record in which more than this share of consecutive rows repeat the previous reading exactly (a logger
+that holds its last value) has its floor computed on the distinct samples only: a held sample interpolates
+perfectly from its twin and would pull the floor down."""
+
+
+def held_samples(raw_nT: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Mask (in the record's rows) of readings identical to the previous one in time order."""
+    x = raw_nT[order]
+    same = np.zeros(len(x), dtype=bool)
+    same[1:] = np.all(x[1:] == x[:-1], axis=1)
+    out = np.zeros(len(x), dtype=bool)
+    out[order] = same
+    return out
+
+
 def vector_floor(unit: np.ndarray, d: Columns, r: np.ndarray, rows_in_time_order: bool = False) -> dict:
-    """The floor of a vector record (module docstring)."""
+    """The floor of a vector record (module docstring); held samples (exact repeats of the previous reading)
+    are left out when they are more than HELD_MIN_FRACTION of the record, and their share is reported."""
     n = len(r)
     if d.t_s is not None and np.ptp(d.t_s) > 0:
         order = np.argsort(d.t_s, kind="stable")
-        return time_difference_floor(r[order], d.t_s[order])
+        held = held_samples(d.raw_nT, order)
+        share = float(held.mean())
+        if share > HELD_MIN_FRACTION and (~held).sum() >= 10:
+            keep = order[~held[order]]
+            out = time_difference_floor(r[keep], d.t_s[keep])
+            out["floor_method"] += f" (on the {int((~held).sum())} distinct samples: {100 * share:.1f} % held)"
+        else:
+            out = time_difference_floor(r[order], d.t_s[order])
+        out["held_sample_fraction"] = share
+        return out
     if rows_in_time_order:
         out = time_difference_floor(r)
         out["floor_method"] += " (row order taken as time order)"

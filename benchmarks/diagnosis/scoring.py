@@ -13,6 +13,26 @@ MIN_SIGNIFICANT_SHRINK_PCT = 10.0  # a selected effect removes at least this sha
 POINTS_PER_PARAMETER = 2  # a fold's training set must have at least this many points per parameter
 MIN_COVERAGE_PCT = 10.0  # attitude coverage (share of equal-area cells hit) for the attitude-shaped effects
 ATTITUDE_SHAPED = ("nonlinearity",)
+MIN_SPREAD_FOR_ATTITUDE_SHAPED = 0.35
+"""An attitude-shaped effect needs readings that span three dimensions: along their least-covered direction
+at least this share of the largest spread (a vehicle's band, a level turntable fall short; there the base
+model's poorly determined directions and the effect's columns trade places)."""
+DISTINCT_PER_PARAMETER = 3
+"""... and at least this many distinct directions per parameter of base + effect (a record of a dozen held
+attitudes fits any smooth function of direction through them)."""
+DIRECTION_GRID = 0.05
+"""Unit readings closer than this on every component are one direction when counting distinct ones."""
+
+
+def distinct_directions(unit: np.ndarray) -> int:
+    return int(len(np.unique(np.round(unit / DIRECTION_GRID).astype(np.int64), axis=0)))
+
+
+def spread_ratio(unit: np.ndarray) -> float:
+    """Spread of the directions along the least-covered axis over the largest (1 on a sphere, ~0 on a plane)."""
+    centred = unit - unit.mean(axis=0)
+    values = np.linalg.eigvalsh(centred.T @ centred / max(len(unit), 1))
+    return float(np.sqrt(max(values[0], 0.0) / values[-1])) if values[-1] > 0 else 0.0
 BOOTSTRAP = 400
 BOOTSTRAP_GROUPS = 200
 INTERVAL = (5.0, 95.0)
@@ -127,6 +147,7 @@ def testable(base: str, d: Columns, unit: np.ndarray, n_base: int, k: int) -> tu
     n = len(d)
     n_train = n * (k - 1) // k
     cover = coverage_pct(unit)
+    spread, distinct = spread_ratio(unit), distinct_directions(unit)
     ok, untested, not_applicable = [], {}, {}
     for cls in library_effects():
         if base in cls.included_in:
@@ -141,6 +162,14 @@ def testable(base: str, d: Columns, unit: np.ndarray, n_base: int, k: int) -> tu
             continue
         if cls.name in ATTITUDE_SHAPED and cover < MIN_COVERAGE_PCT:
             untested[cls.name] = f"attitude coverage {cover:.0f} % of the sphere (at least {MIN_COVERAGE_PCT:.0f} % needed)"
+            continue
+        if cls.name in ATTITUDE_SHAPED and spread < MIN_SPREAD_FOR_ATTITUDE_SHAPED:
+            untested[cls.name] = (f"the directions span {100 * spread:.0f} % out of their main plane (at least "
+                                  f"{100 * MIN_SPREAD_FOR_ATTITUDE_SHAPED:.0f} % needed to tell it from the base model)")
+            continue
+        need_dirs = DISTINCT_PER_PARAMETER * (n_base + len(cls.fit_params))
+        if cls.name in ATTITUDE_SHAPED and distinct < need_dirs:
+            untested[cls.name] = f"{distinct} distinct directions, {need_dirs} needed for base + {cls.name}"
             continue
         ok.append(cls)
     return ok, untested, not_applicable

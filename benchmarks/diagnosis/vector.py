@@ -33,6 +33,18 @@ from magbench.simulate.sensor import MODELS, PARAM_NAMES
 from .floor import vector_floor
 from .localize import folds, localize, tails
 from .model import BASE_FREE, ExtendedModel, Tangent
+from .naming import (
+    FAMILY_ALPHA,
+    attitude_blocks,
+    attitude_confounds,
+    confirm,
+    confounded_pairs,
+    spikes_isolated,
+    step_explains,
+    temperature_follows_time,
+    time_blocks,
+    time_predicts_attitude,
+)
 from .resimulate import resimulate
 from .scoring import (
     MIN_SIGNIFICANT_SHRINK_PCT,
@@ -153,6 +165,7 @@ class Diagnosis:
             self.effect_info = {cls.name: cls.prepare(d, self.norm, r_all, unit, spikes) for cls in effects_ok}
             model.info = self.effect_info
         selected, current, trail, base_res, rms_base, x_lin = self._passes(x_lin, every, spikes, r_all, floor)
+        selected, current, naming, confounded = self._name(selected, current, every, base_res, floor, floor_se, n)
         self.progress.step("extended fit, selection")
         self.r_star = model.residuals(x_lin) if selected else r_all
         self.progress.step("fold Gram matrices")
@@ -162,9 +175,13 @@ class Diagnosis:
 
         n_params = len(self.tangent.model.free_indices(selected))
         rem = remainder(current, floor, floor_se, n_params, n_train, robust="outliers" in selected)
+        if not selected and naming["base_significant"]:  # nothing named, the base residual above the floor
+            rem["remainder_significant"] = True
         mdn = min_detectable_nT(floor, n)
         powered = mdn <= POWER_MAX_OF_FLOOR * floor
-        result = verdict(order, rem["remainder_significant"], powered, untested)
+        alternatives = {c["alternatives"][0]: "|".join(c["alternatives"]) for c in confounded if c.get("named", True)}
+        result = verdict([alternatives.get(o, o) for o in order], rem["remainder_significant"], powered, untested,
+                         any_tested=bool(effects_ok))
         x_sel = self.tangent.full_fit(selected, "outliers" in selected)
         out = {"kind": "vector", "base_model": self.base, "base_fit": self.base_method, "n_points": n, "rms_fit_nT": rms(r_all),
                "rms_base_nT": rms_base, "noise_floor_nT": floor, **{k_: v for k_, v in fl.items() if k_ != "noise_floor_nT"},
@@ -176,7 +193,7 @@ class Diagnosis:
                "not_tested": untested, "not_applicable": not_applicable,
                "coverage_pct": coverage_pct(unit), "folds": k, "seed": self.seed,
                "effect_info": {nm: v for nm, v in self.effect_info.items() if v},
-               "selection_trail": trail,
+               "selection_trail": trail, "naming": naming, "confounded": confounded,
                "localization": self._localize(r_all, unit),
                "base_params": dict(zip(PARAM_NAMES[self.base], map(float, x9[list(BASE_FREE[self.base])]))),
                "fitted_params": {self.model.names[i]: float(x_sel[i]) for i in self.model.free_indices(selected)}}
@@ -214,6 +231,51 @@ class Diagnosis:
                 break
             seen.append(list(selected))
         return state
+
+    def _name(self, selected, current, every, base_res, floor, floor_se, n):
+        """The naming rule (``naming``): the selected effects confirmed on time- and attitude-blocked folds
+        with Holm's correction, above the floor and the minimum detectable effect; confounded pairs said out
+        loud.  Returns (named, their held-out residual, the evidence, the confounded pairs)."""
+        tangent = self.tangent
+        d, k = self.columns, self.k
+        families = {"random": tangent}
+        if selected:
+            for family, fold in (("time-blocked", time_blocks(d.t_s, n, k)),
+                                 ("attitude-blocked", attitude_blocks(self.unit, k, self.seed))):
+                families[family] = Tangent(self.model, tangent.x, fold, k, tangent.spikes)
+        heldout = {f: (lambda names, t=t: t.heldout(names, "outliers" in names)[0]) for f, t in families.items()}
+        n_train = n * (k - 1) // k
+        # the base residual against the floor, spikes explained away when there are (they would swamp the test)
+        spiky = "outliers" in selected
+        base_rem = remainder(heldout["random"](["outliers"]) if spiky else base_res, floor, floor_se,
+                             len(BASE_FREE[self.base]), n_train, robust=spiky)
+        mde = min_detectable_nT(floor, n)
+        slow = time_predicts_attitude(d.t_s, self.unit)
+        temp_r2 = temperature_follows_time(d.t_s, d.temp_C)
+        named, evidence = confirm(heldout, selected, floor, mde, bool(base_rem["remainder_significant"]),
+                                  spikes_isolated(tangent.spikes, d.t_s, d.raw_nT), slow, temp_r2)
+        if "offset_drift" in named:  # a switch is not a slow drift: a step in a body-fixed field explains it
+            drift_res = np.nan_to_num(self.model_residuals(named))
+            base_only = np.nan_to_num(self.model_residuals([s for s in named if s != "offset_drift"]))
+            step = step_explains(base_only, self.unit, d.t_s, float(np.sum(drift_res ** 2)))
+            if step is not None:
+                named = [s for s in named if s != "offset_drift"]
+                for row in evidence:
+                    if row["name"] == "offset_drift":
+                        row["named"], row["step"] = False, step
+                        row["why"] = (f"a single step at t = {step['time_s']:.4g} s in a body-fixed field explains the "
+                                      "residual as well as a slow drift: a switch (outside the library), not a drift")
+        if named != selected:
+            current = heldout["random"](named)
+        confounded = confounded_pairs(heldout, named, every, temp_r2) + attitude_confounds(evidence, slow)
+        naming = {"rule": "named only when significant on random, time-blocked and attitude-blocked folds (Holm, "
+                          f"family-wise {FAMILY_ALPHA:g}), with the base residual above the floor and the effect's own "
+                          "contribution above the minimum detectable effect",
+                  "family_alpha": FAMILY_ALPHA, "min_detectable_effect_nT": mde,
+                  "base_residual_z": base_rem["remainder_z"],
+                  "base_significant": bool(base_rem["remainder_significant"]),
+                  "time_predicts_attitude_r2": slow, "temperature_follows_time_r2": temp_r2, "evidence": evidence}
+        return named, current, naming, confounded
 
     def _contributions(self, selected, every, current, base_res, rms_base, floor, floor_se) -> list[dict]:
         """Each selected effect's own held-out contribution (the selected set with and without it), and what

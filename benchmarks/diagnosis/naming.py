@@ -1,0 +1,299 @@
+"""The naming rule (issue: name a cause only when the data support it).
+
+Forward selection on random folds finds effects that lower the held-out residual; that is not enough to
+name them.  A flexible time basis (``field_drift``'s twelve Legendre terms, ``offset_drift``) absorbs
+attitude structure whenever the attitude changes slowly, because time is then a proxy for attitude; an
+attitude-shaped basis (``nonlinearity``) absorbs the structure of a few distinct attitudes.  Random folds
+cannot tell: every held-out sample has neighbours in time and in direction in the training folds.
+
+An effect is therefore *named* only when all of these hold:
+
+1. **Held-out gain on folds that break confounds.**  Its own contribution (the selected set with and
+   without it) lowers the held-out residual significantly on three fold families: random folds, folds
+   blocked in time (contiguous stretches of the record left out) and folds blocked in attitude (regions
+   of field directions left out, by k-means on the unit reading).  A time effect must predict a stretch it
+   did not see; an attitude effect must predict directions it did not see.
+2. **One significance rule with a stated family-wise level.**  The one-sided p-values of all those tests
+   (every selected effect on every fold family) are corrected together by Holm's step-down method at
+   ``FAMILY_ALPHA``; an effect is named only when all its tests survive.
+3. **Above the floor.**  The base residual must itself be significantly above the noise floor, and the
+   effect's own held-out contribution (the RMS it removes) at least the minimum detectable effect.
+
+Spikes (``outliers``) keep their own count test (their evidence is their number).
+
+Two explanations the data cannot tell apart are said out loud (``a|b``): a temperature effect and a time
+effect (``offset_drift``, ``field_drift``) when the logged temperature is itself a smooth function of time,
+and either of them can replace the other with a held-out residual within the tests' error on every fold
+family.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numpy.polynomial import legendre
+from scipy.stats import norm
+
+from magbench.simulate.effects import EFFECTS
+
+from .scoring import paired_z, rms
+
+FAMILY_ALPHA = 0.01
+"""Family-wise error level of the naming tests (Holm's step-down correction over all of them)."""
+TEMPERATURE_FOLLOWS_TIME_R2 = 0.9
+"""A logged temperature whose variance a degree-4 polynomial of time explains at least this much cannot be
+told from time by these data."""
+SWAP_Z = 3.0
+"""Two explanations are equivalent when each alone is significant on every fold family and replacing one by
+the other changes the held-out residual by less than this many standard errors (paired) on every family."""
+TIME_EFFECTS = ("offset_drift", "field_drift")
+TIME_PREDICTS_ATTITUDE_R2 = 0.9
+"""When a slow function of time (a degree-TIME_ATTITUDE_DEGREE polynomial) explains at least this share of the
+variance of the field direction, the attitude changed too slowly for these data to tell a time effect from
+structure that depends on the attitude (faster rotations are left to the attitude-blocked folds)."""
+TIME_ATTITUDE_DEGREE = 4
+KMEANS_ITERATIONS = 12
+
+
+TIME_BLOCK_CYCLES = 4
+"""Each time-blocked fold is this many contiguous stretches (of 1 / (k TIME_BLOCK_CYCLES) of the record),
+spread over it: a time effect must bridge a gap it did not see, and no fold is an extrapolation beyond the
+record's ends."""
+
+
+def time_blocks(t_s: np.ndarray | None, n: int, k: int) -> np.ndarray:
+    """Fold label of each sample: contiguous stretches of the record in time (file order without t),
+    assigned to the k folds in turn."""
+    order = np.arange(n) if t_s is None else np.argsort(t_s, kind="stable")
+    label = np.empty(n, dtype=int)
+    blocks = k * TIME_BLOCK_CYCLES
+    label[order] = np.minimum(np.arange(n) * blocks // n, blocks - 1) % k
+    return label
+
+
+def attitude_blocks(unit: np.ndarray, k: int, seed: int) -> np.ndarray:
+    """Fold label of each sample: k regions of field directions (k-means on the unit readings, seeded)."""
+    rng = np.random.default_rng(seed)
+    n = len(unit)
+    centres = unit[rng.choice(n, size=k, replace=False)]
+    label = np.zeros(n, dtype=int)
+    for _ in range(KMEANS_ITERATIONS):
+        label = np.argmax(unit @ centres.T, axis=1)
+        for j in range(k):
+            members = unit[label == j]
+            if len(members):
+                c = members.sum(axis=0)
+                centres[j] = c / max(np.linalg.norm(c), 1e-12)
+    # a region with no sample would leave a fold empty: give it the farthest samples of the largest region
+    for j in range(k):
+        if not np.any(label == j):
+            big = np.bincount(label, minlength=k).argmax()
+            rows = np.flatnonzero(label == big)
+            label[rows[: max(1, len(rows) // 2)]] = j
+    return label
+
+
+def time_predicts_attitude(t_s: np.ndarray | None, unit: np.ndarray) -> float | None:
+    """R² of the unit field direction on a degree-TIME_ATTITUDE_DEGREE Legendre polynomial of time (None
+    without time)."""
+    if t_s is None or np.ptp(t_s) <= 0 or len(t_s) < 40:
+        return None
+    s = 2 * (t_s - t_s.min()) / np.ptp(t_s) - 1
+    design = legendre.legvander(s, TIME_ATTITUDE_DEGREE)
+    coef, *_ = np.linalg.lstsq(design, unit, rcond=None)
+    resid = unit - design @ coef
+    total = float(np.sum((unit - unit.mean(axis=0)) ** 2))
+    return float(1.0 - np.sum(resid ** 2) / total) if total > 0 else 1.0
+
+
+def temperature_follows_time(t_s: np.ndarray | None, temp_C: np.ndarray | None) -> float | None:
+    """R² of the logged temperature on a degree-4 Legendre polynomial of time (None without both)."""
+    if t_s is None or temp_C is None or np.ptp(t_s) <= 0 or np.ptp(temp_C) <= 0:
+        return None
+    s = 2 * (t_s - t_s.min()) / np.ptp(t_s) - 1
+    design = legendre.legvander(s, 4)
+    coef, *_ = np.linalg.lstsq(design, temp_C, rcond=None)
+    resid = temp_C - design @ coef
+    return float(1.0 - np.var(resid) / np.var(temp_C))
+
+
+def holm(pvalues: dict, alpha: float = FAMILY_ALPHA) -> dict:
+    """Holm's step-down test: {key: rejected (significant)} at family-wise level ``alpha``."""
+    keys = sorted(pvalues, key=lambda k_: pvalues[k_])
+    m = len(keys)
+    out = dict.fromkeys(pvalues, False)
+    for i, key in enumerate(keys):
+        if pvalues[key] > alpha / (m - i):
+            break
+        out[key] = True
+    return out
+
+
+def one_sided_p(z: float) -> float:
+    return float(norm.sf(z))
+
+
+RUN_FRACTION_MAX = 0.3
+"""Spikes are isolated samples: when more than this share of them sit next to another spike in time, they
+are the peaks of a structured residual (an unmodelled lag at high rotation rates, a switching load), not
+outliers."""
+
+
+FAST_SHARE_MAX = 0.5
+"""... and when more than this share of them fall among the FAST_QUANTILE fastest-changing readings, they
+mark where the field changes fastest (an unmodelled lag or eddy current), not random glitches."""
+FAST_QUANTILE = 0.9
+
+
+def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None,
+                    raw_nT: np.ndarray | None = None) -> tuple[bool, float]:
+    """Whether the spike samples are isolated outliers: not in runs in time and not concentrated where the
+    readings change fastest; and the share of them that has a spike as a time neighbour."""
+    order = np.arange(len(spikes)) if t_s is None else np.argsort(t_s, kind="stable")
+    s = spikes[order]
+    if s.sum() == 0:
+        return True, 0.0
+    neighbour = np.zeros_like(s)
+    neighbour[1:] |= s[:-1]
+    neighbour[:-1] |= s[1:]
+    share = float((s & neighbour).sum() / s.sum())
+    fast_ok = True
+    if raw_nT is not None and len(s) > 10:
+        x = raw_nT[order]
+        rate = np.zeros(len(s))  # how fast the readings change around each sample, the sample itself left out
+        rate[1:-1] = np.linalg.norm(x[2:] - x[:-2], axis=1)
+        fast = rate >= np.quantile(rate, FAST_QUANTILE)
+        fast_ok = float((s & fast).sum() / s.sum()) <= FAST_SHARE_MAX
+    return share <= RUN_FRACTION_MAX and fast_ok, share
+
+
+def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: float,
+            base_significant: bool, spikes_ok: tuple[bool, float] = (True, 0.0),
+            slow_attitude_r2: float | None = None, temp_time_r2: float | None = None) -> tuple[list[str], list[dict]]:
+    """Apply the naming rule.  ``heldout_by_family[family](names)`` returns the held-out residual of base +
+    ``names`` on that fold family.  Returns (named effects, in the selection's order; the evidence rows)."""
+    if not selected:
+        return [], []
+    evidence, pvalues = [], {}
+    for name in selected:
+        rest = [s for s in selected if s != name]
+        row = {"name": name, "families": {}}
+        for family, heldout in heldout_by_family.items():
+            with_res, without = heldout(selected), heldout(rest)
+            z = paired_z(without, with_res)
+            own = float(np.sqrt(max(np.mean(without ** 2) - np.mean(with_res ** 2), 0.0)))
+            row["families"][family] = {"z": z, "own_rms_nT": own, "rms_heldout_nT": rms(with_res)}
+            if not EFFECTS[name].robust:
+                pvalues[(name, family)] = one_sided_p(z)
+        evidence.append(row)
+    passed = holm(pvalues)
+    named = []
+    for row in evidence:
+        name = row["name"]
+        fams = row["families"]
+        if EFFECTS[name].robust:  # spikes: their count test, made in the selection, and isolation in time
+            if spikes_ok[0]:
+                row["named"], row["why"] = True, "spikes: the count test of the selection; isolated in time"
+                named.append(name)
+            else:
+                row["named"] = False
+                row["why"] = (f"the spikes come in runs in time ({100 * spikes_ok[1]:.0f} % have a spike as a neighbour) "
+                              "or where the readings change fastest: the peaks of a structured residual, not outliers")
+            continue
+        failed = [f for f in fams if not passed.get((name, f), False)]
+        own = min(v["own_rms_nT"] for v in fams.values())
+        if not base_significant:
+            row["named"], row["why"] = False, "the base residual is not significantly above the noise floor"
+        elif failed:
+            row["named"] = False
+            row["why"] = ("no significant held-out gain (Holm, family-wise "
+                          f"{FAMILY_ALPHA:g}) on the {', '.join(failed)} folds")
+        elif own < mde:
+            row["named"] = False
+            row["why"] = f"its own contribution {own:.3g} nT is below the minimum detectable effect {mde:.3g} nT"
+        elif (slow_attitude_r2 is not None and slow_attitude_r2 >= TIME_PREDICTS_ATTITUDE_R2
+              and (name in TIME_EFFECTS or (name == "temperature" and temp_time_r2 is not None
+                                            and temp_time_r2 >= TEMPERATURE_FOLLOWS_TIME_R2))):
+            row["named"] = False
+            row["confounded_with_attitude"] = True
+            row["why"] = (f"time predicts the attitude (R² {slow_attitude_r2:.2f}): the attitude changed too slowly "
+                          "to tell a time effect from structure that depends on the attitude")
+        else:
+            row["named"], row["why"] = True, "significant on random, time-blocked and attitude-blocked folds"
+            named.append(name)
+    return named, evidence
+
+
+def attitude_confounds(evidence: list[dict], slow_attitude_r2: float | None) -> list[dict]:
+    """The time effects that passed every test but cannot be told from attitude structure (slow rotation)."""
+    return [{"alternatives": [row["name"], "attitude-dependent structure"], "named": False,
+             "evidence": {"time_predicts_attitude_r2": slow_attitude_r2,
+                          "families": row["families"],
+                          "statement": row["why"]},
+             "separate_by": "turn the sensor through many attitudes several times during the record (fast, repeated "
+                            "rotation), so that the same attitude is visited at different times"}
+            for row in evidence if row.get("confounded_with_attitude")]
+
+
+STEP_GRID = 64
+"""Candidate switch-on times tried by ``step_explains``."""
+STEP_SHARE = 0.9
+"""A step 'explains as well' when it removes at least this share of what the smooth drift removes."""
+
+
+def step_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_drift: float) -> dict | None:
+    """A body-fixed field that switches on at one time (a current loop, a load): the residual
+    ``r ~ -u . (a + d H(t - t0))`` with constant vectors a, d, the best t0 on a grid.  When this step
+    explains the residual at least as well as the smooth offset drift does (``sse_drift``), the data show a
+    switch, which the library's offset drift (offsets changing slowly) is not (at least STEP_SHARE of the drift's
+    reduction of the sum of squares); returns the step, else None."""
+    if t_s is None or len(r) < 40:
+        return None
+    order = np.argsort(t_s, kind="stable")
+    ts, rs, us = t_s[order], r[order], unit[order]
+    best = None
+    for q in np.linspace(0.05, 0.95, STEP_GRID):
+        on = ts >= np.quantile(ts, q)
+        cols = np.column_stack([us * on[:, None], us, np.ones(len(rs))])  # the offset before, and its step
+        coef, *_ = np.linalg.lstsq(cols, rs, rcond=None)
+        sse = float(np.sum((rs - cols @ coef) ** 2))
+        if best is None or sse < best[0]:
+            best = (sse, float(np.quantile(ts, q)), coef[:3])
+    assert best is not None
+    sse_base = float(np.sum((rs - rs.mean()) ** 2))
+    if sse_base - best[0] < STEP_SHARE * (sse_base - sse_drift):
+        return None
+    return {"time_s": best[1], "size_nT": float(np.linalg.norm(best[2])), "sse_step": best[0], "sse_drift": sse_drift}
+
+
+def confounded_pairs(heldout_by_family: dict, named: list[str], candidates: list[str],
+                     temp_r2: float | None) -> list[dict]:
+    """Pairs the data cannot tell apart: a named temperature or time effect and its look-alike, when the
+    temperature follows time and swapping one for the other changes no fold family's held-out residual by
+    more than SWAP_Z standard errors."""
+    if temp_r2 is None or temp_r2 < TEMPERATURE_FOLLOWS_TIME_R2:
+        return []
+    out = []
+    for a in named:
+        if a == "temperature":
+            others = [c for c in TIME_EFFECTS if c in candidates and c not in named]
+        elif a in TIME_EFFECTS and "temperature" in candidates and "temperature" not in named:
+            others = ["temperature"]
+        else:
+            continue
+        for b in others:
+            swapped = [b if s == a else s for s in named]
+            rest = [s for s in named if s != a]
+            zs, alone = {}, {}
+            for family, heldout in heldout_by_family.items():
+                zs[family] = paired_z(heldout(swapped), heldout(named))
+                alone[family] = paired_z(heldout(rest), heldout(swapped))
+            if all(abs(z) < SWAP_Z for z in zs.values()) and alone["random"] > SWAP_Z:
+                out.append({"alternatives": [a, b], "evidence": {
+                    "temperature_time_r2": temp_r2,
+                    "swap_z_by_fold_family": zs, f"{b}_alone_z_by_fold_family": alone,
+                    "statement": f"the logged temperature follows time (R² {temp_r2:.2f} on a smooth function of "
+                                 f"time), and {b} in place of {a} leaves every fold family's held-out residual "
+                                 f"within {SWAP_Z:g} standard errors"},
+                    "separate_by": "a record in which the temperature changes independently of time (heat and cool "
+                                   "the sensor more than once, or hold it at a constant temperature for part of it)"})
+                break
+    return out

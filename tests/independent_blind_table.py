@@ -1,0 +1,86 @@
+"""The independent blind check of the diagnosis: ``python -P tests/independent_blind_table.py --cases 96
+--out results/diagnosis/independent_blind.md`` diagnoses records from tests/independent_forward.py (a forward
+model that shares no code with magbench) and writes the table, wrong names first, and every verdict."""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from independent_forward import make_case  # noqa: E402
+from independent_scoring import score  # noqa: E402
+
+from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
+from magbench.errors import InputError  # noqa: E402
+from magbench.simulate.dataset import Dataset  # noqa: E402
+
+
+def verdict_of(index: int, root: int = 2026) -> dict:
+    case = make_case(index, root)
+    data = Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C)
+    t0 = time.perf_counter()
+    try:
+        verdict = diagnose(data, gravity=case.gravity)["verdict"]
+    except InputError as exc:  # a refusal names nothing: scored as insufficient_data, with its reason kept
+        verdict, refusal = "insufficient_data", str(exc).splitlines()[0][:120]
+    else:
+        refusal = ""
+    s = score(case, verdict)
+    return {"index": index, "category": case.category, "schedule": case.schedule, "present": "+".join(case.present),
+            "outside": "+".join(case.outside), "verdict": verdict, "wrong": "; ".join(s.wrong_names),
+            "named": s.named_present, "n_present": s.n_present, "score": s.score,
+            "refusal": refusal, "seconds": time.perf_counter() - t0}
+
+
+def run(indices, jobs: int = 1, root: int = 2026) -> list[dict]:
+    if jobs <= 1:
+        return [verdict_of(i, root) for i in indices]
+    with ProcessPoolExecutor(jobs) as pool:
+        return list(pool.map(verdict_of, indices, [root] * len(indices)))
+
+
+def table(rows: list[dict]) -> str:
+    cats = sorted({r["category"] for r in rows})
+    lines = ["| category | cases | wrong names | recall of present effects | mean score |", "|---|---|---|---|---|"]
+    for c in cats + ["all"]:
+        part = [r for r in rows if c == "all" or r["category"] == c]
+        wrong = sum(1 for r in part if r["wrong"])
+        present = sum(r["n_present"] for r in part)
+        named = sum(r["named"] for r in part)
+        recall = f"{named}/{present}" if present else "-"
+        mean = 100 * sum(r["score"] for r in part) / len(part)
+        lines.append(f"| {c} | {len(part)} | {wrong} | {recall} | {mean:.1f} % |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--cases", type=int, default=96)
+    ap.add_argument("--start", type=int, default=0)
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--out", type=Path)
+    args = ap.parse_args()
+    rows = run(range(args.start, args.start + args.cases), args.jobs)
+    text = ["# Independent blind check of the diagnosis", "",
+            f"{len(rows)} records from `tests/independent_forward.py` (cases {args.start}-{args.start + args.cases - 1}, "
+            "root seed 2026): a forward model written from the physics, sharing no code with `simulate/` or the "
+            "diagnosis, with effects outside the library that resemble library effects. Made by "
+            f"`python -P tests/independent_blind_table.py --cases {args.cases} --start {args.start}`.", "",
+            "A wrong name is an effect named that is not in the record (the headline: a user acts on it).", "",
+            table(rows), "", "| case | category | schedule | present | outside | verdict | wrong | score |",
+            "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        text.append(f"| {r['index']} | {r['category']} | {r['schedule']} | {r['present'] or '-'} | {r['outside'] or '-'} "
+                    f"| `{r['verdict']}` | {r['wrong'] or ''} | {r['score']:g} |")
+    out = "\n".join(text) + "\n"
+    if args.out:
+        args.out.write_text(out, encoding="utf-8")
+    print(table(rows))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,81 @@
+"""The diagnosis against an independent forward model (tests/independent_forward.py: written from the
+physics, sharing no code with magbench's simulator or diagnosis), wrong names first."""
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from independent_blind_table import run, table  # noqa: E402
+from independent_forward import OUTSIDE, make_case, paper_p, rotation  # noqa: E402
+from independent_scoring import parse, score  # noqa: E402
+
+CASES = 48
+
+
+@pytest.fixture(scope="module")
+def verdicts():
+    return run(range(CASES), jobs=2)
+
+
+def test_at_most_one_wrong_name_per_24_records(verdicts):
+    wrong = [r for r in verdicts if r["wrong"]]
+    assert len(wrong) <= CASES // 24, table(verdicts) + "\n" + "\n".join(
+        f"case {r['index']} ({r['category']}, {r['present'] or '-'}/{r['outside'] or '-'}): {r['verdict']}" for r in wrong)
+
+
+def test_clean_records_are_none(verdicts):
+    clean = [r for r in verdicts if r["category"] == "clean"]
+    assert clean and all(r["verdict"] == "none" or not r["wrong"] for r in clean)
+    assert all(not r["wrong"] for r in clean)
+
+
+def test_too_short_records_are_insufficient_data(verdicts):
+    assert all(r["verdict"] == "insufficient_data" for r in verdicts if r["category"] == "too_short")
+
+
+def test_the_generator_shares_no_code_with_what_it_tests():
+    source = (Path(__file__).resolve().parent / "independent_forward.py").read_text()
+    assert "import magbench" not in source and "from magbench" not in source
+    assert len(OUTSIDE) >= 8
+
+
+def test_a_clean_noise_free_record_is_exactly_an_ellipsoid():
+    """The paper's model inverted: P K^-1 (raw - o) has the field's magnitude everywhere."""
+    rng = np.random.default_rng(1)
+    n = 200
+    rot = rotation(rng.uniform(-3, 3, n), rng.uniform(-1.5, 1.5, n), rng.uniform(-3, 3, n))
+    b_world = np.array([20000.0, 1000.0, 45000.0])
+    b_body = np.einsum("nji,j->ni", rot, b_world)
+    p = paper_p(0.01, -0.02, 0.015)
+    k, o = np.array([1.02, 0.98, 1.01]), np.array([100.0, -50.0, 30.0])
+    raw = (b_body @ np.linalg.inv(p).T) * k + o
+    corrected = ((raw - o) / k) @ p.T
+    assert np.allclose(np.linalg.norm(corrected, axis=1), np.linalg.norm(b_world), rtol=1e-12)
+
+
+def test_a_switch_on_is_a_step_at_its_recorded_time():
+    case = None
+    for i in range(400):
+        c = make_case(i)
+        if "switch_on" in c.outside:
+            case = c
+            break
+    assert case is not None
+    assert case.t_s[0] <= case.notes["switch_on_s"] <= case.t_s[-1]
+
+
+def test_scoring_counts_wrong_names_and_alternatives():
+    case = make_case(1)  # a single temperature effect
+    assert case.present == ("temperature",)
+    assert score(case, "temperature").score == 1.0
+    assert score(case, "temperature+unexplained").score == 0.5  # nothing outside the library here
+    assert score(case, "none").wrong_names == ()
+    # negative control: a wrong name is counted
+    wrong = score(case, "field_drift+temperature")
+    assert wrong.wrong_names == ("field_drift",) and wrong.score == 0.0
+    assert score(case, "nonlinearity|lag").wrong_names == ("nonlinearity|lag",)
+    assert parse("temperature|offset_drift+outliers+unexplained") == ([("temperature", "offset_drift"), ("outliers",)],
+                                                                      True, None)
