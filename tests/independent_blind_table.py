@@ -63,6 +63,8 @@ def main() -> None:
     ap.add_argument("--start", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", type=Path)
+    ap.add_argument("--split", type=str, default="48,144",
+                    help="case indices where a new part begins (development / tuning / first run with the final code)")
     args = ap.parse_args()
     rows = run(range(args.start, args.start + args.cases), args.jobs)
     text = ["# Independent blind check of the diagnosis", "",
@@ -71,8 +73,16 @@ def main() -> None:
             "diagnosis, with effects outside the library that resemble library effects. Made by "
             f"`python -P tests/independent_blind_table.py --cases {args.cases} --start {args.start}`.", "",
             "A wrong name is an effect named that is not in the record (the headline: a user acts on it).", "",
-            table(rows), "", "| case | category | schedule | present | outside | verdict | wrong | score |",
-            "|---|---|---|---|---|---|---|---|"]
+            "## All cases", "", table(rows), ""]
+    cuts = [args.start] + [int(c) for c in args.split.split(",") if c] + [args.start + args.cases]
+    labels = ["looked at while the naming rule was developed", "looked at while it was tuned",
+              "first run with the final code (held out)"]
+    for (a, b), label in zip(zip(cuts[:-1], cuts[1:]), labels):
+        part = [r for r in rows if a <= r["index"] < b]
+        if part:
+            text += [f"## Cases {a}-{b - 1}: {label}", "", table(part), ""]
+    text += ["## Every verdict", "", "| case | category | schedule | present | outside | verdict | wrong | score |",
+             "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         text.append(f"| {r['index']} | {r['category']} | {r['schedule']} | {r['present'] or '-'} | {r['outside'] or '-'} "
                     f"| `{r['verdict']}` | {r['wrong'] or ''} | {r['score']:g} |")

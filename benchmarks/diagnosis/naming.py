@@ -45,6 +45,8 @@ SWAP_Z = 3.0
 """Two explanations are equivalent when each alone is significant on every fold family and replacing one by
 the other changes the held-out residual by less than this many standard errors (paired) on every family."""
 TIME_EFFECTS = ("offset_drift", "field_drift")
+BODY_DRIFTS = ("offset_drift",)
+"""Effects that are a body-fixed field changing slowly in time (a single step is a switch, not one of them)."""
 TIME_PREDICTS_ATTITUDE_R2 = 0.9
 """When a slow function of time (a degree-TIME_ATTITUDE_DEGREE polynomial) explains at least this share of the
 variance of the field direction, the attitude changed too slowly for these data to tell a time effect from
@@ -115,6 +117,11 @@ def temperature_follows_time(t_s: np.ndarray | None, temp_C: np.ndarray | None) 
     return float(1.0 - np.var(resid) / np.var(temp_C))
 
 
+def _is_thermal(name: str) -> bool:
+    """An effect driven by the logged temperature (it needs the ``temp`` column)."""
+    return "temp" in EFFECTS[name].needs
+
+
 def holm(pvalues: dict, alpha: float = FAMILY_ALPHA) -> dict:
     """Holm's step-down test: {key: rejected (significant)} at family-wise level ``alpha``."""
     keys = sorted(pvalues, key=lambda k_: pvalues[k_])
@@ -175,7 +182,7 @@ def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: flo
     evidence, pvalues = [], {}
     for name in selected:
         rest = [s for s in selected if s != name]
-        row = {"name": name, "families": {}}
+        row: dict = {"name": name, "families": {}}
         for family, heldout in heldout_by_family.items():
             with_res, without = heldout(selected), heldout(rest)
             z = paired_z(without, with_res)
@@ -210,7 +217,7 @@ def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: flo
             row["named"] = False
             row["why"] = f"its own contribution {own:.3g} nT is below the minimum detectable effect {mde:.3g} nT"
         elif (slow_attitude_r2 is not None and slow_attitude_r2 >= TIME_PREDICTS_ATTITUDE_R2
-              and (name in TIME_EFFECTS or (name == "temperature" and temp_time_r2 is not None
+              and (name in TIME_EFFECTS or (_is_thermal(name) and temp_time_r2 is not None
                                             and temp_time_r2 >= TEMPERATURE_FOLLOWS_TIME_R2))):
             row["named"] = False
             row["confounded_with_attitude"] = True
@@ -273,10 +280,11 @@ def confounded_pairs(heldout_by_family: dict, named: list[str], candidates: list
         return []
     out = []
     for a in named:
-        if a == "temperature":
+        thermal = [c for c in candidates if _is_thermal(c)]
+        if _is_thermal(a):
             others = [c for c in TIME_EFFECTS if c in candidates and c not in named]
-        elif a in TIME_EFFECTS and "temperature" in candidates and "temperature" not in named:
-            others = ["temperature"]
+        elif a in TIME_EFFECTS and thermal and thermal[0] not in named:
+            others = thermal[:1]
         else:
             continue
         for b in others:

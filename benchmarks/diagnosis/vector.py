@@ -34,6 +34,7 @@ from .floor import vector_floor
 from .localize import folds, localize, tails
 from .model import BASE_FREE, ExtendedModel, Tangent
 from .naming import (
+    BODY_DRIFTS,
     FAMILY_ALPHA,
     attitude_blocks,
     attitude_confounds,
@@ -254,14 +255,15 @@ class Diagnosis:
         temp_r2 = temperature_follows_time(d.t_s, d.temp_C)
         named, evidence = confirm(heldout, selected, floor, mde, bool(base_rem["remainder_significant"]),
                                   spikes_isolated(tangent.spikes, d.t_s, d.raw_nT), slow, temp_r2)
-        if "offset_drift" in named:  # a switch is not a slow drift: a step in a body-fixed field explains it
+        if any(s in BODY_DRIFTS for s in named):  # a switch is not a slow drift
             drift_res = np.nan_to_num(self.model_residuals(named))
-            base_only = np.nan_to_num(self.model_residuals([s for s in named if s != "offset_drift"]))
-            step = step_explains(base_only, self.unit, d.t_s, float(np.sum(drift_res ** 2)))
+            others = [s for s in named if s not in BODY_DRIFTS]
+            step = step_explains(np.nan_to_num(self.model_residuals(others)), self.unit, d.t_s,
+                                 float(np.sum(drift_res ** 2)))
             if step is not None:
-                named = [s for s in named if s != "offset_drift"]
+                named = others
                 for row in evidence:
-                    if row["name"] == "offset_drift":
+                    if row["name"] in BODY_DRIFTS:
                         row["named"], row["step"] = False, step
                         row["why"] = (f"a single step at t = {step['time_s']:.4g} s in a body-fixed field explains the "
                                       "residual as well as a slow drift: a switch (outside the library), not a drift")
