@@ -19,12 +19,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from magbench.calibrators.core.objective import ScalarObjective, identity_vector
+from magbench.calibrators.fisher import coverage
 from magbench.simulate.dataset import ScalarSeries
+from magbench.simulate.sensor import PARAM_NAMES
 
 from .blind import blind_dataset, blind_kinds
 from .report import diagnosis_figure, diagnosis_text
 from .scalar import diagnose_scalar
 from .scoring import candidate_effects
+from .timeonly import time_only
 from .vector import DEFAULT_FOLDS, Diagnosis
 
 BLAS_THREADS = 1
@@ -44,7 +48,19 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
         if isinstance(data, ScalarSeries):
             return diagnose_scalar(data, folds=folds, seed=seed)
+        refusal = attitude_refusal(data, base)
+        if refusal is not None:  # a fixed sensor: the time question still has an answer
+            return time_only(data, refusal)
         return Diagnosis(data, base, folds, seed, gravity=gravity, progress=progress).run()
+
+
+def attitude_refusal(data, base: str) -> str | None:
+    """Why the attitudes of ``data`` cannot determine the ``base`` model (None when they can, or when the
+    record has no reference or too few points: the diagnosis then refuses with its own message)."""
+    if not data.has_reference or base not in PARAM_NAMES or len(data) <= len(PARAM_NAMES[base]):
+        return None
+    report = coverage(ScalarObjective(data.raw_nT, data.f_ref_nT, base), identity_vector(base))
+    return report["refusal"]
 
 
 def read_gravity(path) -> np.ndarray | None:

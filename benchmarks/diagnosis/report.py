@@ -64,8 +64,28 @@ def _localization(loc: dict) -> list[str]:
     return lines
 
 
+def time_only_text(result: dict, source: str = "") -> str:
+    """The human summary of a fixed sensor's time-only diagnosis."""
+    to = result["time_only"]
+    dr = to["drift"]
+    lines = [f"diagnosis of {source} ({result['n_points']} points): the attitudes cannot determine a calibration "
+             "model, so only the time question is answered",
+             f"  |B| - F: {to['constant_nT']:.3f} nT (median), RMS {to['rms_nT']:.3f} nT over {to['span_h']:.3g} h",
+             f"  drift: {dr['drift_nT_per_h']:.4g} +- {dr['drift_se_nT_per_h']:.2g} nT/h"
+             f" ({'significant' if dr['significant'] else 'not significant'})",
+             f"  noise floor {to['noise_floor_nT']:.3f} nT ({to['floor_method']})"]
+    if "temperature" in to:
+        tc = to["temperature"]
+        lines.append(f"  temperature: {tc['temperature_nT_per_C']:.4g} +- {tc['temperature_se_nT_per_C']:.2g} nT/°C "
+                     f"beyond a linear drift ({'significant' if tc['significant'] else 'not significant'})")
+    lines += [f"  time verdict: {result['time_verdict']}; attitude part: insufficient_data ({result['attitude_reason']})"]
+    return "\n".join(lines)
+
+
 def diagnosis_text(result: dict, source: str = "") -> str:
     """The human table of a diagnosis (``magbench diagnose`` without ``--json``)."""
+    if result.get("kind") == "time_only":
+        return time_only_text(result, source)
     lines = _table(result, source) + _localization(result.get("localization", {}))
     if "resimulation" in result and "skipped" in result["resimulation"]:
         lines += ["", "  " + result["resimulation"]["skipped"]]
@@ -158,6 +178,15 @@ def diagnosis_figure(data, result: dict, path) -> None:
     fig = Figure(figsize=FIGURE_SIZE_IN)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(111)
+    if result.get("kind") == "time_only":  # a fixed sensor: |B| - F against time
+        t = np.arange(len(data)) if data.t_s is None else np.asarray(data.t_s) / 3600.0
+        ax.plot(t, np.linalg.norm(np.asarray(data.raw_nT), axis=1) - np.asarray(data.f_ref_nT), ".", ms=2)
+        ax.set_xlabel("time (h)" if data.t_s is not None else "sample")
+        ax.set_ylabel(r"$|B| - F$ (nT)")
+        ax.set_title("fixed sensor: the time question only")
+        fig.tight_layout()
+        fig.savefig(path, dpi=FIGURE_DPI)
+        return
     floor = result.get("noise_floor_nT")
     if floor is not None and np.isfinite(floor):
         lo, hi = (result.get("floor_interval_nT") or [floor, floor])[:2]

@@ -1,0 +1,89 @@
+"""The time-only diagnosis of a fixed sensor (or any record whose attitudes cannot determine the model).
+
+A fixed instrument (an observatory variometer beside its scalar magnetometer) cannot be rotated, so no
+calibration model can be fitted; its time question still has an answer.  With the readings' magnitude
+``|B|`` and the reference ``F``: the constant ``|B| - F`` (its median), its drift (a straight line in time,
+in nT per hour, with its standard error, and a smooth trend), its temperature dependence beyond what time
+predicts (when ``temp`` is logged), the noise floor from time neighbours, and a verdict on the time part;
+the attitude part is stated as ``insufficient_data``.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numpy.polynomial import legendre
+
+from magbench.simulate.dataset import Dataset
+
+from .floor import time_difference_floor
+from .scoring import rms
+
+SECONDS_PER_HOUR = 3600.0
+DRIFT_Z = 3.0
+"""A drift or temperature coefficient is reported as significant beyond this many standard errors (its
+standard error inflated for the residual's autocorrelation: effective samples from the lag-1 correlation)."""
+TREND_DEGREE = 6
+
+
+def _effective_n(resid: np.ndarray) -> float:
+    """Samples worth of independent information in an autocorrelated residual (AR(1) approximation)."""
+    n = len(resid)
+    if n < 3 or np.var(resid) == 0:
+        return float(n)
+    rho = float(np.corrcoef(resid[:-1], resid[1:])[0, 1])
+    rho = min(max(rho, 0.0), 0.99)
+    return max(n * (1 - rho) / (1 + rho), 2.0)
+
+
+def _linear(design: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Least squares with standard errors inflated for autocorrelation: (coef, se, residual)."""
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    resid = y - design @ coef
+    n_eff = _effective_n(resid)
+    dof = max(n_eff - design.shape[1], 1.0)
+    sigma2 = float(resid @ resid) / len(y) * len(y) / dof
+    cov = sigma2 * np.linalg.pinv(design.T @ design) * (len(y) / n_eff)
+    return coef, np.sqrt(np.clip(np.diag(cov), 0, None)), resid
+
+
+def time_only(data: Dataset, reason: str) -> dict:
+    """The JSON-ready answer to the time question of a record whose attitudes do not determine the model."""
+    raw = np.asarray(data.raw_nT, dtype=float)
+    f = np.asarray(data.f_ref_nT, dtype=float)
+    r = np.linalg.norm(raw, axis=1) - f
+    n = len(r)
+    t = np.arange(n, dtype=float) if data.t_s is None else np.asarray(data.t_s, dtype=float)
+    order = np.argsort(t, kind="stable")
+    t, r = t[order], r[order]
+    hours = (t - t[0]) / SECONDS_PER_HOUR
+    out: dict = {"kind": "time_only", "n_points": n, "attitude": "insufficient_data", "attitude_reason": reason}
+    floor = time_difference_floor(r, t if data.t_s is not None else None)
+    design = np.column_stack([np.ones(n), hours - hours.mean()])
+    coef, se, resid = _linear(design, r)
+    drift = {"drift_nT_per_h": float(coef[1]), "drift_se_nT_per_h": float(se[1]),
+             "significant": bool(abs(coef[1]) > DRIFT_Z * se[1]) if np.ptp(hours) > 0 else False}
+    span = np.ptp(t)
+    if span > 0 and n > 3 * TREND_DEGREE:
+        s = 2 * (t - t[0]) / span - 1
+        trend_design = legendre.legvander(s, TREND_DEGREE)
+        trend = trend_design @ np.linalg.lstsq(trend_design, r, rcond=None)[0]
+        drift["trend_range_nT"] = float(np.ptp(trend))
+        drift["rms_after_trend_nT"] = rms(r - trend)
+    out["time_only"] = {
+        "constant_nT": float(np.median(r)), "mean_nT": float(np.mean(r)), "rms_nT": rms(r),
+        "span_h": float(np.ptp(hours)), "drift": drift, "noise_floor_nT": floor["noise_floor_nT"],
+        "floor_method": floor["floor_method"],
+        "statement": "|B| - F of the uncalibrated readings: a constant is a scale or offset error along the one "
+                     "direction the fixed sensor sees; its drift is a drift of either or of the field's magnitude"}
+    if data.temp_C is not None and np.ptp(data.temp_C) > 0:
+        temp = np.asarray(data.temp_C, dtype=float)[order]
+        tdesign = np.column_stack([design, temp - temp.mean()])
+        tcoef, tse, _ = _linear(tdesign, r)
+        out["time_only"]["temperature"] = {
+            "temperature_nT_per_C": float(tcoef[2]), "temperature_se_nT_per_C": float(tse[2]),
+            "beyond_time": "the coefficient with a linear drift in time fitted beside it",
+            "significant": bool(abs(tcoef[2]) > DRIFT_Z * tse[2])}
+    named = [name for name, part in (("drift", drift), ("temperature", out["time_only"].get("temperature", {})))
+             if part.get("significant")]
+    out["verdict"] = "insufficient_data"
+    out["time_verdict"] = "+".join(named) if named else "constant"
+    return out

@@ -1,0 +1,54 @@
+"""A fixed sensor gets a time-only answer: the constant |B| - F, its drift, its temperature dependence and
+the floor, with the attitude part stated as insufficient_data (not a refusal)."""
+import json
+
+import numpy as np
+import pandas as pd
+
+from magbench.benchmarks.cli import main
+from magbench.benchmarks.diagnosis import diagnose
+from magbench.simulate.dataset import Dataset
+
+B = np.array([20000.0, 1500.0, 44000.0])
+F = float(np.linalg.norm(B))
+
+
+def fixed(constant_nT=7.0, drift_nT_per_day=4.0, temp_nT_per_C=0.0, noise=0.3, seed=0, n=2000):
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 86400.0, n)
+    temp = 20 + 5 * np.sin(2 * np.pi * t / 86400 * 3)  # not a function of a linear drift
+    excess = constant_nT + drift_nT_per_day * t / 86400 + temp_nT_per_C * (temp - temp.mean())
+    raw = B * (1 + excess[:, None] / F) + rng.normal(0, noise, (n, 3))
+    return Dataset(raw, f_ref_nT=np.full(n, F), t_s=t, temp_C=temp)
+
+
+def test_constant_and_drift_are_recovered():
+    r = diagnose(fixed())
+    assert r["kind"] == "time_only" and r["attitude"] == "insufficient_data" and r["verdict"] == "insufficient_data"
+    to = r["time_only"]
+    assert abs(to["constant_nT"] - 9.0) < 0.1  # 7 nT plus half a day of 4 nT/day, at the median
+    assert abs(to["drift"]["drift_nT_per_h"] * 24 - 4.0) < 0.1 and to["drift"]["significant"]
+    assert 0.2 < to["noise_floor_nT"] < 0.45  # noise 0.3 nT per axis, seen along the field direction
+    assert r["time_verdict"] == "drift"
+
+
+def test_negative_control_no_drift_is_not_called_a_drift():
+    r = diagnose(fixed(drift_nT_per_day=0.0, seed=3))
+    assert not r["time_only"]["drift"]["significant"] and r["time_verdict"] == "constant"
+
+
+def test_temperature_beyond_time():
+    r = diagnose(fixed(drift_nT_per_day=0.0, temp_nT_per_C=0.8, seed=5))
+    tc = r["time_only"]["temperature"]
+    assert tc["significant"] and abs(tc["temperature_nT_per_C"] - 0.8) < 0.05
+    assert "temperature" in r["time_verdict"]
+
+
+def test_the_command_answers_with_exit_0(tmp_path, capsys):
+    d = fixed()
+    path = tmp_path / "fixed.csv"
+    pd.DataFrame({"t": d.t_s, "bx": d.raw_nT[:, 0], "by": d.raw_nT[:, 1], "bz": d.raw_nT[:, 2],
+                  "f_ref": d.f_ref_nT}).to_csv(path, index=False)
+    assert main(["diagnose", str(path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["time_only"]["constant_nT"] > 8 and out["attitude"] == "insufficient_data"
