@@ -11,6 +11,7 @@ import json
 import logging
 import math
 import os
+import re
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -153,6 +154,25 @@ def _printable(text: str) -> str:
     shown escaped, never echoed raw."""
     return "".join(ch if ch.isprintable() or ch == " " else ch.encode("unicode_escape").decode("ascii")
                    for ch in text)
+
+
+CLI_WORDS = (  # the Python API's words -> the command line's (Python errors speak Python; the CLI translates)
+    (re.compile(r"^no reference magnitude: .*"), "no reference magnitude: give an f_ref column, --field NT, "
+     "--igrf LAT,LON,ALT_KM,YYYY-MM-DD, or a '# field_nT:' line"),
+    (re.compile(r"\bmethod='([\w-]+)'"), r"--method \1"),
+    (re.compile(r"\bmodel='(\w+)'"), r"--model \1"),
+    (re.compile(r"\bfield='auto'"), "--field auto"),
+    (re.compile(r"\bunits='(\w+)'"), r"--units \1"),
+    (re.compile(r"\bunits="), "--units"),
+    (re.compile(r"\(f_ref_nT= or field=NT\)"), "(--field NT or --igrf)"),
+)
+
+
+def cli_words(message: str) -> str:
+    """A message of the Python API in the command line's words (its option names)."""
+    for pattern, words in CLI_WORDS:
+        message = pattern.sub(words, message)
+    return message
 
 
 def _parse_params(items) -> dict:
@@ -340,7 +360,8 @@ def cmd_calibrate(args) -> int:
     _emit(args, obj, "\n".join(lines))
     more = f" (+{len(result.rejections) - 1} more)" if len(result.rejections) > 1 else ""
     unsaved = f"; not saved to {target}" if target is not None else ""
-    sys.stderr.write(f"magbench: calibration rejected: {result.rejections[0]}{more}{unsaved}; --accept-any keeps it\n")
+    sys.stderr.write(f"magbench: calibration rejected: {cli_words(result.rejections[0])}{more}{unsaved}; "
+                     "--accept-any keeps it\n")
     return EXIT_REJECTED
 
 
@@ -781,7 +802,7 @@ def _usage_error(exc: BaseException) -> str | None:
     """The one-line message of an exception that is bad input, not our fault (None otherwise): an
     ``InputError``, an ``OSError`` (a path and the system's reason), memory or nesting beyond the machine's."""
     if isinstance(exc, InputError):
-        return _first_line(exc)
+        return cli_words(_first_line(exc))
     if isinstance(exc, OSError):
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
         return _printable(f"cannot read or write {where}{os_reason(exc)}")

@@ -115,7 +115,7 @@ def physical_range(x: np.ndarray, model: str, physical_lower: np.ndarray, physic
         return []
     return [f"{', '.join(bad)} outside a fluxgate's physical range (angles within 0.5 rad, scales 0.5..2, offsets "
             "within twice the field): the fit absorbed something else (outliers, wrong units, too little coverage); "
-            "for a general ellipsoid use --method sym"]
+            "for a general ellipsoid use method='sym'"]
 
 
 def reference_fit(objective: ScalarObjective, x: np.ndarray, physical_box: tuple[np.ndarray, np.ndarray],
@@ -184,7 +184,7 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
     return [f"the offset along the least-covered direction is not determined: moving it by {step:.3g} nT (and "
             f"refitting the rest) raises the squared error by only {max(worst, 0.0):.3g} noise variances (a "
             f"determined offset needs {limits.profile_chi2:g}); the readings lie close to a plane (out-of-plane "
-            f"spread {100 * ratio:.2g} % of the in-plane spread): tilt the sensor more or use --model angles"]
+            f"spread {100 * ratio:.2g} % of the in-plane spread): tilt the sensor more or use model='angles'"]
 
 
 STRUCTURE_RATIO = 10.0
@@ -366,7 +366,7 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
         if robust:
             warnings.append(what + ": screened by the robust method")
         else:
-            rejections.append(what + ": remove them or use --method ransac")
+            rejections.append(what + ": remove them or use method='ransac'")
     if limits.physical_range:
         rejections += physical_range(x, objective.model, *physical_box)
     n, p = int((~mask).sum()), len(x)
@@ -416,7 +416,7 @@ def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray) -> str | None:
     typical = float(np.median(ratio))
     if not MAGNITUDE_RATIO_RANGE[0] <= typical <= MAGNITUDE_RATIO_RANGE[1]:
         return (f"the readings' magnitude (median {np.median(mag):.4g}) is {typical:.3g} times the reference "
-                f"(median {np.median(f_ref_nT):.6g} nT): wrong --units, raw ADC counts, or a wrong reference")
+                f"(median {np.median(f_ref_nT):.6g} nT): wrong units=, raw ADC counts, or a wrong reference")
     off = (ratio > typical * UNIT_OUTLIER_FACTOR) | (ratio < typical / UNIT_OUTLIER_FACTOR)
     if off.mean() >= MIXED_UNITS_FRACTION:
         rows = np.flatnonzero(off)

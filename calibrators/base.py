@@ -159,6 +159,9 @@ def _jsonable(v):
     return v
 
 
+NO_REFERENCE = ("no reference magnitude: give f_ref_nT= (a number or one per row), field= (a number of nT, or 'auto'), "
+                "or data with their own f_ref")
+
 MODEL_CHOOSER: list = []
 """The function behind ``model="auto"``, installed by ``calibrators.modelselect`` (which compares the candidate
 models with lsq, a method: the framework's base cannot import it without a cycle, so the dependency is
@@ -301,7 +304,7 @@ class Calibrator(metaclass=_Sealed):
             raise InputError(f"unknown model {model!r}: use one of {', '.join(MODELS)} or auto")
         if model not in self.supported_models:
             raise InputError(f"{self.name} estimates the {'/'.join(self.supported_models)} model, "
-                             f"not {model!r}; use --model {self.supported_models[0]}")
+                             f"not {model!r}; use model='{self.supported_models[0]}'")
         if not isinstance(dataset, Dataset):
             raise InputError(f"{self.name} needs a Dataset with bx, by, bz readings")
         n = len(dataset)
@@ -314,8 +317,7 @@ class Calibrator(metaclass=_Sealed):
             raise InputError(f"raw readings have NaN or infinite values in row(s) "
                              f"{', '.join(map(str, rows[:5]))}")
         if not dataset.has_reference:
-            raise InputError("no reference magnitude: give an f_ref column, --field NT, "
-                             "--igrf LAT,LON,ALT_KM,YYYY-MM-DD, or a '# field_nT:' line")
+            raise InputError(NO_REFERENCE)
         if not np.all(np.isfinite(dataset.f_ref_nT)) or np.any(dataset.f_ref_nT <= 0):
             raise InputError("the reference magnitude must be finite and positive on every row")
         problem = reference_problems(dataset.raw_nT, dataset.f_ref_nT)

@@ -141,7 +141,7 @@ def estimate_field(raw_nT: np.ndarray, model: str) -> tuple[float, str]:
     """The field magnitude of readings without a reference (magcal's ``expmfs``) and how it was found."""
     raw = np.asarray(raw_nT, dtype=float)
     if raw.ndim != 2 or raw.shape[1] != 3 or raw.shape[0] < 4 or not np.all(np.isfinite(raw)):
-        raise InputError("--field auto needs at least 4 finite readings bx, by, bz")
+        raise InputError("field='auto' needs at least 4 finite readings bx, by, bz")
     angles_how = "mean corrected magnitude, refined with the angles (angles model)"
     if model == "angles":
         return _angles_field(raw), angles_how
@@ -170,8 +170,8 @@ def estimate_field(raw_nT: np.ndarray, model: str) -> tuple[float, str]:
             continue
         if np.isfinite(f) and 0.2 * typical <= f <= 5.0 * typical:
             return float(f), how
-    raise InputError("--field auto: the readings fit no sphere or ellipsoid (they cover too few directions); "
-                     "give a reference (--field NT or --igrf)")
+    raise InputError("field='auto': the readings fit no sphere or ellipsoid (they cover too few directions); "
+                     "give a reference (f_ref_nT= or field=NT)")
 
 
 def _angles_field(raw: np.ndarray) -> float:
@@ -195,7 +195,7 @@ def with_estimated_field(dataset: Dataset, model: str) -> Dataset:
     """The dataset with its reference replaced by the magnitude estimated from its readings."""
     f, how = estimate_field(dataset.raw_nT, model)
     if not (np.isfinite(f) and f > 0):
-        raise InputError("--field auto: the estimated field magnitude is not a positive number")
+        raise InputError("field='auto': the estimated field magnitude is not a positive number")
     had = dataset.meta.get("reference_source") if dataset.f_ref_nT is not None else None
     meta = {**dataset.meta, "reference_source": f"estimated from the readings: {how} (--field auto)",
             "reference_estimated": FIELD_AUTO_NOTE}

@@ -523,7 +523,7 @@ def check_units(magnitude: float, units: str, expected_field_nT: float | None = 
         ok = ok and 0.2 <= nt / expected_field_nT <= 5.0
     if not ok:
         guess = guess_unit(magnitude, reference)
-        hint = f"they look like {guess}: read with --units {guess}" if guess != units else \
+        hint = f"they look like {guess}: read with units='{guess}'" if guess != units else \
             "check the file and the reference"
         ref = f" against a reference of {expected_field_nT:.6g} nT" if expected_field_nT else ""
         raise InputError(f"{where}: median field magnitude {magnitude:.4g} {units} is implausible{ref}; {hint}")

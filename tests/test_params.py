@@ -56,3 +56,17 @@ def test_the_command_line_reports_a_bad_budget_on_one_line(tmp_path, capsys):
     assert main(["calibrate", str(path), "--method", "ga", "--param", "budget=-3"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "budget must be an int >= 1" in err[0]
+
+
+def test_python_errors_speak_python_and_the_command_line_translates(tmp_path, capsys, data):
+    with pytest.raises(InputError) as err:
+        make("ellipsoid", model="angles").fit(data)
+    assert "--" not in str(err.value) and "model='nine'" in str(err.value)
+    with pytest.raises(InputError) as err:
+        make("lsq").fit(data.raw_nT)  # no reference
+    assert "--" not in str(err.value) and "f_ref_nT=" in str(err.value)
+    path = tmp_path / "s.csv"
+    assert main(["simulate", "--scenario", "sphere9", "--seed", "1", "--out", str(path)]) == 0
+    capsys.readouterr()
+    assert main(["calibrate", str(path), "--method", "ellipsoid", "--model", "angles"]) == 2
+    assert "--model nine" in capsys.readouterr().err

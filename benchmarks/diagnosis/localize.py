@@ -19,6 +19,15 @@ from numpy.polynomial import legendre
 from magbench.simulate.effects import SPIKE_SIGMA, Columns, robust_sigma, time_derivative
 
 from .floor import unit_span
+from .wheremap import (
+    MAP_DIRECTIONS,
+    MAP_TIME_BLOCKS,
+    attitude_time_map,
+    axis_projections,
+    body_field_step,
+    change_points,
+    temperature_beyond_time,
+)
 
 HEADING_HARMONICS = 4
 MAX_DEGREE = 6
@@ -102,7 +111,7 @@ def _poly(v: np.ndarray, degree: int) -> np.ndarray:
 
 
 def localize(r: np.ndarray, unit: np.ndarray, d: Columns, heading_deg, k: int, seed: int,
-             gravity: np.ndarray | None = None) -> dict:
+             gravity: np.ndarray | None = None, floor_nT: float | None = None) -> dict:
     """The localization block of the diagnosis (module docstring)."""
     fold = folds(len(r), k, seed + LOCALIZE_SEED_OFFSET)
     loc: dict = {}
@@ -132,6 +141,18 @@ def localize(r: np.ndarray, unit: np.ndarray, d: Columns, heading_deg, k: int, s
         loc["gravity_direction_explained_pct"] = cv_explained(lambda sl: spherical_design(g[sl], 2), r, fold, k)
     if heading_deg is not None:
         loc["heading_harmonics"] = harmonics(heading_deg, r)
+    if len(r) >= 4 * MAP_DIRECTIONS * MAP_TIME_BLOCKS:
+        loc["axis_projections"] = axis_projections(r, unit, seed)
+        if unit_span(d.t_s) is not None:
+            loc["attitude_time_map"] = attitude_time_map(r, unit, d.t_s, seed)
+            fl = float(robust_sigma(np.diff(r[np.argsort(d.t_s, kind="stable")])) / np.sqrt(2.0)) \
+                if floor_nT is None else floor_nT
+            loc["change_points"] = change_points(r, d.t_s, fl)
+            step = body_field_step(r, unit, d.t_s, fl)
+            if step is not None:
+                loc["body_field_step"] = step
+            if unit_span(d.temp_C) is not None:
+                loc["temperature_beyond_time_pct"] = temperature_beyond_time(r, d.t_s, d.temp_C, seed)
     loc.update(tails(r))
     return {k_: v for k_, v in loc.items() if v is not None}
 
