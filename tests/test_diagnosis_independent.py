@@ -88,7 +88,7 @@ def test_where_places_a_switch_on_in_time():
     from magbench.benchmarks.diagnosis import diagnose
     from magbench.simulate.dataset import Dataset
 
-    cases = [c for c in (make_case(i) for i in range(120)) if "switch_on" in c.outside][:3]
+    cases = [c for c in (make_case(i) for i in range(240)) if "switch_on" in c.outside][:3]
     located = 0
     for c in cases:
         r = diagnose(Dataset(c.raw_nT, f_ref_nT=c.f_ref_nT, t_s=c.t_s, temp_C=c.temp_C))
