@@ -202,6 +202,9 @@ STEP_CANDIDATES = 2000
 STEP_SHARE = 0.5
 """A single step names the structure when it explains at least this share of the residual's excess over
 the noise."""
+STEP_DOMINANT = 0.9
+"""... and, whatever the noise estimate, a single step that explains this share of what the model leaves
+(the sum of squares beyond the whole-record directions) is structure, not noise."""
 SCALE_WARNING = 0.05
 """A mean scale factor further than this from 1 gets a warning (a fluxgate's scales are near unity)."""
 
@@ -288,6 +291,9 @@ def describe_structure(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     best = int(np.argmax(gain))
     excess = float(ro @ ro) - base - n * noise_nT ** 2
     k = int(edges[best])
+    if noise_nT <= 0:  # asked only whether a step explains most of what the model leaves
+        left = float(ro @ ro) - base
+        return "step" if left > 0 and gain[best] >= STEP_DOMINANT * left else ""
     if excess > 0 and gain[best] >= STEP_SHARE * excess:
         row = int(rows[order[k]])
         when = f" (t = {t_s[row]:.6g} s)" if t_s is not None else ""
@@ -321,6 +327,14 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
         warnings.append("the noise could not be estimated independently of the fit (no t column and no repeated "
                         "attitudes): it was estimated from neighbouring rows taken in file order")
     if not rms_nT > STRUCTURE_RATIO * sigma + STRUCTURE_FLOOR_FRACTION * field_nT:
+        # consecutive samples at unrelated attitudes (a shuffled or sparse record) put the model's misfit into
+        # the time neighbours' differences too, so that estimate is not independent of a structure that
+        # follows the attitude, such as offsets that jump: a single step that explains most of what the fit
+        # leaves is structure however the noise was estimated
+        if (how == "time" and rms_nT > STRUCTURE_FLOOR_FRACTION * field_nT
+                and describe_structure(objective, x, r, order, 0.0, rows, t_s) == "step"):
+            shape = describe_structure(objective, x, r, order, 1e-300, rows, t_s)
+            return [f"the residual {rms_nT:.3g} nT is structured: {shape}"], warnings
         return [], warnings
     source = {"time": "neighbouring samples in time", "repeats": "repeated attitudes",
               "rows": "neighbouring rows"}[how]
