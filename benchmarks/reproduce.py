@@ -274,7 +274,7 @@ def write_timing(clock: PhaseClock, out: Path, jobs: int, quick: bool) -> Path:
 def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = True) -> list[Path]:
     from tqdm import tqdm
 
-    from magbench.benchmarks.campaign import Campaign, MethodSpec, clear_outputs, run_campaign
+    from magbench.benchmarks.campaign import CHECKPOINT, Campaign, MethodSpec, clear_outputs, run_campaign
     from magbench.benchmarks.comparison import write_comparison
     from magbench.benchmarks.figures import make_figures
     from magbench.benchmarks.report import write_report
@@ -305,6 +305,8 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
         images: dict = {}
         make_figures(camp_dir, images=images, progress=progress)
         written += [camp_dir / "runs.csv", camp_dir / "summary.md", write_report(camp_dir, images=images)]
+        (camp_dir / CHECKPOINT).unlink(missing_ok=True)  # the tables are the record here; the checkpoint (what
+        # lets a campaign grow) would add megabytes of traces to the repository
 
         lsq_dir = out / "lsq_sphere9_1000"
         phase("1000 lsq trials")
@@ -314,6 +316,7 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
                      command=f"magbench compare --scenarios sphere9 --methods lsq --trials 1000 --seed {ROOT_SEED} "
                      f"--jobs {jobs}", progress=progress)
         written.append(lsq_dir / "summary.md")
+        (lsq_dir / CHECKPOINT).unlink(missing_ok=True)
         clock.start("seed 000 tables")
         written.append(lu2014_tables(camp_dir, out / "lu2014_tables.md"))
         phase("diagnosis of the real recordings and the blind check")
