@@ -427,7 +427,7 @@ def cmd_demo(args) -> int:
             table.insert(5, "d_offset_nT", part["offset_err_max_nT"])
         lines.append(table.to_string(index=False, float_format=lambda v: f"{v:.3g}", na_rep="-"))
         for _, r in part[part["error"] != ""].iterrows():
-            lines.append(f"  {r['method']}: not run: {r['error']}")
+            lines.append(f"  {r['method']}: not run: {cli_words(r['error'])}")
         lines.append("")
     lines.append("d_*: estimate minus truth (angles in arc-seconds); rms: total-field residual against the "
                  "reference before and after calibration; accepted: whether the calibration passes its acceptance "
