@@ -2,7 +2,9 @@
 
 The names below are loaded on first use (PEP 562), so that importing one light module (the error model,
 the dataset reader) does not import the attitude schedules and SciPy's spatial package with it."""
+import sys
 from importlib import import_module
+from types import ModuleType
 
 _EXPORTS = {
     "attitude": ("Attitudes", "cap", "full_sphere", "tumble", "turntable", "vehicle"),
@@ -27,3 +29,15 @@ def __getattr__(name: str):
 
 def __dir__():
     return sorted(set(globals()) | set(__all__))
+
+
+class _CallablePackage(ModuleType):
+    """This package is also the entry point ``magbench.simulate(name, seed)`` (``scenarios.simulate``), so
+    that ``import magbench; magbench.simulate("sphere9", seed=1)`` works beside ``magbench.simulate.X``."""
+
+    def __call__(self, name: str, seed: int = 0):
+        """The named scenario's ``Dataset`` with its ground truth (``magbench list`` names them)."""
+        return self.simulate(name, seed)
+
+
+sys.modules[__name__].__class__ = _CallablePackage
