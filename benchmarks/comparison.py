@@ -34,6 +34,10 @@ PROFILE_TARGET = 1.01
 """The RMS target whose ERT the performance profile compares."""
 ALPHA = 0.05
 """Family-wise error rate of the Holm-corrected paired tests."""
+PRACTICAL_MARGIN = 0.01
+"""A difference matters in practice when it exceeds this share of the scenario's optimum RMS (the median over
+trials of the best configuration's RMS): "better" needs a significant difference larger than the margin,
+"equivalent" a significant difference smaller than it in both directions (two one-sided tests, TOST)."""
 MIN_TRIALS_FOR_TESTS = 10
 """Below this many paired trials the signed-rank test has little power (at 5 trials the smallest
 two-sided p-value is 0.0625): the tables say so."""
@@ -222,6 +226,7 @@ def paired_tests(runs: pd.DataFrame, metric: str = "rms_after_nT") -> tuple[pd.D
     for scenario, part in _ok(runs).groupby("scenario", sort=False):
         table = part.pivot_table(index="trial", columns="configuration", values=metric, aggfunc="first")
         confs = list(table.columns)
+        margin = PRACTICAL_MARGIN * float(np.nanmedian(table.min(axis=1))) if len(table) else math.nan
         pairs = []
         for i, a in enumerate(confs):
             for b in confs:
@@ -235,17 +240,30 @@ def paired_tests(runs: pd.DataFrame, metric: str = "rms_after_nT") -> tuple[pd.D
                 diff = (both[a] - both[b]).to_numpy()
                 p = float(wilcoxon(diff, zero_method="zsplit").pvalue) if len(diff) and np.any(diff != 0) else 1.0
                 pairs.append({"scenario": scenario, "a": a, "b": b, "n": len(diff), "median_diff": float(np.median(diff))
-                              if len(diff) else math.nan, "p": p})
+                              if len(diff) else math.nan, "p": p, "margin_nT": margin,
+                              "p_equivalent": _tost(diff, margin, wilcoxon)})
         if pairs:
             adjusted = holm(np.array([q["p"] for q in pairs]))
             for q, adj in zip(pairs, adjusted):
                 q["p_holm"] = float(adj)
                 q["significant"] = bool(adj < ALPHA)
-                q["better"] = (q["a"] if q["median_diff"] < 0 else q["b"]) if q["significant"] else ""
+                practical = q["significant"] and abs(q["median_diff"]) > q["margin_nT"]
+                q["better"] = (q["a"] if q["median_diff"] < 0 else q["b"]) if practical else ""
+                q["verdict"] = (f"{q['better']} better" if practical else
+                                "equivalent" if q["p_equivalent"] < ALPHA else "inconclusive")
                 q["warning"] = (f"only {q['n']} paired trials: too few for the test" if q["n"] < MIN_TRIALS_FOR_TESTS
                                 else "")
             tests += pairs
     return pd.DataFrame(tests), pd.DataFrame(wins)
+
+
+def _tost(diff: np.ndarray, margin: float, wilcoxon) -> float:
+    """p-value of equivalence within +-margin (two one-sided Wilcoxon tests; the larger of the two)."""
+    if len(diff) < 2 or not margin > 0:
+        return 1.0
+    lower = wilcoxon(diff + margin, zero_method="zsplit", alternative="greater").pvalue
+    upper = wilcoxon(diff - margin, zero_method="zsplit", alternative="less").pvalue
+    return float(max(lower, upper))
 
 
 def _md_table(frame: pd.DataFrame, columns: list[tuple[str, str, str]]) -> str:
@@ -325,10 +343,16 @@ def _write_markdown(path: Path, runs: pd.DataFrame, ert: pd.DataFrame, tests: pd
         lines += [_md_table(table, cols), ""]
         t = tests[tests["scenario"] == scenario] if len(tests) else tests
         if len(t):
+            margin = float(t["margin_nT"].iloc[0])
             lines += ["### Paired Wilcoxon signed-rank tests on the final RMS (Holm-corrected)", "",
+                      f"A configuration is *better* only when the difference is significant (Holm, {ALPHA:g}) and "
+                      f"larger than the practical margin of {margin:.3g} nT ({100 * PRACTICAL_MARGIN:g} % of this "
+                      "scenario's optimum RMS); *equivalent* when two one-sided tests show it within the margin; "
+                      "else *inconclusive*.", "",
                       _md_table(t, [("a", "A", "{}"), ("b", "B", "{}"), ("n", "trials", "{:d}"),
                                     ("median_diff", "median A−B nT", "{:.3g}"), ("p_holm", "p (Holm)", "{:.3g}"),
-                                    ("better", "better", "{}"), ("warning", "note", "{}")]), ""]
+                                    ("margin_nT", "margin nT", "{:.3g}"), ("p_equivalent", "p (equivalence)", "{:.3g}"),
+                                    ("verdict", "verdict", "{}"), ("warning", "note", "{}")]), ""]
         w = wins[wins["scenario"] == scenario] if len(wins) else wins
         if len(w):
             order = list(dict.fromkeys(part["configuration"]))

@@ -277,9 +277,11 @@ def _comparison_tables(campaign_dir: Path) -> list[dict]:
         item = {"name": scenario, "ert": wide.to_html(escape=True, border=0, classes="comparison",
                                                       index_names=False), "tests": ""}
         if len(tests):
-            t = tests[tests["scenario"] == scenario][["a", "b", "n", "median_diff", "p_holm", "better", "warning"]]
+            cols = ["a", "b", "n", "median_diff", "p_holm", "margin_nT", "verdict", "warning"]
+            t = tests[tests["scenario"] == scenario][[c for c in cols if c in tests]]
             t = t.rename(columns={"a": "A", "b": "B", "n": "trials", "median_diff": "median A−B (nT)",
-                                  "p_holm": "p (Holm)", "better": "better", "warning": "note"})
+                                  "p_holm": "p (Holm)", "margin_nT": "practical margin (nT)", "verdict": "verdict",
+                                  "warning": "note"})
             item["tests"] = t.to_html(escape=True, border=0, index=False, classes="comparison",
                                       float_format=lambda v: f"{v:.3g}")
         out.append(item)

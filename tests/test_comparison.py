@@ -57,6 +57,20 @@ def test_paired_test_finds_a_clearly_better_method_and_warns_with_few_trials():
     assert wins[(wins.row == "lsq") & (wins.column == "ga")].win_rate.iloc[0] == 1.0
     few, _ = cmp.paired_tests(_runs({"lsq": good[:5], "ga": good[:5] + 0.5}))
     assert not few.iloc[0].significant and "too few" in few.iloc[0].warning
+    assert t.verdict == "lsq better" and t.margin_nT == pytest.approx(0.01 * np.median(good), rel=1e-6)
+
+
+def test_a_significant_but_tiny_difference_is_equivalent_not_better():
+    """lsq 'better' than ga at a median of 4e-8 nT was no finding: below the practical margin (1 % of the
+    optimum RMS), two one-sided tests call the pair equivalent."""
+    rng = np.random.default_rng(1)
+    good = 2.0 + 0.1 * rng.random(30)
+    runs = _runs({"lsq": good, "ga": good + 4e-8 * (1 + rng.random(30))})
+    t = cmp.paired_tests(runs)[0].iloc[0]
+    assert t.significant and t.better == "" and t.verdict == "equivalent"
+    # negative control: a difference of 10 % of the optimum is a practical one
+    far = cmp.paired_tests(_runs({"lsq": good, "ga": good * 1.1}))[0].iloc[0]
+    assert far.verdict == "lsq better"
 
 
 def test_performance_profile_gives_the_best_method_one_at_tau_one():
