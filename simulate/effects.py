@@ -138,6 +138,47 @@ def local_derivatives(t_s: np.ndarray, x: np.ndarray, half_window: int = 3) -> t
     return (d1[:, 0], d2[:, 0]) if flat else (d1, d2)
 
 
+MIN_GAP_OF_MEDIAN = 0.5
+"""``central_derivative`` takes as neighbours the nearest samples at least this share of the median spacing
+away, so that two samples a millisecond apart do not divide their noise by that millisecond."""
+
+
+def central_derivative(t_s: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """d x / d t at each sample by the three-point central difference on irregular times (the exact
+    derivative of the parabola through the neighbours and the sample: weights -h2 / (h1 (h1 + h2)),
+    (h2 - h1) / (h1 h2), h1 / (h2 (h1 + h2)) with h1, h2 the gaps to the left and right neighbour; on even
+    sampling the sample's own weight is 0).  Neighbours closer than MIN_GAP_OF_MEDIAN of the median
+    spacing are passed over; one-sided differences at the ends.  x may be (n,) or (n, k).  On 0.3-0.4 s
+    irregular sampling it leaves a pure lag's derivative about 5x closer than a quadratic fitted to six
+    neighbours without the sample (tests/test_diagnosis_floor.py)."""
+    xs_in = np.asarray(x, dtype=float)
+    flat = xs_in.ndim == 1
+    xv = xs_in[:, None] if flat else xs_in
+    n = len(t_s)
+    out = np.zeros_like(xv)
+    if n < 3 or np.ptp(t_s) <= 0:
+        return out[:, 0] if flat else out
+    order = np.argsort(t_s, kind="stable")
+    ts, xo = t_s[order].astype(float), xv[order]
+    gap = MIN_GAP_OF_MEDIAN * float(np.median(np.diff(ts)) or np.ptp(ts) / n)
+    i = np.arange(n)
+    left = np.searchsorted(ts, ts - gap, side="right") - 1  # the last sample at least `gap` earlier
+    right = np.searchsorted(ts, ts + gap, side="left")  # the first sample at least `gap` later
+    left = np.where(left < 0, i, left)
+    right = np.where(right > n - 1, i, right)
+    h1 = (ts - ts[left])[:, None]
+    h2 = (ts[right] - ts)[:, None]
+    both = (h1 > 0) & (h2 > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        central = (-h2 / (h1 * (h1 + h2)) * xo[left] + (h2 - h1) / (h1 * h2) * xo
+                   + h1 / (h2 * (h1 + h2)) * xo[right])
+        forward = (xo[right] - xo) / h2
+        backward = (xo - xo[left]) / h1
+    d = np.where(both, central, np.where(h2 > 0, forward, np.where(h1 > 0, backward, 0.0)))
+    out[order] = d
+    return out[:, 0] if flat else out
+
+
 # ---------------------------------------------------------------------------------------------- data
 @dataclass(frozen=True)
 class Column:
@@ -737,21 +778,22 @@ class LagEffect(Effect):
             bad = order[~good]
             for a in range(3):
                 raw[bad, a] = np.interp(d.t_s[bad], ts[good], d.raw_nT[order[good], a])
-        d.extra["draw_dt"], d.extra["draw_dt2"] = local_derivatives(d.t_s, raw)
-        d.extra["dref_dt"] = local_derivatives(d.t_s, d.f_ref_nT)[0]
+        d.extra["draw_dt"], d.extra["draw_dt2"] = central_derivative(d.t_s, raw), local_derivatives(d.t_s, raw)[1]
+        d.extra["dref_dt"] = central_derivative(d.t_s, d.f_ref_nT)
         return {}
 
     @classmethod
     def fit_columns(cls, u0, d, norm):
         if "draw_dt" not in d.extra:
-            d.extra["draw_dt"], d.extra["draw_dt2"] = local_derivatives(d.t_s, d.raw_nT)
+            d.extra["draw_dt"] = central_derivative(d.t_s, d.raw_nT)
+            d.extra["draw_dt2"] = local_derivatives(d.t_s, d.raw_nT)[1]
         du, du2 = d.extra["draw_dt"], d.extra["draw_dt2"]
         g = np.zeros((len(u0), 3, 7))
         for a in range(3):
             g[:, a, a] = -du[:, a]
             g[:, a, 4 + a] = 0.5 * du2[:, a]
         h = np.zeros((len(u0), 7))
-        h[:, 3] = -(d.extra["dref_dt"] if "dref_dt" in d.extra else local_derivatives(d.t_s, d.f_ref_nT)[0])
+        h[:, 3] = -(d.extra["dref_dt"] if "dref_dt" in d.extra else central_derivative(d.t_s, d.f_ref_nT))
         return g, h
 
     @classmethod

@@ -1,0 +1,58 @@
+"""The floor and the derivatives the diagnosis builds on: central differences on irregular times, held
+samples left out of the floor."""
+import numpy as np
+
+from magbench.benchmarks.diagnosis.floor import held_samples, vector_floor
+from magbench.simulate.effects import Columns, central_derivative, local_derivatives, time_derivative
+
+
+def _signal(t):
+    return 1000 * np.sin(2 * np.pi * t / 60) + 300 * np.cos(2 * np.pi * t / 23)
+
+
+def _slope(t):
+    return 1000 * 2 * np.pi / 60 * np.cos(2 * np.pi * t / 60) - 300 * 2 * np.pi / 23 * np.sin(2 * np.pi * t / 23)
+
+
+def test_central_differences_leave_less_of_a_pure_lag_than_the_left_out_quadratic():
+    """Noise-free, 0.3-0.4 s irregular sampling: a 0.2 s lag's first-order term from central differences is
+    several times closer than from the quadratic fitted to six neighbours without the sample (negative
+    control)."""
+    rng = np.random.default_rng(0)
+    t = np.cumsum(rng.uniform(0.3, 0.4, 2000))
+    x, true = _signal(t), _slope(t)
+    central = 0.2 * np.sqrt(np.mean((central_derivative(t, x) - true) ** 2))
+    local = 0.2 * np.sqrt(np.mean((local_derivatives(t, x)[0] - true) ** 2))
+    assert central < local / 3
+
+
+def test_close_samples_do_not_blow_up_the_central_difference():
+    """Samples a millisecond apart: neighbours closer than half the median spacing are passed over, so the
+    derivative's noise stays bounded where np.gradient's explodes (negative control)."""
+    rng = np.random.default_rng(2)
+    t = np.sort(np.concatenate([np.cumsum(rng.uniform(0.3, 0.4, 1000)), np.cumsum(rng.uniform(0.3, 0.4, 1000))[::5]
+                                + 1e-3]))
+    x = _signal(t) + rng.normal(0.0, 1.0, len(t))
+    err_central = np.max(np.abs(central_derivative(t, x) - _slope(t)))
+    err_gradient = np.max(np.abs(time_derivative(t, x) - _slope(t)))
+    assert err_central < 20.0 and err_gradient > 20 * err_central
+
+
+def test_held_samples_are_left_out_of_the_floor():
+    rng = np.random.default_rng(3)
+    n = 3000
+    t = np.arange(n, dtype=float)
+    raw = rng.normal(0, 1, (n, 3)) * 2.0 + 50000.0
+    hold = rng.random(n) < 0.3
+    hold[0] = False
+    idx = np.maximum.accumulate(np.where(hold, 0, np.arange(n)))
+    raw_held = raw[idx]
+    r = raw_held[:, 0] - 50000.0
+    cols = Columns(raw_nT=raw_held, f_ref_nT=np.full(n, 50000.0), t_s=t)
+    assert abs(held_samples(raw_held, np.arange(n)).mean() - hold.mean()) < 0.01
+    fl = vector_floor(np.tile([1.0, 0.0, 0.0], (n, 1)), cols, r)
+    assert abs(fl["noise_floor_nT"] - 2.0) < 0.2 and fl["held_sample_fraction"] > 0.25
+    # negative control: the same held record with the held rows taken as samples underestimates the noise
+    from magbench.benchmarks.diagnosis.floor import time_difference_floor
+
+    assert time_difference_floor(r, t)["noise_floor_nT"] < 1.8
