@@ -319,10 +319,9 @@ def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, p
     ``on_row(task, row)`` is called in this process as each run finishes (its return value, when not
     None, replaces the row); ``n_done`` runs done earlier start the progress bar.  On Ctrl-C or SIGTERM
     the pending work is cancelled, local workers terminated, and ``KeyboardInterrupt`` re-raised."""
-    from tqdm import tqdm
+    from magbench.benchmarks.progress import progress_bar
 
-    bar = tqdm(total=n_done + len(tasks), initial=n_done, desc="runs", unit="run", disable=not progress,
-               file=sys.stderr, mininterval=0.5, dynamic_ncols=True)
+    bar = progress_bar(n_done + len(tasks), "runs", "run", enabled=progress, initial=n_done, leave=True)
     results: list[dict | None] = [None] * len(tasks)
 
     def finish(indices, rows):

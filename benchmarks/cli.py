@@ -539,13 +539,14 @@ def _compare_outputs(args, runs, out: Path, progress: bool) -> int:
     if comparison and not attrs.get("already_complete"):
         from magbench.benchmarks.comparison import write_comparison
 
-        write_comparison(out, figures=not args.no_figures, formats=tuple(args.format), dpi=args.dpi)
+        write_comparison(out, figures=False)  # its figures are drawn below with the others, in parallel
     if figures:
         from magbench.benchmarks.figures import make_figures
         from magbench.benchmarks.report import write_report
 
         images: dict = {}  # the report embeds the figures drawn here at screen resolution
-        make_figures(out, formats=tuple(args.format), dpi=args.dpi, images=images, progress=progress)
+        make_figures(out, formats=tuple(args.format), dpi=args.dpi, images=images, progress=progress,
+                     jobs=max(1, args.jobs or 1))
         write_report(out, images=images)
     failed = int((runs["error"] != "").sum())
     obj = {"out": str(out), "n_runs": len(runs), "n_failed": failed, "complete": True,
@@ -592,7 +593,8 @@ def cmd_report(args) -> int:
         raise InputError(f"{d} is not a campaign directory (no runs.csv): run 'magbench compare' first")
     images: dict = {}
     progress = not args.json and not args.quiet
-    written = make_figures(d, formats=tuple(args.format or ()), dpi=args.dpi, images=images, progress=progress)
+    written = make_figures(d, formats=tuple(args.format or ()), dpi=args.dpi, images=images, progress=progress,
+                           jobs=args.jobs)
     path = write_report(d, images=images)
     _emit(args, {"report": str(path), "figures": [str(p) for p in written]},
           f"wrote {path}" + (f" and {len(written)} figure files in {d / 'figures'}" if written else ""))
@@ -770,6 +772,7 @@ def _add_report_parser(sub) -> None:
     p.add_argument("dir", metavar="DIR", help="a campaign folder written by 'magbench compare'")
     _add_figure_options(p, None, "also write the figures to DIR/figures in these formats (default: none; the "
                                  "report embeds its own)")
+    p.add_argument("--jobs", type=_positive_int, default=1, help="processes drawing the figures")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_report)

@@ -281,9 +281,10 @@ def _md_table(frame: pd.DataFrame, columns: list[tuple[str, str, str]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_comparison(campaign_dir, figures: bool = True, formats=("png",), dpi: int = 300) -> list[Path]:
+def write_comparison(campaign_dir, figures: bool = True, formats=("png",), dpi: int = 300, jobs: int = 1) -> list[Path]:
     """Compute everything above for a campaign folder and write comparison/*.csv, comparison.md and, with
-    ``figures``, figures/ecdf, figures/anytime and figures/profile."""
+    ``figures``, figures/ecdf, figures/anytime and figures/profile (drawn by ``figures.make_figures``, on
+    ``jobs`` processes)."""
     d = Path(campaign_dir)
     runs = pd.read_csv(d / "runs.csv", keep_default_na=False, na_values=[""], dtype={"error": str})
     runs["error"] = runs["error"].fillna("")
@@ -304,10 +305,10 @@ def write_comparison(campaign_dir, figures: bool = True, formats=("png",), dpi: 
         written.append(path)
     written.append(_write_markdown(d / "comparison.md", runs, ert, tests, wins))
     if figures:
-        from magbench.benchmarks.comparison_figures import comparison_figures
+        from magbench.benchmarks.comparison_figures import COMPARISON_KINDS
+        from magbench.benchmarks.figures import make_figures
 
-        for fmt in formats or ("png",):
-            written += comparison_figures(d, curves, any_, profile, fmt=fmt, dpi=dpi)
+        written += make_figures(d, formats=tuple(formats or ("png",)), dpi=dpi, kinds=COMPARISON_KINDS, jobs=jobs)
     return written
 
 

@@ -1,121 +1,123 @@
 """Figures of the method comparison (``benchmarks/comparison.py``): runtime ECDFs, anytime curves and
-performance profiles, one panel per scenario, one colour per method (the Okabe-Ito colour-blind-safe
-palette, in a fixed order so that a method keeps its colour across figures)."""
+performance profiles, one panel per scenario.  Each builder takes the comparison's table (read from
+``comparison/*.csv``) and the campaign's style map (``benchmarks.styles.campaign_styles``) and returns a
+``Figure``; ``benchmarks.figures.make_figures`` draws them with the other families, in every format."""
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
-OKABE_ITO = ("#0072B2", "#E69F00", "#009E73", "#D55E00", "#CC79A7", "#56B4E9", "#F0E442", "#000000")
-LINESTYLES = ("-", "--", ":", "-.")
+from magbench.benchmarks.styles import BOUND_GREY
+
 MARK_EVERY = 6
 """A marker on every sixth point of a curve, so that methods sharing a colour stay apart."""
+COMPARISON_KINDS = ("ecdf", "anytime", "profile")
 
 
-def style_of(names: list[str]) -> dict:
-    """A (colour, line style) per method name, stable for the same sorted set of names."""
-    return {n: (OKABE_ITO[i % len(OKABE_ITO)], LINESTYLES[(i // len(OKABE_ITO)) % len(LINESTYLES)])
-            for i, n in enumerate(sorted(names))}
-
-
-def _panels(n: int):
-    from matplotlib.figure import Figure
+def _panels(n: int) -> tuple[Figure, np.ndarray]:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     cols = min(n, 2)
     rows = int(np.ceil(n / cols))
-    fig = Figure(figsize=(6.2 * cols, 3.9 * rows), layout="constrained")
+    fig = Figure(figsize=(5.2 * cols + 2.2, 3.6 * rows), layout="constrained")
+    FigureCanvasAgg(fig)
     axes = fig.subplots(rows, cols, squeeze=False).ravel()
     for ax in axes[n:]:
         ax.set_visible(False)
     return fig, axes
 
 
-def _save(fig, path: Path, fmt: str, dpi: int) -> Path:
-    """``path`` with the format's suffix, through the campaign figures' writer (no dates or software tags)."""
-    from magbench.benchmarks.figures import _save as save_formats
-
-    return save_formats(fig, path.parent, path.name, (fmt,), dpi)[0]
-
-
-def comparison_figures(campaign_dir, curves: pd.DataFrame, anytime: pd.DataFrame, profile: pd.DataFrame,
-                       fmt: str = "png", dpi: int = 150) -> list[Path]:
-    out = Path(campaign_dir) / "figures"
-    out.mkdir(exist_ok=True)
-    from magbench.benchmarks.figures import method_styles
-
-    names = sorted(set(curves.get("configuration", [])) | set(anytime.get("configuration", []))
-                   | set(profile.get("configuration", [])))
-    styles = method_styles(names)  # colour, line style and a marker per method (more than eight stay distinct)
-    written = []
-    if len(curves):
-        written.append(_ecdf_figure(curves, styles, out / "ecdf", fmt, dpi))
-    if len(anytime):
-        written.append(_anytime_figure(anytime, styles, out / "anytime", fmt, dpi))
-    if len(profile):
-        written.append(_profile_figure(profile, styles, out / "profile", fmt, dpi))
-    return written
+def _legend(fig: Figure, confs: list[str], styles: dict, label=None) -> None:
+    """One legend for all panels, outside the data and the titles (right of the panels)."""
+    handles = [Line2D([], [], color=styles[c]["color"], ls=styles[c]["ls"], marker=styles[c]["marker"], ms=5,
+                      label=label(c) if label else c) for c in confs]
+    fig.legend(handles=handles, loc="outside right upper", title="calibrator")
 
 
-def _scenario_figure(frame, styles, draw, ylabel: str, title: str, legend_loc: str, log_y: bool = False):
-    """One panel per scenario of ``frame``, ``draw(ax, part, conf, style)`` once per configuration, on a
-    log axis of objective evaluations."""
+def _in_order(frame: pd.DataFrame, styles: dict) -> list[str]:
+    """The configurations of ``frame`` in the campaign's order (the style map's)."""
+    present = set(frame["configuration"])
+    return [c for c in styles if c in present]
+
+
+def _scenario_figure(frame: pd.DataFrame, styles: dict, draw, ylabel: str, title: str,
+                     log_y: bool = False) -> Figure:
+    """One panel per scenario of ``frame``, ``draw(ax, part, style)`` once per configuration, on a log axis
+    of objective evaluations."""
     scenarios = list(dict.fromkeys(frame["scenario"]))
     fig, axes = _panels(len(scenarios))
+    confs = _in_order(frame, styles)
     for ax, scenario in zip(axes, scenarios):
-        for conf, part in frame[frame["scenario"] == scenario].groupby("configuration", sort=False):
-            draw(ax, part, conf, styles[conf])
+        here = frame[frame["scenario"] == scenario]
+        for conf in confs:
+            part = here[here["configuration"] == conf]
+            if len(part):
+                draw(ax, part, styles[conf])
         if log_y:
-            ax.axhline(1.0, color="0.5", lw=1, ls="--")
-        ax.set_xscale("log")
-        if log_y:
+            ax.axhline(1.0, color=BOUND_GREY, lw=1, ls="--")
             ax.set_yscale("log")
         else:
             ax.set_ylim(-0.02, 1.02)
+        ax.set_xscale("log")
         ax.set_xlabel("objective evaluations")
         ax.set_ylabel(ylabel)
-        ax.set_title(f"{scenario}: {title}", fontsize=10)
-        ax.grid(True, which="major", alpha=0.3)
-        ax.legend(fontsize=7, loc=legend_loc)
+        ax.set_title(scenario)
+    fig.suptitle(title)
+    _legend(fig, confs, styles)
     return fig
 
 
-def _ecdf_figure(curves, styles, path, fmt, dpi):
-    def draw(ax, part, conf, st):
-        ax.step(part["evaluations"], part["fraction"], where="post", color=st["color"], ls=st["ls"], label=conf,
+def fig_ecdf(curves: pd.DataFrame, styles: dict) -> Figure | None:
+    """Fraction of (run, target) pairs reached against evaluations (COCO's runtime ECDF)."""
+    if curves.empty:
+        return None
+
+    def draw(ax, part, st):
+        ax.step(part["evaluations"], part["fraction"], where="post", color=st["color"], ls=st["ls"],
                 marker=st["marker"], markevery=MARK_EVERY, ms=4)
 
-    fig = _scenario_figure(curves, styles, draw, "fraction of (run, target) pairs reached",
-                           "runtime ECDF, RMS targets 10x .. 1.001x optimum", "lower right")
-    return _save(fig, path, fmt, dpi)
+    return _scenario_figure(curves, styles, draw, "fraction of (run, target) pairs reached",
+                            "Runtime ECDF: RMS targets from 10 × to 1.001 × the optimum")
 
 
-def _anytime_figure(anytime, styles, path, fmt, dpi):
-    def draw(ax, part, conf, st):
+def fig_anytime(anytime: pd.DataFrame, styles: dict) -> Figure | None:
+    """Median and inter-quartile band over trials of the best RMS so far relative to the optimum."""
+    if anytime.empty:
+        return None
+
+    def draw(ax, part, st):
         ax.plot(part["evaluations"], part["median"], color=st["color"], ls=st["ls"], marker=st["marker"],
-                markevery=MARK_EVERY, ms=4, label=f"{conf} (n={part['n'].max()})")
+                markevery=MARK_EVERY, ms=4)
         ax.fill_between(part["evaluations"], part["q25"], part["q75"], color=st["color"], alpha=0.15, lw=0)
 
-    fig = _scenario_figure(anytime, styles, draw, "best RMS so far / optimum",
-                           "anytime performance (median, inter-quartile band)", "upper right", log_y=True)
-    return _save(fig, path, fmt, dpi)
+    return _scenario_figure(anytime, styles, draw, r"best RMS so far / optimum",
+                            "Anytime performance: median over trials, inter-quartile band", log_y=True)
 
 
-def _profile_figure(profile, styles, path, fmt, dpi):
-    from matplotlib.figure import Figure
+def fig_profile(profile: pd.DataFrame, styles: dict) -> Figure | None:
+    """Dolan & Moré performance profile of the expected running time across scenarios."""
+    if profile.empty:
+        return None
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    fig = Figure(figsize=(6.2, 3.9), layout="constrained")
+    fig = Figure(figsize=(7.4, 3.6), layout="constrained")
+    FigureCanvasAgg(fig)
     ax = fig.subplots()
-    for conf, part in profile.groupby("configuration", sort=False):
+    confs = _in_order(profile, styles)
+    for conf in confs:
+        part = profile[profile["configuration"] == conf]
         st = styles[conf]
         ax.step(part["tau"], part["fraction"], where="post", color=st["color"], ls=st["ls"], marker=st["marker"],
-                markevery=MARK_EVERY, ms=4, label=conf)
+                markevery=MARK_EVERY, ms=4)
     ax.set_xscale("log")
     ax.set_ylim(-0.02, 1.02)
-    ax.set_xlabel("tau: ERT (evaluations) to 1.01 x optimum within tau x the best method's")
-    ax.set_ylabel("fraction of scenarios")
-    ax.set_title("Performance profile (Dolan & Moré) across scenarios", fontsize=10)
-    ax.grid(True, which="major", alpha=0.3)
-    ax.legend(fontsize=7, loc="lower right")
-    return _save(fig, path, fmt, dpi)
+    ax.set_xlabel(r"$\tau$: ERT to 1.01 × optimum, relative to the best method's")
+    ax.set_ylabel(r"fraction of scenarios with ratio $\leq \tau$")
+    ax.set_title("Performance profile (Dolan & Moré) across scenarios")
+    _legend(fig, confs, styles)
+    return fig
+
+
+BUILDERS = {"ecdf": fig_ecdf, "anytime": fig_anytime, "profile": fig_profile}

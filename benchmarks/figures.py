@@ -6,10 +6,11 @@ vehicle scenarios only) and efficiency with bootstrap intervals.
     make_figures("results/campaign", formats=("png", "pdf"), dpi=300)
     # -> results/campaign/figures/<kind>_<scenario>.png/.pdf
 
-Conventions, the same in every figure: one colour (and marker) per calibrator configuration, taken from
-the Okabe-Ito colour-blind-safe palette in the order of ``comparison_figures.style_of`` (so that a method
-has the same colour in the comparison figures too); the Cramér-Rao bound and the reference in neutral
-grey; one scale per figure, logarithmic where values span decades.
+Conventions, the same in every figure: one style (colour, marker, line style) per calibrator
+configuration from the campaign's one style map (``benchmarks.styles.campaign_styles``: the campaign's
+own configuration order, shared with the comparison figures and the report); the Cramér-Rao bound and the
+reference in neutral grey; one scale per figure, logarithmic where values span decades; legends outside
+the data and the titles; one set of font sizes (``styles.RC``).
 
 Only the Agg canvas is used (``matplotlib.figure.Figure``, never pyplot), so importing this module does
 not change the caller's backend. Output is deterministic: fixed style, fixed SVG hash salt, no dates and
@@ -21,6 +22,7 @@ import io
 import re
 import textwrap
 import warnings
+from functools import partial
 from pathlib import Path
 
 import matplotlib
@@ -32,7 +34,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from magbench.benchmarks.comparison_figures import style_of
+from magbench.benchmarks import comparison_figures
+from magbench.benchmarks.styles import BOUND_GREY, RC, WARN_COLOUR, campaign_styles
 from magbench.benchmarks.tables import MIN_TRIALS_EFFICIENCY, efficiency_interval
 from magbench.paper import ARCSEC_PER_RAD
 
@@ -40,16 +43,11 @@ ANGLES = ("alpha", "beta", "gamma")
 GREEK = {"alpha": "α", "beta": "β", "gamma": "γ"}
 ANGLE_MARKERS = {"alpha": "o", "beta": "s", "gamma": "^"}
 KINDS = ("errors", "accuracy_runtime", "convergence", "field_heading", "efficiency")
+"""The per-scenario figure families; ``comparison_figures.COMPARISON_KINDS`` are drawn once per campaign."""
+ALL_KINDS = KINDS + comparison_figures.COMPARISON_KINDS
 FORMATS = ("png", "svg", "pdf")
 DPI = 300  # print resolution of the PNG files
 SCREEN_DPI = 100  # the report's embedded images
-BOUND_GREY = "0.5"  # the Cramér-Rao bound and other references: neutral grey, never a method's colour
-WARN_COLOUR = "#B8860B"
-SVG_SALT = "magbench"
-MARKERS = ("o", "s", "D", "^", "v", "P", "X", "<", ">", "*", "h", "p")
-RC = {"svg.hashsalt": SVG_SALT, "svg.fonttype": "path", "figure.dpi": 100, "savefig.dpi": DPI,
-      "pdf.fonttype": 42, "axes.grid": True, "grid.alpha": 0.3, "font.size": 9, "legend.fontsize": 8,
-      "axes.titlesize": 10}
 CONVERGENCE_GRID = 80  # evaluation points of the aggregated convergence curves
 
 
@@ -150,14 +148,6 @@ def png_bytes(fig: Figure, dpi: int = SCREEN_DPI) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, metadata=METADATA["png"])
     return buf.getvalue()
-
-
-def method_styles(configs: list[str]) -> dict[str, dict]:
-    """Colour and marker of every configuration: the comparison figures' colour (``style_of``, Okabe-Ito in
-    sorted order) and a marker in the same order, so that more than eight methods stay distinct."""
-    colours = style_of(list(configs))
-    return {c: {"color": colours[c][0], "marker": MARKERS[i % len(MARKERS)], "ls": colours[c][1]}
-            for i, c in enumerate(sorted(configs))}
 
 
 def _positive(values: np.ndarray) -> np.ndarray:
@@ -292,11 +282,32 @@ def fig_accuracy_runtime(runs: pd.DataFrame, scenario: str, styles: dict) -> Fig
                     color=styles[c]["color"], ms=7, capsize=3, lw=1.2, label=f"{_wrap(c, 34)} (n={n})")
     ax.set_xscale("log")
     ax.set_yscale("log")
+    _direct_labels(ax, [(c, tx, ry, styles[c]["color"]) for c, (tx, _, _), (ry, _, _), _ in points])
     ax.set_xlabel("median runtime per calibration (s)")
     ax.set_ylabel("median RMS angle error / Cramér-Rao σ" if relative else "median RMS angle error (arcsec)")
     ax.set_title(f"Accuracy against runtime — {scenario} (bars: inter-quartile range)")
     fig.legend(loc="outside right upper", title="calibrator")
     return fig
+
+
+def _direct_labels(ax, points: list[tuple[str, float, float, str]], font_pt: float = 7.5) -> None:
+    """Each point's name written beside it (log axes), pushed up or down just enough that no two names
+    overlap: the reader needs no legend lookup where points crowd."""
+    ax.autoscale_view()
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    w_in, h_in = ax.figure.get_size_inches() * np.array([0.62, 0.72])  # the axes' share of the figure, about
+    placed: list[tuple[float, float, float]] = []  # (x, y, width) in points
+    for name, x, y, colour in sorted(points, key=lambda p: p[2]):
+        px = (np.log10(x) - np.log10(x0)) / (np.log10(x1) - np.log10(x0)) * w_in * 72
+        py = (np.log10(y) - np.log10(y0)) / (np.log10(y1) - np.log10(y0)) * h_in * 72
+        width = 0.55 * font_pt * len(name)
+        dy = 0.0
+        for qx, qy, qw in placed:
+            if abs(px - qx) < max(width, qw) + 8 and abs(py + dy - qy) < font_pt + 2:
+                dy = qy + font_pt + 2 - py
+        placed.append((px, py + dy, width))
+        ax.annotate(name, (x, y), xytext=(7, dy + 3), textcoords="offset points", fontsize=font_pt, color=colour,
+                    ha="left", va="bottom", annotation_clip=False)
 
 
 def _segments(part: pd.DataFrame) -> list[pd.DataFrame]:
@@ -523,53 +534,109 @@ def fig_efficiency(runs: pd.DataFrame, scenario: str, styles: dict) -> Figure | 
 BUILDERS = (("errors", fig_errors, "runs"), ("accuracy_runtime", fig_accuracy_runtime, "runs"),
             ("convergence", fig_convergence, "traces"), ("field_heading", fig_field_heading, "fields"),
             ("efficiency", fig_efficiency, "runs"))
+BUILDER_OF = {kind: build for kind, build, _ in BUILDERS}
 
 
 # ------------------------------------------------------------------------------------------------ API
 
 
-def make_figures(campaign_dir: str | Path, out_dir: str | Path | None = None, formats=("png", "svg"),
-                 dpi: int = DPI, images: dict | None = None, progress: bool = False) -> list[Path]:
-    """Draw every figure the campaign's data support in each of ``formats`` (png, svg, pdf; PNG at
-    ``dpi``); return the written paths.  ``images``, when given, receives ``{stem: PNG bytes}`` at screen
-    resolution for the report (``formats=()`` then writes nothing).  ``progress`` shows a bar on stderr."""
-    import sys
+def figure_tasks(campaign_dir: Path, kinds=ALL_KINDS) -> list[tuple[str, str | None, object]]:
+    """Every figure the campaign's files support, as ``(kind, scenario or None, data)``: the per-scenario
+    families from runs.csv, traces.csv and fields.csv, then the comparison's from comparison/*.csv."""
+    frames = {"runs": _read_csv(campaign_dir / "runs.csv", str_cols=("error", "configuration", "scenario")),
+              "traces": _read_csv(campaign_dir / "traces.csv", str_cols=("configuration", "scenario")),
+              "fields": _read_csv(campaign_dir / "fields.csv", str_cols=("configuration", "scenario"))}
+    scenarios = _unique(*(_col(f, "scenario") for f in frames.values()))
 
-    from tqdm import tqdm
+    def of(df: pd.DataFrame, scenario: str) -> pd.DataFrame:
+        return df[df["scenario"] == scenario] if "scenario" in df.columns else df.iloc[0:0]
+
+    tasks: list[tuple[str, str | None, object]] = []
+    for scenario in scenarios:
+        for kind, _, key in BUILDERS:
+            data = of(frames[key], scenario)
+            if kind not in kinds or data.empty:
+                continue
+            tasks.append((kind, scenario, (data, of(frames["runs"], scenario)) if kind == "convergence" else data))
+    for kind in comparison_figures.COMPARISON_KINDS:
+        table = _read_csv(campaign_dir / "comparison" / f"{kind}.csv", str_cols=("configuration", "scenario"))
+        if kind in kinds and not table.empty and "configuration" in table.columns:
+            tasks.append((kind, None, table))
+    return tasks
+
+
+def figure_stem(kind: str, scenario: str | None) -> str:
+    """The file stem of a figure: ``<kind>_<scenario>`` per scenario, ``<kind>`` for a campaign-wide one."""
+    return kind if scenario is None else f"{kind}_{safe_name(scenario)}"
+
+
+def _draw(task: tuple, styles: dict, out_dir: Path, formats: tuple, dpi: int, screen: bool
+          ) -> tuple[str, list[Path], bytes | None]:
+    """Draw one figure task and write it in every format (and its screen copy): (stem, paths, PNG bytes)."""
+    kind, scenario, data = task
+    with matplotlib.rc_context():
+        mpl_style.use("default")
+        matplotlib.rcParams.update(RC)  # type: ignore[arg-type]
+        build = comparison_figures.BUILDERS[kind] if scenario is None else partial(BUILDER_OF[kind], scenario=scenario)
+        fig = build(data, styles=styles)
+        if fig is None:
+            return figure_stem(kind, scenario), [], None
+        stem = figure_stem(kind, scenario)
+        paths = _save(fig, out_dir, stem, formats, dpi) if formats else []
+        return stem, paths, png_bytes(fig) if screen else None
+
+
+def _draw_star(args: tuple) -> tuple[str, list[Path], bytes | None]:
+    return _draw(*args)
+
+
+def _pool(jobs: int):
+    """A process pool of ``jobs`` workers, forked where the platform can (the parent has matplotlib and
+    pandas loaded already: a forked worker starts in milliseconds, a spawned one re-imports them)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    methods = multiprocessing.get_all_start_methods()
+    context = multiprocessing.get_context("fork" if "fork" in methods else None)
+    return ProcessPoolExecutor(max_workers=jobs, mp_context=context)
+
+
+def make_figures(campaign_dir: str | Path, out_dir: str | Path | None = None, formats=("png", "svg"),
+                 dpi: int = DPI, images: dict | None = None, progress: bool = False, jobs: int = 1,
+                 kinds=ALL_KINDS) -> list[Path]:
+    """Draw every figure the campaign's data support (``kinds``: the per-scenario families and the method
+    comparison's ECDF, anytime and profile figures) in each of ``formats`` (png, svg, pdf; PNG at ``dpi``);
+    return the written paths.  ``images``, when given, receives ``{stem: PNG bytes}`` at screen resolution
+    for the report (``formats=()`` then writes nothing).  ``jobs`` > 1 draws on that many processes; the
+    files are the same either way.  ``progress`` shows progress on stderr."""
+    from magbench.benchmarks.progress import progress_bar
 
     bad = [f for f in formats if f not in FORMATS]
     if bad:
         raise ValueError(f"unknown figure format {bad[0]!r}; known: {', '.join(FORMATS)}")
     campaign_dir = Path(campaign_dir)
     out_dir = Path(out_dir) if out_dir is not None else campaign_dir / "figures"
-    frames = {"runs": _read_csv(campaign_dir / "runs.csv", str_cols=("error", "configuration", "scenario")),
-              "traces": _read_csv(campaign_dir / "traces.csv", str_cols=("configuration", "scenario")),
-              "fields": _read_csv(campaign_dir / "fields.csv", str_cols=("configuration", "scenario"))}
-    scenarios = _unique(*(_col(f, "scenario") for f in frames.values()))
-    styles = method_styles(_unique(*(_col(f, "configuration") for f in frames.values())))
-
-    def of(df: pd.DataFrame, scenario: str) -> pd.DataFrame:
-        return df[df["scenario"] == scenario] if "scenario" in df.columns else df.iloc[0:0]
-
+    tasks = figure_tasks(campaign_dir, kinds)
+    runs = _read_csv(campaign_dir / "runs.csv", str_cols=("error", "configuration", "scenario"))
+    styles = campaign_styles(campaign_dir, _col(runs, "configuration"),
+                             *(_col(d, "configuration") for _, _, d in tasks if isinstance(d, pd.DataFrame)))
+    if formats and tasks:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    args = [(t, styles, out_dir, tuple(formats), dpi, images is not None) for t in tasks]
+    done: list[tuple[str, list[Path], bytes | None]] = []
+    with progress_bar(len(args), "figures", "fig", enabled=progress) as bar:
+        if jobs > 1 and len(args) > 1:
+            with _pool(min(jobs, len(args))) as pool:
+                for out in pool.map(_draw_star, args):
+                    done.append(out)
+                    bar.update(1)
+        else:
+            for a in args:
+                done.append(_draw_star(a))
+                bar.update(1)
     written: list[Path] = []
-    jobs = [(s, kind, build, key) for s in scenarios for kind, build, key in BUILDERS]
-    with matplotlib.rc_context(), tqdm(jobs, desc="figures", unit="fig", disable=not progress, file=sys.stderr,
-                                       leave=False, dynamic_ncols=True) as bar:
-        mpl_style.use("default")
-        matplotlib.rcParams.update(RC)  # type: ignore[arg-type]
-        for scenario, kind, build, key in bar:
-            data = of(frames[key], scenario)
-            if data.empty:
-                continue
-            if kind == "convergence":
-                data = (data, of(frames["runs"], scenario))
-            fig = build(data, scenario, styles)
-            if fig is None:
-                continue
-            stem = f"{kind}_{safe_name(scenario)}"
-            if formats:
-                out_dir.mkdir(parents=True, exist_ok=True)
-                written += _save(fig, out_dir, stem, formats, dpi)
-            if images is not None:
-                images[stem] = png_bytes(fig)
+    for stem, paths, png in done:
+        written += paths
+        if images is not None and png is not None:
+            images[stem] = png
     return written

@@ -6,9 +6,20 @@ one, the turntable/vehicle heading.  The field seen by the sensor is ``B_body = 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+
+if TYPE_CHECKING:
+    from scipy.spatial.transform import Rotation
+
+
+def _rotation():
+    """SciPy's ``Rotation``, imported when a schedule is first built (scipy.spatial costs about 0.1 s, which
+    a command that only calibrates a file should not pay)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation
 
 
 @dataclass(frozen=True)
@@ -34,14 +45,14 @@ def turntable(n_steps: int = 36, step_deg: float = 10.0, tilt_deg: float = 0.0, 
     towards the azimuth ``tilt_azimuth_deg``.
     """
     heading = start_deg + step_deg * np.arange(n_steps)
-    spin = Rotation.from_euler("z", heading[:, None], degrees=True)
-    tilt = Rotation.from_euler("zyz", [tilt_azimuth_deg, tilt_deg, -tilt_azimuth_deg], degrees=True)
+    spin = _rotation().from_euler("z", heading[:, None], degrees=True)
+    tilt = _rotation().from_euler("zyz", [tilt_azimuth_deg, tilt_deg, -tilt_azimuth_deg], degrees=True)
     return Attitudes(tilt * spin, dwell_s * np.arange(n_steps, dtype=float), np.mod(heading, 360.0))
 
 
 def full_sphere(n: int, rng: np.random.Generator, dt_s: float = 1.0) -> Attitudes:
     """Uniformly distributed random rotations (Haar measure)."""
-    return Attitudes(Rotation.random(n, random_state=rng), dt_s * np.arange(n, dtype=float))
+    return Attitudes(_rotation().random(n, random_state=rng), dt_s * np.arange(n, dtype=float))
 
 
 def cap(n: int, rng: np.random.Generator, max_tilt_deg: float = 90.0, dt_s: float = 1.0) -> Attitudes:
@@ -51,7 +62,7 @@ def cap(n: int, rng: np.random.Generator, max_tilt_deg: float = 90.0, dt_s: floa
     tilt = np.degrees(np.arccos(rng.uniform(cos_max, 1.0, n)))
     azimuth = rng.uniform(0.0, 360.0, n)
     heading = rng.uniform(0.0, 360.0, n)
-    rot = Rotation.from_euler("zyz", np.column_stack([azimuth, tilt, heading - azimuth]), degrees=True)
+    rot = _rotation().from_euler("zyz", np.column_stack([azimuth, tilt, heading - azimuth]), degrees=True)
     return Attitudes(rot, dt_s * np.arange(n, dtype=float), np.mod(heading, 360.0))
 
 
@@ -65,7 +76,7 @@ def vehicle(n: int, rng: np.random.Generator, pitch_roll_deg: float = 5.0, turns
     u = np.linspace(0, 2 * np.pi * max(turns, 1.0), n, endpoint=False)
     pitch = pitch_roll_deg * (0.6 * np.sin(3 * u + phase[0]) + 0.4 * np.sin(7 * u + phase[1]))
     roll = pitch_roll_deg * (0.6 * np.sin(2 * u + phase[2]) + 0.4 * np.sin(5 * u + phase[3]))
-    rot = Rotation.from_euler("ZYX", np.column_stack([yaw, pitch, roll]), degrees=True)
+    rot = _rotation().from_euler("ZYX", np.column_stack([yaw, pitch, roll]), degrees=True)
     return Attitudes(rot, t, np.mod(yaw, 360.0))
 
 
@@ -79,4 +90,4 @@ def tumble(n: int, rng: np.random.Generator, duration_s: float = 600.0, n_harmon
     phase = rng.uniform(0, 2 * np.pi, size=(3, n_harmonics))
     path = np.sum(coef[None] * np.sin(2 * np.pi * k[None, None] * u[:, None, None] + phase[None]), axis=2)
     path /= np.max(np.linalg.norm(path, axis=1))
-    return Attitudes(Rotation.from_rotvec(np.pi * path), t)
+    return Attitudes(_rotation().from_rotvec(np.pi * path), t)

@@ -79,3 +79,52 @@ def test_ambiguous_metadata_is_refused_by_the_python_reader(tmp_path, meta, frag
     with pytest.raises(InputError, match="m.csv") as exc:
         read_csv(path)
     assert fragment in str(exc.value)
+
+
+# ------------------------------------------------------------ small files without pandas, large with it
+SMALL_VS_PANDAS = {
+    "plain": "t,bx,by,bz,f_ref\n0,1.5,2,3e4,50000\n1,-2,2.25,30001,50000\n",
+    "spaces and blank lines": "t, bx, by, bz\n0,  1.5, 2, 30000\n\n1, -2 ,2.25,30001\n   \n2,3,4,30002\n",
+    "quoted fields": 't,bx,by,bz,note\n0,"1.5",2,30000,"a, b"\n1,-2,2.25,30001,plain\n',
+    "a text value": "t,bx,by,bz\n0,1.5,2,30000\n1,oops,2.25,30001\n",
+    "an underscore": "t,bx,by,bz\n0,1_5,2,30000\n1,2,2.25,30001\n",
+    "crlf": "t,bx,by,bz\r\n0,1.5,2,30000\r\n1,-2,2.25,30001\r\n",
+}
+
+
+@pytest.mark.parametrize("name", sorted(SMALL_VS_PANDAS))
+def test_small_files_read_as_pandas_reads_them(tmp_path, monkeypatch, name):
+    """The csv-module path of small files and pandas' path give the same arrays, or the same refusal."""
+    from magbench.errors import InputError
+    from magbench.simulate import dataset
+
+    path = tmp_path / "f.csv"
+    path.write_bytes(SMALL_VS_PANDAS[name].encode())
+
+    def read():
+        try:
+            d = dataset.read_csv(path, expected_field_nT=30000.0)
+            return ("ok", d.raw_nT.tolist(), None if d.t_s is None else d.t_s.tolist())
+        except InputError as exc:
+            return ("refused", str(exc))
+
+    small = read()
+    monkeypatch.setattr(dataset, "SMALL_TABLE_BYTES", 0)
+    large = read()
+    assert small == large
+    assert (small[0] == "refused") == (name in ("a text value", "an underscore"))
+
+
+def test_calibrating_a_small_file_does_not_import_pandas(tmp_path):
+    import subprocess
+    import sys
+
+    path = tmp_path / "s.csv"
+    subprocess.run([sys.executable, "-m", "magbench", "simulate", "--scenario", "sphere9", "--out", str(path)],
+                   check=True, capture_output=True)
+    code = ("import sys; from magbench.benchmarks.cli import main; rc = main(['calibrate', sys.argv[1], '--method', "
+            "'lsq', '--json']); print('PANDAS' if 'pandas' in sys.modules else 'NO-PANDAS', file=sys.stderr); "
+            "sys.exit(rc)")
+    done = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "NO-PANDAS" in done.stderr

@@ -509,7 +509,10 @@ def test_a_memory_error_without_text_is_one_line(tmp_path, capsys, monkeypatch):
     def no_memory(*args, **kwargs):
         raise MemoryError()
 
+    from magbench.simulate import dataset
+
     monkeypatch.setattr(pd, "read_csv", no_memory)
+    monkeypatch.setattr(dataset, "SMALL_TABLE_BYTES", 0)  # the large-file path (pandas)
     _refused(capsys, ["calibrate", GOOD_PATH(tmp_path), "--method", "lsq"], "not enough memory")
 
 

@@ -1,0 +1,71 @@
+"""One look for every figure of a campaign: a style per calibrator configuration (colour, marker, line
+style) taken from the campaign's full configuration list, and the fonts, sizes and file settings that
+every figure family (``figures.py``, ``comparison_figures.py``) and the report share.
+
+The style map is built once per campaign from the order in which the campaign lists its configurations
+(``manifest.json``: ``campaign.configurations``), never from the set of names a single figure happens to
+show, so that a method keeps its colour from the convergence plot to the ECDF to the report.  Up to
+``DISTINCT`` configurations no two share the (colour, marker, line style) triple, and no two share both
+colour and marker; the palette is Okabe & Ito's colour-blind-safe set with its low-contrast yellow
+replaced by Tol's wine.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+PALETTE = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#882255")
+"""Okabe-Ito blue, vermillion, bluish green, reddish purple, orange, sky blue, black; Tol's wine (#882255)
+instead of Okabe-Ito's yellow (#F0E442), which is unreadable as a line on white."""
+LINESTYLES = ("-", "--")
+MARKERS = ("o", "s", "D", "^", "v", "P", "X", "<", ">", "*", "h", "p", "d", "H", "8", "$\\clubsuit$")
+DISTINCT = len(MARKERS)
+"""Configurations with pairwise distinct styles; beyond this the styles repeat in the same order."""
+BOUND_GREY = "0.5"  # the Cramér-Rao bound and other references: neutral grey, never a method's colour
+WARN_COLOUR = "#B8860B"
+SVG_SALT = "magbench"
+FONT_SIZE = 9
+RC = {"svg.hashsalt": SVG_SALT, "svg.fonttype": "path", "figure.dpi": 100, "savefig.dpi": 300,
+      "pdf.fonttype": 42, "axes.grid": True, "grid.alpha": 0.3, "font.size": FONT_SIZE, "axes.labelsize": FONT_SIZE,
+      "xtick.labelsize": FONT_SIZE - 1, "ytick.labelsize": FONT_SIZE - 1, "legend.fontsize": FONT_SIZE - 1,
+      "legend.title_fontsize": FONT_SIZE, "axes.titlesize": FONT_SIZE + 1, "figure.titlesize": FONT_SIZE + 1,
+      "mathtext.default": "regular"}
+"""The settings of every figure: one font size for labels, one a point smaller for ticks and legends, one a
+point larger for titles; mathtext in the text font; SVG with a fixed hash salt and text as paths."""
+
+
+def style_map(configurations) -> dict[str, dict]:
+    """``{configuration: {"color", "marker", "ls"}}`` in the given order: the i-th configuration gets
+    colour ``i mod 8``, line style ``i div 8`` and marker ``i``, so that the first ``DISTINCT`` are pairwise
+    distinct.  Repeated names keep their first style."""
+    out: dict[str, dict] = {}
+    for name in configurations:
+        name = str(name)
+        if name in out:
+            continue
+        i = len(out)
+        out[name] = {"color": PALETTE[i % len(PALETTE)], "marker": MARKERS[i % len(MARKERS)],
+                     "ls": LINESTYLES[(i // len(PALETTE)) % len(LINESTYLES)]}
+    return out
+
+
+def campaign_configurations(campaign_dir, *seen) -> list[str]:
+    """The campaign's configurations in its own order (the manifest's campaign definition), followed by any
+    other name found in ``seen`` (iterables of names, e.g. runs.csv's column) in order of first appearance."""
+    names: list[str] = []
+    try:
+        manifest = json.loads((Path(campaign_dir) / "manifest.json").read_text(encoding="utf-8"))
+        listed = manifest.get("campaign", {}).get("configurations", []) if isinstance(manifest, dict) else []
+        names = [str(n) for n in listed] if isinstance(listed, list) else []
+    except (OSError, ValueError, AttributeError):
+        names = []
+    for series in seen:
+        for n in series:
+            if str(n) not in names:
+                names.append(str(n))
+    return names
+
+
+def campaign_styles(campaign_dir, *seen) -> dict[str, dict]:
+    """The campaign's one style map (``style_map`` of ``campaign_configurations``)."""
+    return style_map(campaign_configurations(campaign_dir, *seen))

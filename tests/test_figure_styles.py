@@ -1,0 +1,101 @@
+"""One style per calibrator across every figure family (benchmarks/styles.py), every figure in every format,
+and figures drawn in parallel identical to figures drawn serially."""
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+
+import matplotlib.colors as mcolors
+import pytest
+
+from magbench.benchmarks import comparison_figures
+from magbench.benchmarks.cli import main
+from magbench.benchmarks.figures import ALL_KINDS, BUILDER_OF, figure_tasks, make_figures
+from magbench.benchmarks.styles import DISTINCT, PALETTE, campaign_styles, style_map
+
+METHODS = ("lsq", "ga:budget=400", "ellipsoid", "twostep")
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    out = tmp_path_factory.mktemp("styles") / "c"
+    assert main(["compare", "--scenarios", "lu2014", "sphere9", "--methods", *METHODS, "--trials", "3",
+                 "--out", str(out), "--quiet", "--format", "png", "--dpi", "30"]) == 0
+    return out
+
+
+def test_sixteen_methods_have_distinct_styles():
+    names = [f"m{i}" for i in range(DISTINCT)]
+    styles = style_map(names)
+    triples = {(s["color"], s["marker"], s["ls"]) for s in styles.values()}
+    pairs = {(s["color"], s["marker"]) for s in styles.values()}
+    assert len(triples) == len(pairs) == DISTINCT == 16
+    assert "#F0E442" not in PALETTE  # the low-contrast yellow is not a line colour
+
+
+def test_the_map_follows_the_campaign_order_not_the_figure(campaign):
+    """A figure that shows only some methods still gives each the campaign's style: the map is built from
+    the manifest's configuration list (negative control: a map from a subset differs)."""
+    listed = json.loads((campaign / "manifest.json").read_text())["campaign"]["configurations"]
+    styles = campaign_styles(campaign)
+    assert list(styles) == listed
+    subset = style_map(sorted(listed[1:]))
+    assert any(subset[c] != styles[c] for c in subset)  # what per-figure maps used to do
+
+
+def _drawn_colours(fig) -> dict[str, str]:
+    """Legend label -> colour of its handle, over the figure's legends (figure-level and axes-level)."""
+    legends = list(fig.legends) + [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    out = {}
+    for legend in legends:
+        for handle, text in zip(legend.legend_handles, legend.get_texts()):
+            get = getattr(handle, "get_color", None) or getattr(handle, "get_facecolor", None)
+            if get is not None:
+                out[text.get_text()] = mcolors.to_hex(get())
+    return out
+
+
+def test_every_family_draws_each_method_in_its_campaign_colour(campaign):
+    styles = campaign_styles(campaign)
+    checked = set()
+    for kind, scenario, data in figure_tasks(campaign):
+        fig = comparison_figures.BUILDERS[kind](data, styles) if scenario is None else BUILDER_OF[kind](data, scenario, styles)
+        if fig is None:
+            continue
+        for label, colour in _drawn_colours(fig).items():
+            conf = next((c for c in styles if label == c or label.startswith(c + " (")), None)
+            if conf is not None:
+                assert colour == mcolors.to_hex(styles[conf]["color"]), (kind, label)
+                checked.add(kind)
+    assert {"convergence", "accuracy_runtime", "ecdf", "anytime", "profile"} <= checked
+
+
+@pytest.mark.parametrize("fmt", ["svg", "pdf"])
+def test_every_figure_in_every_requested_format(campaign, tmp_path, fmt):
+    """The comparison's figures too (anytime, ecdf and profile were missing from --format svg)."""
+    assert main(["report", str(campaign), "--format", fmt, "--quiet"]) == 0
+    written = {p.stem for p in (campaign / "figures").glob(f"*.{fmt}")}
+    expected = {p.stem for p in (campaign / "figures").glob("*.png")}
+    assert {"anytime", "ecdf", "profile"} <= written
+    assert written == expected
+
+
+def test_parallel_figures_are_the_serial_figures(campaign, tmp_path):
+    one = make_figures(campaign, tmp_path / "one", formats=("png", "svg"), dpi=30, jobs=1)
+    two = make_figures(campaign, tmp_path / "two", formats=("png", "svg"), dpi=30, jobs=2)
+    assert [p.name for p in one] == [p.name for p in two] and len(one) >= 2 * 10
+
+    def digest(p):
+        return hashlib.sha256(p.read_bytes()).hexdigest()
+
+    assert [digest(p) for p in one] == [digest(p) for p in two]
+    kinds = {p.stem.split("_")[0] if p.stem not in ALL_KINDS else p.stem for p in one}
+    assert {"ecdf", "anytime", "profile"} <= kinds
+
+
+def test_markers_and_palette_cycle_beyond_the_distinct_range():
+    styles = style_map([f"m{i}" for i in range(DISTINCT + 2)])
+    first, again = styles["m0"], styles[f"m{DISTINCT}"]
+    assert first["marker"] == again["marker"]  # documented repetition past DISTINCT
+    assert len({(s["color"], s["marker"], s["ls"]) for s in itertools.islice(styles.values(), DISTINCT)}) == DISTINCT
