@@ -12,10 +12,12 @@ timestamps of its own: the same directory gives the same bytes.
 from __future__ import annotations
 
 import base64
+import glob
 import json
 import re
 import shlex
 from pathlib import Path
+from urllib.parse import quote
 
 import pandas as pd
 
@@ -67,7 +69,7 @@ CSS = """
 :root{--warn-bg:#fff6dc;--warn-border:#d8a400;--muted:#555}
 *{box-sizing:border-box}
 body{font-family:system-ui,-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;margin:1.5em auto;max-width:1280px;
-padding:0 1em;color:#222;line-height:1.4}
+padding:0 1em;color:#222;line-height:1.4;overflow-wrap:break-word}
 h1{font-size:1.6em;border-bottom:2px solid #444;padding-bottom:.2em;margin-bottom:.3em}
 h2{font-size:1.3em;margin-top:1.8em;border-bottom:1px solid #bbb}
 h3{font-size:1.1em;margin-top:1.4em}
@@ -82,21 +84,44 @@ nav.toc ol ol{display:flex;flex-wrap:wrap;gap:.2em 1.4em;padding-left:1.2em;list
 table{border-collapse:collapse;font-size:.82em;margin:.6em 0}
 th,td{border:1px solid #ccc;padding:.2em .4em;vertical-align:top}
 th{background:#f0f0f0;text-align:center;font-weight:600}
-table.summary{width:100%}
+table.summary{width:100%;border-collapse:separate;border-spacing:0;border:solid #ccc;border-width:1px 0 0 1px}
+table.summary th,table.summary td{border-width:0 1px 1px 0}
 table.summary td{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}
 table.summary td.text{text-align:left}
 td.fewtrials{background:var(--warn-bg)}
+.scroll{overflow-x:auto;max-width:100%;margin:.6em 0}
+.scroll>table{margin:0}
+.scroll:focus-visible{outline:2px solid #3867b0;outline-offset:2px}
+table.summary th:first-child,table.summary td:first-child{position:sticky;left:0;z-index:1}
+table.summary td:first-child{background:#fff}
+details.defs{margin:.4em 0 1em;font-size:.9em}
+details.defs summary{cursor:pointer;font-weight:600}
+details.defs dl{margin:.4em 0;display:grid;grid-template-columns:minmax(7em,max-content) 1fr;gap:.25em 1em}
+details.defs dt{font-weight:600}
+details.defs dd{margin:0}
 .unit,.iqr{color:var(--muted);font-weight:normal;font-size:.88em}
 .note,.desc{color:var(--muted);font-size:.9em}
 figure{margin:1em 0 2em 0}
-figure img{max-width:100%;height:auto;border:1px solid #ddd}
+figure img{max-width:100%;height:auto;border:1px solid #ddd;display:block}
+figure a.full{display:inline-block;max-width:100%}
 figcaption{font-size:.88em;color:#333;margin-top:.3em;max-width:70em}
 .files{color:var(--muted)}
 table.manifest th{text-align:left;white-space:nowrap}
 table.manifest td,table.failures td{overflow-wrap:anywhere}
+table.failures td.num{text-align:right}
 code,pre{font-family:ui-monospace,Menlo,Consolas,monospace;font-size:.9em}
 pre{background:#f6f6f6;padding:.5em;white-space:pre-wrap;overflow-wrap:anywhere}
 footer{margin-top:3em;border-top:1px solid #bbb;padding-top:.5em;font-size:.85em;color:var(--muted)}
+@media (max-width:600px){
+body{padding:0 .6em;margin:1em auto}
+details.defs dl{display:block}
+table.summary th{min-width:6.5em}
+details.defs dd{margin:0 0 .4em 1em}
+table.manifest,table.manifest tbody,table.manifest tr,table.manifest th,table.manifest td{display:block}
+table.manifest tr{border:1px solid #ccc;margin-top:-1px}
+table.manifest th,table.manifest td{border:0}
+table.manifest th{white-space:normal;overflow-wrap:anywhere}
+}
 """.strip()
 
 
@@ -164,8 +189,8 @@ def _scenario_description(name: str) -> str:
 
 # -------------------------------------------------------------------------------------------- tables
 
-HEADERS = [("calibrator", "", ""), ("runs", "", "runs in the campaign"), ("success", "%", "runs that converged"),
-           ("accepted", "%", "runs whose acceptance checks passed")]
+HEADERS = [("calibrator", "", "the calibration method and its hyperparameters"), ("runs", "", "runs in the campaign"),
+           ("success", "%", "runs that converged"), ("accepted", "%", "runs whose acceptance checks passed")]
 
 
 def _columns(summary: pd.DataFrame) -> list:
@@ -176,12 +201,19 @@ def _columns(summary: pd.DataFrame) -> list:
 
 
 def _header(summary: pd.DataFrame, cols: list) -> list[dict]:
-    tips = {"median_scale_err_max": "largest scale-factor error over the axes",
+    tips = {**{f"median_abs_{a}_err_arcsec": f"absolute error of the recovered non-orthogonality angle {g}"
+               for a, g in (("alpha", "α"), ("beta", "β"), ("gamma", "γ"))},
+            "median_scale_err_max": "largest scale-factor error over the axes",
             "median_offset_err_max_nT": "largest offset error over the axes",
             "median_rms_after_nT": "total-field RMS residual on the calibration data",
             "median_val_rms_after_nT": "total-field RMS residual on a second data set of the same sensor",
-            "efficiency_min_angle": "smallest over α, β, γ of Cramér-Rao variance / MSE, with its 95 % bootstrap "
-                                    "interval"}
+            "median_heading_err_after_deg": "RMS compass-heading error of the corrected field, levelled with the "
+                                            "true attitude",
+            "median_n_evaluations": "objective evaluations in evaluation-equivalents (the budget's unit: one per "
+                                    "objective value or residual vector, p per Jacobian of p free parameters)",
+            "median_runtime_s": "wall-clock time of one calibration",
+            "efficiency_min_angle": "smallest over α, β, γ of Cramér-Rao variance / mean squared error (1: "
+                                    "efficient), with its 95 % bootstrap interval"}
     head = [{"name": n, "unit": u, "tip": t} for n, u, t in HEADERS if n != "accepted" or "accept_rate" in summary]
     for c in cols:
         unit = c.unit if c.key != "efficiency_min_angle" else "95 % interval"
@@ -218,6 +250,21 @@ def _rows(part: pd.DataFrame, cols: list, accept: bool) -> list[list[dict]]:
 # ------------------------------------------------------------------------------------------- figures
 
 
+FULL_SIZE = (".png", ".svg")  # what an embedded figure links to, first found first
+
+
+def _figure_files(fig_dir: Path, stem: str) -> tuple[list[dict], str]:
+    """The files of one figure in ``figures/`` as relative links ({name, href}, sorted), and the link of the
+    full-size image the embedded one opens (the PNG, else the SVG; "" when neither was written).  The report
+    lies beside ``figures/`` (write_report's default place), so the links are relative to the campaign."""
+    if not fig_dir.is_dir():
+        return [], ""
+    files = [{"name": p.name, "href": "figures/" + quote(p.name)}
+             for p in sorted(fig_dir.glob(f"{glob.escape(stem)}.*")) if p.is_file() and p.stem == stem]
+    by_suffix = {Path(f["name"]).suffix.lower(): f["href"] for f in files}
+    return files, next((by_suffix[s] for s in FULL_SIZE if s in by_suffix), "")
+
+
 def _figure_items(images: dict, scenario: str, trials: int, fig_dir: Path) -> list[dict]:
     items = []
     for kind in KINDS:
@@ -230,15 +277,16 @@ def _figure_items(images: dict, scenario: str, trials: int, fig_dir: Path) -> li
                        "or more before the point means much; read the intervals.")
         elif kind in ("convergence", "errors") and trials < FEW_TRIALS_CURVES:
             warning = f"Only {trials} trials per calibrator: medians and quartiles of so few runs are rough."
-        files = ", ".join(sorted(p.name for p in fig_dir.glob(f"{stem}.*"))) if fig_dir.is_dir() else ""
-        items.append({"data": base64.b64encode(images[stem]).decode("ascii"), "alt": f"{TITLES[kind]}, {scenario}",
-                      "title": f"{TITLES[kind]} — {scenario}", "caption": CAPTIONS[kind], "warning": warning,
-                      "files": files})
+        files, full = _figure_files(fig_dir, stem)
+        items.append({"data": base64.b64encode(images[stem]).decode("ascii"), "mime": "image/png",
+                      "alt": f"{TITLES[kind]}, {scenario}", "title": f"{TITLES[kind]} — {scenario}",
+                      "caption": CAPTIONS[kind], "warning": warning, "files": files, "full": full})
     return items
 
 
 def _extra_figures(fig_dir: Path) -> list[dict]:
-    """Figures written by others into figures/ (the method comparison): embedded as they are."""
+    """Figures written by others into figures/ (the method comparison): embedded as they are, each linked
+    to its file."""
     if not fig_dir.is_dir():
         return []
     ours = re.compile("^(" + "|".join(KINDS) + ")_")
@@ -250,8 +298,10 @@ def _extra_figures(fig_dir: Path) -> list[dict]:
             continue
         title, caption = EXTRA.get(path.stem, (path.stem.replace("_", " ").capitalize(), ""))
         mime = "image/png" if path.suffix == ".png" else "image/svg+xml"
+        files, _ = _figure_files(fig_dir, path.stem)
         items.append({"data": base64.b64encode(path.read_bytes()).decode("ascii"), "mime": mime, "alt": title,
-                      "title": title, "caption": f"{caption} File: {path.name}.".strip()})
+                      "title": title, "caption": caption, "warning": "", "files": files,
+                      "full": "figures/" + quote(path.name)})
     return items
 
 
@@ -368,12 +418,9 @@ def render_report(campaign_dir: str | Path, images: dict | None = None, progress
                         "bootstrap intervals.")
     if n_failed:
         warnings.append(f"{n_failed} runs failed and are left out of the medians (see Failed runs).")
-    table_note = ("Medians over the successful runs, inter-quartile range (IQR) underneath. α, β, γ error: absolute "
-                  "error of the recovered non-orthogonality angles in arc-seconds; scale and offset error: the "
-                  "largest over the three axes; RMS fit and held-out: total-field residual on the calibration data "
-                  "and on a second data set of the same sensor; efficiency: the smallest over the three angles of "
-                  "the Cramér-Rao variance over the mean squared error (1: efficient), its 95 % bootstrap interval "
-                  "underneath. Hover a column name for its definition.")
+    table_note = ("Medians over the successful runs, the inter-quartile range (IQR) underneath; under an "
+                  "efficiency, its 95 % bootstrap interval. Wide tables scroll sideways. Each column is defined "
+                  "in Column definitions below (also shown on hovering a column name).")
     skipped = [f"{s.get('scenario')} / {s.get('configuration')}: {s.get('reason')}"
                for s in manifest.get("skipped", []) if isinstance(s, dict)]
     env = Environment(loader=FileSystemLoader(str(TEMPLATES)), autoescape=select_autoescape(["html", "j2"]),
