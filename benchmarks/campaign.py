@@ -190,14 +190,65 @@ def run_task(task: dict) -> dict:
     return row
 
 
+_WARM: dict[tuple[int, str], float] = {}
+"""Configurations warmed, by (process id, label) -> seconds of the untimed warm-up run.  A forked worker
+inherits the campaign process's loaded kernels (a numba cache load made once) but warms again itself: its
+first touches of inherited memory are copies, which would otherwise land in its first timed run."""
+
+
+def warm_up(task: dict) -> float | None:
+    """Before this process's first timed run of a configuration: one untimed run of the same task, so that
+    what happens once per process (imports, numba compiles and cache loads, SciPy's first LAPACK calls)
+    is paid here and not by a run's ``runtime_s``.  Returns the warm-up's seconds, or None when this
+    process has warmed the configuration already."""
+    key = (os.getpid(), task["configuration"])
+    if key in _WARM:
+        return None
+    t0 = time.perf_counter()
+    run_task({**task, "keep_trace": False, "keep_fields": False})
+    _WARM[key] = time.perf_counter() - t0
+    return _WARM[key]
+
+
+def _timed(task: dict) -> dict:
+    """``run_task`` after ``warm_up``: the row's ``_extra`` says the warm-up's seconds (in the process that
+    made it) and whether this was the process's first timed run of the configuration."""
+    warm = warm_up(task)
+    key = (os.getpid(), task["configuration"])
+    first = key not in _FIRST_DONE
+    _FIRST_DONE.add(key)
+    row = run_task(task)
+    row["_extra"].update({"warm_up_s": warm} if warm is not None else {})
+    row["_extra"]["first_in_process"] = first
+    return row
+
+
+_FIRST_DONE: set[tuple[int, str]] = set()
+
+
+def prewarm(tasks: list[dict]) -> dict[str, float]:
+    """Warm every configuration of ``tasks`` in this process (before forking workers, which inherit it):
+    {label: seconds} of the warm-ups made now."""
+    from threadpoolctl import threadpool_limits
+
+    made = {}
+    with threadpool_limits(limits=1):
+        for task in {t["configuration"]: t for t in reversed(tasks)}.values():
+            seconds = warm_up(task)
+            if seconds is not None:
+                made[task["configuration"]] = seconds
+    return made
+
+
 def run_chunk(tasks: list[dict]) -> list[dict]:
     """Runs in a worker (or serially) with one BLAS/OpenMP thread: the workers already take one core
     each, and a multi-threaded BLAS under that load makes single fits 2-5x slower (threadpoolctl, as
-    scikit-learn does).  The limit is lifted again when the chunk ends."""
+    scikit-learn does).  The limit is lifted again when the chunk ends.  Each configuration is warmed
+    (``warm_up``) before its first timed run in the process."""
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1):
-        return [run_task(t) for t in tasks]
+        return [_timed(t) for t in tasks]
 
 
 def task_key(item: dict) -> tuple:
@@ -313,12 +364,15 @@ def _run_dask(tasks: list[dict], address: str, finish) -> None:
 
 
 def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, progress: bool = True,
-            on_row=None, n_done: int = 0) -> list[dict]:
+            on_row=None, n_done: int = 0, warm_ups: dict | None = None) -> list[dict]:
     """Run the tasks serially, on ``jobs`` local processes, or on a Dask cluster; rows in task order.
 
     ``on_row(task, row)`` is called in this process as each run finishes (its return value, when not
-    None, replaces the row); ``n_done`` runs done earlier start the progress bar.  On Ctrl-C or SIGTERM
-    the pending work is cancelled, local workers terminated, and ``KeyboardInterrupt`` re-raised."""
+    None, replaces the row); ``n_done`` runs done earlier start the progress bar.  Every configuration is
+    warmed before its first timed run in a process: here, before local workers are forked (they inherit
+    the loaded kernels), and in each Dask worker; ``warm_ups`` receives {label: seconds} of those made
+    here.  On Ctrl-C or SIGTERM the pending work is cancelled, local workers terminated, and
+    ``KeyboardInterrupt`` re-raised."""
     from magbench.benchmarks.progress import progress_bar
 
     bar = progress_bar(n_done + len(tasks), "runs", "run", enabled=progress, initial=n_done, leave=True)
@@ -333,6 +387,10 @@ def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, p
 
     try:
         with _sigterm_as_interrupt():
+            if tasks and not dask_address:
+                made = prewarm(tasks)
+                if warm_ups is not None:
+                    warm_ups.update(made)
             if not tasks:
                 pass
             elif dask_address:
@@ -340,8 +398,11 @@ def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, p
             elif jobs > 1:
                 _run_pool(tasks, jobs, finish)
             else:
-                for i, task in enumerate(tasks):
-                    finish([i], [run_task(task)])
+                from threadpoolctl import threadpool_limits
+
+                with threadpool_limits(limits=1):  # as in a worker: runtimes comparable across --jobs
+                    for i, task in enumerate(tasks):
+                        finish([i], [_timed(task)])
     finally:
         bar.close()
     return results  # type: ignore[return-value]
@@ -684,9 +745,10 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
     n_resumed = len(tasks) - len(todo)
     t0 = time.perf_counter()
     interrupted = None
+    warm_ups: dict[str, float] = {}
     try:
         execute(todo, jobs=jobs, dask_address=dask_address, progress=progress, on_row=checkpoint.add,
-                n_done=n_resumed)
+                n_done=n_resumed, warm_ups=warm_ups)
     except KeyboardInterrupt as exc:
         interrupted = exc
     finally:
@@ -695,7 +757,8 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
     on_disk = Checkpoint.read(ckpt_path)[1]  # what an interrupt may not have let reach checkpoint.done is there
     rows = [on_disk[task_key(t)] for t in tasks if task_key(t) in on_disk]
     n_missing = len(tasks) - len(rows)
-    runs = _write_campaign_tables(campaign, out, rows, skipped, command, wall, jobs, dask_address, n_missing)
+    runs = _write_campaign_tables(campaign, out, rows, skipped, command, wall, jobs, dask_address, n_missing,
+                                  warm_ups)
     runs.attrs.update(n_new=len(rows) - n_resumed, n_resumed=n_resumed, already_complete=False,
                       n_missing=n_missing)
     # the checkpoint stays: it is the campaign's exact record, from which ``--resume`` with added scenarios
@@ -719,11 +782,40 @@ def _complete_tables(out: Path) -> pd.DataFrame | None:
     return runs
 
 
+def one_time_costs(rows: list[dict], warm_ups: dict[str, float]) -> dict:
+    """Per configuration: the untimed warm-up runs (seconds, one per process that made one), the median
+    timed runtime, the one-time cost (the longest warm-up less that median: imports, compiles, cache
+    loads) and the largest ratio of a process's first timed run to the median (1 when warming works)."""
+    by: dict[str, dict] = {}
+    for row in rows:
+        extra = row.get("_extra") or {}
+        entry = by.setdefault(row["configuration"], {"warm": [], "runtimes": [], "first": []})
+        if extra.get("warm_up_s") is not None:
+            entry["warm"].append(float(extra["warm_up_s"]))
+        runtime = row.get("runtime_s")
+        if isinstance(runtime, (int, float)) and np.isfinite(runtime) and not row.get("error"):
+            entry["runtimes"].append(float(runtime))
+            if extra.get("first_in_process"):
+                entry["first"].append(float(runtime))
+    for label, seconds in warm_ups.items():
+        by.setdefault(label, {"warm": [], "runtimes": [], "first": []})["warm"].append(float(seconds))
+    out = {}
+    for label, e in by.items():
+        median = float(np.median(e["runtimes"])) if e["runtimes"] else float("nan")
+        out[label] = {"warm_up_s": [round(w, 4) for w in e["warm"]], "median_runtime_s": round(median, 6),
+                      "one_time_s": round(max(e["warm"]) - median, 4) if e["warm"] and np.isfinite(median) else None,
+                      "first_run_over_median": round(max(e["first"]) / median, 3)
+                      if e["first"] and np.isfinite(median) and median > 0 else None}
+    return out
+
+
 def _write_campaign_tables(campaign: Campaign, out: Path, rows: list[dict], skipped: list[dict], command: str,
-                           wall: float, jobs: int, dask_address: str | None, n_missing: int) -> pd.DataFrame:
+                           wall: float, jobs: int, dask_address: str | None, n_missing: int,
+                           warm_ups: dict[str, float] | None = None) -> pd.DataFrame:
     from magbench.benchmarks.tables import write_tables
 
     traces, fields, flat = [], [], []
+    costs = one_time_costs(rows, warm_ups or {})
     for row in rows:
         row = dict(row)
         extra = row.pop("_extra", {}) or {}
@@ -756,6 +848,7 @@ def _write_campaign_tables(campaign: Campaign, out: Path, rows: list[dict], skip
     man["dask"] = bool(dask_address)
     man["n_runs"] = len(runs)
     man["n_failed"] = int((runs["error"] != "").sum()) if len(runs) else 0
+    man["one_time_costs"] = costs  # kept out of runtime_s: each configuration warmed once per process
     for name, frame in (("traces.csv", traces), ("fields.csv", fields)):
         if not frame:  # write_tables skips an empty one: do not leave an older file behind
             (out / name).unlink(missing_ok=True)

@@ -395,7 +395,8 @@ class Calibrator(metaclass=_Sealed):
         rejections, notes = assess(objective, x, improved=status != "worse_than_start", robust=self.robust,
                                    closed_form=self.closed_form, physical_box=physical, limits=self.acceptance,
                                    info=info, t_s=dataset.t_s)
-        uncertainty, noise = _uncertainty(info.get("inliers", objective), x, info.get("noise_nT"))
+        uncertainty, noise = _uncertainty(info.get("inliers", objective), x, info.get("noise_nT"),
+                                          info.get("crb_std_at"))
         if not self.closed_form:
             rejections += _at_bounds(x, lower, upper, model)
         rejections += _budget_breaches(evaluator, budget)
@@ -522,11 +523,18 @@ def data_digest(raw_nT: np.ndarray, f_ref_nT: np.ndarray | None) -> str:
     return "sha256:" + h.hexdigest()
 
 
-def _uncertainty(objective: ScalarObjective, x: np.ndarray, noise_nT: float | None) -> tuple[dict, float]:
+def _uncertainty(objective: ScalarObjective, x: np.ndarray, noise_nT: float | None,
+                 known: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[dict, float]:
     """Cramér-Rao standard deviation of every estimated parameter at ``x`` and the estimated noise (the
     residual RMS of the data's own optimum, degrees of freedom corrected; the estimate's own residual when
-    the acceptance checks did not get that far), keyed by parameter name."""
+    the acceptance checks did not get that far), keyed by parameter name.  ``known``: (x', std) computed
+    by the acceptance checks at the judge's optimum x' at that noise; used when ``x`` is within 1e-3
+    standard deviations of x' (the bound is smooth in x: it is then the same to 1e-3)."""
     names = PARAM_NAMES[objective.model]
+    if known is not None and noise_nT is not None and np.isfinite(noise_nT):
+        at, std = known
+        if np.all(np.isfinite(std)) and np.all(np.abs(np.asarray(x) - at) <= 1e-3 * std):
+            return {name: float(v) for name, v in zip(names, std)}, float(noise_nT)
     if noise_nT is None or not np.isfinite(noise_nT):
         n, p = objective.raw_nT.shape[0], len(names)
         r = objective.residuals(x)

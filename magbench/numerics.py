@@ -55,3 +55,9 @@ def lm_normal(normal_equations, x: np.ndarray, lower: np.ndarray | None = None, 
             if damping > 1e15:
                 break
     return x, float(cost), calls
+
+
+def systematic_rows(n: int, limit: int) -> slice:
+    """Every k-th row, k the smallest step that keeps at most ``limit`` of ``n`` rows (all when n <= limit):
+    a sample stratified in file order (time, and so attitude along the record)."""
+    return slice(None, None, max(1, -(-n // limit)))

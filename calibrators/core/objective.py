@@ -235,6 +235,16 @@ class ScalarObjective:
                 rtr += float(r @ r)
         return jtj, jtr, rtr
 
+    def grams(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(J^T J, J^T W J)`` in one pass over the data (the two Gram matrices of ``normal_equations``)."""
+        p = self.n_params
+        plain, weighted = np.zeros((p, p)), np.zeros((p, p))
+        for rows in self._blocks():
+            _, jt, w = self._block(x, rows)
+            plain += jt @ jt.T
+            weighted += (jt / w) @ jt.T
+        return plain, weighted
+
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """dF/dx of eq. 3: (2/N) J^T r."""
         return 2.0 * self.normal_equations(x)[1] / self._raw.shape[0]
