@@ -30,14 +30,17 @@ class PlainProgress:
         self.every_s, self.show_after_s = every_s, show_after_s
         self.t0 = time.monotonic()
         self.last = self.t0
-        self.printed = False
+        self.printed: int | None = None  # the count last printed
         self.closed = False
+        if self.n:  # resumed: say where it starts
+            self._line(" done earlier")
 
-    def _line(self) -> None:
+    def _line(self, note: str = "") -> None:
         pct = f" ({100.0 * self.n / self.total:.0f} %)" if self.total else ""
-        self.stream.write(f"{self.desc}: {self.n}/{self.total} {self.unit}{pct}, {time.monotonic() - self.t0:.0f} s\n")
+        self.stream.write(f"{self.desc}: {self.n}/{self.total} {self.unit}{pct}{note}, "
+                          f"{time.monotonic() - self.t0:.0f} s\n")
         self.stream.flush()
-        self.printed = True
+        self.printed = self.n
 
     def update(self, n: int = 1) -> None:
         self.n += n
@@ -50,7 +53,7 @@ class PlainProgress:
         if self.closed:
             return
         self.closed = True
-        if self.printed or time.monotonic() - self.t0 >= self.show_after_s:
+        if self.printed != self.n and (self.printed is not None or time.monotonic() - self.t0 >= self.show_after_s):
             self._line()
 
     def __enter__(self) -> PlainProgress:
