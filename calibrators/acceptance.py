@@ -25,7 +25,7 @@ checked before the fit (``reference_problems``): it is bad input, refused with e
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -240,6 +240,8 @@ MIN_REPEATS = 10
 MIN_NOISE_POINTS = 10
 STEP_CANDIDATES = 2000
 """Split points tried when locating a step (evenly spaced in time order)."""
+STEP_ROWS = 200_000
+"""The step search reads at most this many rows (every k-th in time order) of a longer record."""
 STEP_SHARE = 0.5
 """A single step names the structure when it explains at least this share of the residual's excess over
 the noise."""
@@ -325,7 +327,19 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
     over the whole-record fit is ``c_k^T S_k^+ c_k`` with the Schur complement ``S_k = D_k - B_k^T A^+ B_k``
     and ``c_k = T_k^T r - B_k^T A^+ J^T r`` (A = J^T J, B_k = J^T T_k, D_k = T_k^T T_k for the step columns
     T_k), so the split points cost q x q systems from block sums, not one (p + q) system each.  None when
-    the record is too short to split."""
+    the record is too short to split.  On more than ``STEP_ROWS`` rows the search runs on every k-th row in
+    time order (the sums scaled to all rows; the step located to within k rows)."""
+    n_all = len(r)
+    k = max(1, -(-n_all // STEP_ROWS))
+    if k > 1:
+        keep = order[::k]
+        sub = ScalarObjective(objective.raw_nT[keep], objective.f_ref_nT[keep], objective.model)
+        fit = best_step(sub, x, r[keep], np.arange(len(keep)))
+        if fit is None:
+            return None
+        scale = n_all / len(keep)
+        return replace(fit, index=fit.index * k, gain=fit.gain * scale, base=fit.base * scale,
+                       total=fit.total * scale)
     names = PARAM_NAMES[objective.model]
     offsets = [1 + i for i, nm in enumerate(names) if nm.endswith("_nT")]
     # a step of the offsets where there are offsets, else of the mean; the mean is never a column of the

@@ -122,3 +122,25 @@ def test_the_step_search_equals_the_joint_regression():
 
     assert step.gain == pytest.approx(joint_gain(step.index), rel=1e-6)
     assert joint_gain(len(raw) // 10) < 0.5 * step.gain
+
+
+def test_a_sampled_step_search_finds_the_step_of_all_rows(monkeypatch):
+    d = get_scenario("tumble9").build(0)
+    copies = 2 * acceptance.STEP_ROWS // len(d) + 7  # more than twice the rows the search reads
+    rng = np.random.default_rng(3)
+    raw = np.tile(d.raw_nT, (copies, 1)) + rng.normal(0.0, 2.0, (copies * len(d), 3))
+    at = int(0.6 * len(raw))
+    raw[at:] += np.array([0.0, 250.0, -150.0])
+    f_ref = np.tile(d.f_ref_nT, copies)
+    obj = ScalarObjective(raw, f_ref, "nine")
+    x = make("lsq").fit(Dataset(raw, f_ref_nT=f_ref)).x
+    r = obj.residuals(x)
+    order = np.arange(len(raw))
+    sampled = acceptance.best_step(obj, x, r, order)
+    monkeypatch.setattr(acceptance, "STEP_ROWS", 10**9)
+    every = acceptance.best_step(obj, x, r, order)
+    k = -(-len(raw) // 200_000)
+    assert sampled is not None and every is not None
+    assert abs(sampled.index - every.index) <= 2 * k and abs(every.index - at) <= len(raw) // 50
+    assert sampled.gain == pytest.approx(every.gain, rel=0.05)
+    assert acceptance.step_dominates(sampled) == acceptance.step_dominates(every)

@@ -190,7 +190,21 @@ class Evaluator:
         return f
 
     def value(self, x: np.ndarray) -> float:
-        return float(self.values(np.asarray(x, dtype=float)[None, :])[0])
+        """F at one point; costs one evaluation.  The single-point path of ``values`` (what local methods
+        call thousands of times): the direct form of the residuals, recorded without building a population."""
+        x = np.asarray(x, dtype=float)
+        if self._exhausted or self._budget.max_evaluations is not None or self._budget.max_time_s is not None:
+            self._allowance(1)
+        r = self._objective.residuals(x)
+        f = float(np.mean(r * r))  # as ``values`` computes one point, to the last bit
+        self._n_f += 1
+        if self._audit is not None:
+            self._audit.points.append(np.array(x[None, :], dtype=float, copy=True))
+        if f < self.best_f:
+            self.best_f = f
+            self.best_x = x.copy()
+        self.trace.append((self.n_evaluations, self.best_f, f))
+        return f
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Residual vector at one point; costs one evaluation."""

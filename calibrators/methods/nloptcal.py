@@ -66,11 +66,13 @@ class NLoptCalibrator(Calibrator):
         opt = nlopt.opt(code, len(lo))
         uses_gradient = str(self.algorithm)[1] == "D"
 
-        def f(u, grad):
+        value, gradient = obj.value, obj.gradient
+
+        def f(u, grad):  # NLopt's callback: the counted objective and nothing else
             x = lo + u * span
             if grad.size:
-                grad[:] = obj.gradient(x) * span
-            return obj.value(x)
+                grad[:] = gradient(x) * span
+            return value(x)
 
         opt.set_min_objective(f)
         opt.set_lower_bounds(np.zeros(len(lo)))
