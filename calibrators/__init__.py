@@ -14,6 +14,7 @@ from .checks import check_calibrator
 from .core.evaluator import Budget, BudgetExhausted, Evaluator, audit_evaluations
 from .core.objective import ScalarObjective
 from .core.problem import Problem, ReadingsProblem, SolveOutput, search_bounds
+from .methods._gakernel import prefer_compiled as prefer_compiled_kernels
 from .modelselect import choose_model  # noqa: F401  (installs the chooser behind model='auto')
 from .registry import ENTRY_POINT_GROUP, available, get, make, register
 
@@ -21,7 +22,7 @@ __all__ = [
     "ErrorParams", "CalibrationResult", "Calibrator", "Problem", "ReadingsProblem",
     "SolveOutput", "search_bounds", "Budget", "BudgetExhausted", "Evaluator", "audit_evaluations",
     "ScalarObjective", "ENTRY_POINT_GROUP", "available", "get", "make", "register",
-    "check_calibrator", "Calibration", "load_calibration", "export",
+    "check_calibrator", "Calibration", "load_calibration", "export", "prefer_compiled_kernels",
 ]
 
 

@@ -225,14 +225,75 @@ def _smoke(kernel) -> None:
                0.001, per_bit, 1, np.empty((m, p), dtype=np.int64), np.empty((m, p)))
 
 
+KERNEL_ENV = "MAGBENCH_GA_KERNEL"
+"""``numpy``, ``numba`` or ``auto`` (the default): which version of the GA kernels runs.  The two give the
+same numbers (tests/test_gakernel.py, tests/test_realgakernel.py); only the time differs."""
+NUMPY_GENERATION_S = 2.5e-4
+"""Seconds the numpy kernel takes per generation of 80 individuals (measured: 1000 generations in 0.25 s,
+objective included); about twice the compiled kernel's."""
+CACHE_LOAD_S = 0.6
+"""Seconds importing numba and loading a cached kernel cost a process (0.4-1 s measured)."""
+COMPILE_S = 15.0
+"""Seconds compiling a kernel costs when numba has no cache of it (once per machine)."""
+_PREFER_COMPILED = [False]
+_RUNS: dict[str, int] = {}
+
+
+def prefer_compiled(flag: bool = True) -> None:
+    """Say that this process will run many GA fits (a campaign's worker): the compiled kernels then run
+    from the first fit on, their one-time cost paid by the campaign's untimed warm-up."""
+    _PREFER_COMPILED[0] = bool(flag)
+
+
+def _cached_on_disk(loops) -> bool:
+    """Whether numba's on-disk cache holds ``loops`` (its index file next to this module, or under
+    ``NUMBA_CACHE_DIR``), so that loading costs ``CACHE_LOAD_S`` rather than ``COMPILE_S``."""
+    import os
+    from pathlib import Path
+
+    here = Path(__file__).resolve()
+    pattern = f"{here.stem}.{loops.__name__}-*.nbi"
+    places = [here.parent / "__pycache__"]
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        places.append(Path(os.environ["NUMBA_CACHE_DIR"]).joinpath(*here.parent.parts[1:]))
+    return any(any(place.glob(pattern)) for place in places if place.is_dir())
+
+
+def choose(loops, generations: int, population: int) -> str:
+    """``"numba"`` or ``"numpy"`` for a run of ``generations`` x ``population``: numba when ``KERNEL_ENV``
+    says so, when its kernel is loaded already, when the process will run many fits (``prefer_compiled``),
+    from the second run of a kernel in a process on, or when the numpy kernel's expected time exceeds the
+    one-time cost (``CACHE_LOAD_S``, or ``COMPILE_S`` without a cache); else numpy, so that a single
+    command does not pay a 0.4-1 s cache load (or a compile) for a run the numpy kernel does in 0.25 s."""
+    import os
+
+    mode = os.environ.get(KERNEL_ENV, "auto").strip().lower()
+    if mode in ("numpy", "numba"):
+        return mode
+    if _LOADED.get(loops.__name__) or _PREFER_COMPILED[0] or _RUNS.get(loops.__name__, 0) >= 1:
+        return "numba"
+    expected = generations * max(population, 1) / 80.0 * NUMPY_GENERATION_S
+    return "numba" if expected > (CACHE_LOAD_S if _cached_on_disk(loops) else COMPILE_S) else "numpy"
+
+
+_LOADED: dict[str, bool] = {}
+
+
 def _compiled(loops, smoke, fallback):
     """``loops`` compiled by numba (cached on disk where numba finds a writable place, else compiled in
     memory) and checked by ``smoke``; ``fallback`` (the numpy version, same numbers) when numba does not
-    import or cannot compile it."""
+    import or cannot compile it.  A one-line notice on stderr says when a compile is about to happen."""
     try:
         import numba
     except ImportError:
         return fallback
+    if not _cached_on_disk(loops):
+        import sys
+
+        sys.stderr.write(f"magbench: compiling the GA kernel ({loops.__name__.strip('_')}) with numba, once per "
+                         f"machine (about {COMPILE_S:.0f} s)\n")
+        sys.stderr.flush()
+    _LOADED[loops.__name__] = True
     try:
         try:
             kernel = numba.njit(cache=True, nogil=True)(loops)
@@ -248,6 +309,13 @@ def _compiled(loops, smoke, fallback):
 def generation_kernel():
     """The AGA's kernel: ``_generation_loops`` compiled, or ``generation_numpy`` (``_compiled``)."""
     return _compiled(_generation_loops, _smoke, generation_numpy)
+
+
+def generation_kernel_for(generations: int, population: int):
+    """The AGA's kernel for a run of that size (``choose``): compiled or numpy, the same numbers."""
+    use = choose(_generation_loops, generations, population)
+    _RUNS[_generation_loops.__name__] = _RUNS.get(_generation_loops.__name__, 0) + 1
+    return generation_kernel() if use == "numba" else generation_numpy
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -495,3 +563,10 @@ def real_generation_kernel():
     """The real-coded GA's kernel: ``_real_generation_loops`` compiled, or ``real_generation_numpy``
     (``_compiled``)."""
     return _compiled(_real_generation_loops, _real_smoke, real_generation_numpy)
+
+
+def real_generation_kernel_for(generations: int, population: int):
+    """The real-coded GA's kernel for a run of that size (``choose``): compiled or numpy, the same numbers."""
+    use = choose(_real_generation_loops, generations, population)
+    _RUNS[_real_generation_loops.__name__] = _RUNS.get(_real_generation_loops.__name__, 0) + 1
+    return real_generation_kernel() if use == "numba" else real_generation_numpy

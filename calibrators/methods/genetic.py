@@ -90,7 +90,8 @@ class AdaptiveGA(Calibrator):
         per_bit = self.mutation == "per_bit"
         settings = (nb, float(self.pc1), float(self.pc2), float(self.pm1), float(self.pm2), per_bit,
                     int(self.elitism))
-        kernel = _gakernel.generation_kernel()  # compiled on the first AGA run (numba), cached on disk
+        # numba's compiled kernel where its one-time cost pays (a campaign, a long run), else numpy: same numbers
+        kernel = _gakernel.generation_kernel_for(int(self.k_max), m)  # k_max: its usual length
         n_uniforms = _gakernel.uniforms_needed(m, len(lo) * nb, per_bit)
         pop = rng.integers(0, 2**nb, size=(m, len(lo)), dtype=np.int64)  # step 1: random bit strings
         x = lo + pop * step  # eq. 7
@@ -281,7 +282,7 @@ def _kernel_loop(obj, ga, operators, u, x, f, lo, span) -> None:
     tournament = int(ga.tournament) if selection == _gakernel.TOURNAMENT else 1
     if selection == _gakernel.TOURNAMENT and tournament < 1:
         raise InputError(f"{ga.name}: tournament must be at least 1")
-    kernel = _gakernel.real_generation_kernel()  # numba compiled on the first run (cached on disk), or numpy
+    kernel = _gakernel.real_generation_kernel_for(int(ga.generations), m)  # numba where it pays, else numpy
     n_uniforms = _gakernel.real_uniforms_needed(m, p, selection, tournament, crossover, mutation)
     mutate = _gakernel.real_uniform_layout(m, p, selection, tournament, crossover, mutation)["mutate"]
     lo, span = np.array(lo, dtype=float), np.array(span, dtype=float)  # writable and contiguous: one signature
