@@ -26,6 +26,7 @@ hand, or copied from another campaign, fails it and its run is run again, with a
 from __future__ import annotations
 
 import contextlib
+import gc
 import hashlib
 import json
 import os
@@ -190,10 +191,13 @@ def run_task(task: dict) -> dict:
     return row
 
 
-_WARM: dict[tuple[int, str], float] = {}
-"""Configurations warmed, by (process id, label) -> seconds of the untimed warm-up run.  A forked worker
-inherits the campaign process's loaded kernels (a numba cache load made once) but warms again itself: its
-first touches of inherited memory are copies, which would otherwise land in its first timed run."""
+_WARM: dict[str, tuple[int, float]] = {}
+"""Configurations warmed: label -> (process id, seconds of the untimed warm-up run).  A forked worker
+inherits the campaign process's entries with its loaded kernels and caches (a numba cache load made
+once); it warms a configuration again only when that is cheap (``REWARM_S``): a short run's first touches
+of inherited memory are page copies that would otherwise be a visible part of its first timed run.  A
+spawned or Dask worker warms itself."""
+REWARM_S = 0.25
 
 
 def warm_up(task: dict) -> float | None:
@@ -201,16 +205,23 @@ def warm_up(task: dict) -> float | None:
     what happens once per process (imports, numba compiles and cache loads, SciPy's first LAPACK calls)
     is paid here and not by a run's ``runtime_s``.  Returns the warm-up's seconds, or None when this
     process has warmed the configuration already."""
-    key = (os.getpid(), task["configuration"])
+    key = task["configuration"]
     if key in _WARM:
-        return None
+        pid, seconds = _WARM[key]
+        if pid == os.getpid() or seconds >= REWARM_S:
+            _WARM[key] = (os.getpid(), seconds)
+            return None
     from magbench.calibrators import prefer_compiled_kernels
 
     prefer_compiled_kernels()  # many fits follow: compiled GA kernels from the first, loaded here, untimed
     t0 = time.perf_counter()
     run_task({**task, "keep_trace": False, "keep_fields": False})
-    _WARM[key] = time.perf_counter() - t0
-    return _WARM[key]
+    _WARM[key] = (os.getpid(), time.perf_counter() - t0)
+    # what exists now lives as long as the process: out of the collector's sight, so that a collection in a
+    # timed run scans only that run's objects (and forked workers share these pages instead of copying them)
+    gc.collect()
+    gc.freeze()
+    return _WARM[key][1]
 
 
 def _timed(task: dict) -> dict:
@@ -227,20 +238,6 @@ def _timed(task: dict) -> dict:
 
 
 _FIRST_DONE: set[tuple[int, str]] = set()
-
-
-def prewarm(tasks: list[dict]) -> dict[str, float]:
-    """Warm every configuration of ``tasks`` in this process (before forking workers, which inherit it):
-    {label: seconds} of the warm-ups made now."""
-    from threadpoolctl import threadpool_limits
-
-    made = {}
-    with threadpool_limits(limits=1):
-        for task in {t["configuration"]: t for t in reversed(tasks)}.values():
-            seconds = warm_up(task)
-            if seconds is not None:
-                made[task["configuration"]] = seconds
-    return made
 
 
 def run_chunk(tasks: list[dict]) -> list[dict]:
@@ -367,15 +364,14 @@ def _run_dask(tasks: list[dict], address: str, finish) -> None:
 
 
 def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, progress: bool = True,
-            on_row=None, n_done: int = 0, warm_ups: dict | None = None) -> list[dict]:
+            on_row=None, n_done: int = 0) -> list[dict]:
     """Run the tasks serially, on ``jobs`` local processes, or on a Dask cluster; rows in task order.
 
     ``on_row(task, row)`` is called in this process as each run finishes (its return value, when not
     None, replaces the row); ``n_done`` runs done earlier start the progress bar.  Every configuration is
-    warmed before its first timed run in a process: here, before local workers are forked (they inherit
-    the loaded kernels), and in each Dask worker; ``warm_ups`` receives {label: seconds} of those made
-    here.  On Ctrl-C or SIGTERM the pending work is cancelled, local workers terminated, and
-    ``KeyboardInterrupt`` re-raised."""
+    warmed (``warm_up``) before its first timed run in each process, the workers in parallel.  On Ctrl-C
+    or SIGTERM the pending work is cancelled, local workers terminated, and ``KeyboardInterrupt``
+    re-raised."""
     from magbench.benchmarks.progress import progress_bar
 
     bar = progress_bar(n_done + len(tasks), "runs", "run", enabled=progress, initial=n_done, leave=True)
@@ -390,10 +386,6 @@ def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, p
 
     try:
         with _sigterm_as_interrupt():
-            if tasks and not dask_address:
-                made = prewarm(tasks)
-                if warm_ups is not None:
-                    warm_ups.update(made)
             if not tasks:
                 pass
             elif dask_address:
@@ -748,10 +740,9 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
     n_resumed = len(tasks) - len(todo)
     t0 = time.perf_counter()
     interrupted = None
-    warm_ups: dict[str, float] = {}
     try:
         execute(todo, jobs=jobs, dask_address=dask_address, progress=progress, on_row=checkpoint.add,
-                n_done=n_resumed, warm_ups=warm_ups)
+                n_done=n_resumed)
     except KeyboardInterrupt as exc:
         interrupted = exc
     finally:
@@ -760,8 +751,7 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
     on_disk = Checkpoint.read(ckpt_path)[1]  # what an interrupt may not have let reach checkpoint.done is there
     rows = [on_disk[task_key(t)] for t in tasks if task_key(t) in on_disk]
     n_missing = len(tasks) - len(rows)
-    runs = _write_campaign_tables(campaign, out, rows, skipped, command, wall, jobs, dask_address, n_missing,
-                                  warm_ups)
+    runs = _write_campaign_tables(campaign, out, rows, skipped, command, wall, jobs, dask_address, n_missing)
     runs.attrs.update(n_new=len(rows) - n_resumed, n_resumed=n_resumed, already_complete=False,
                       n_missing=n_missing)
     # the checkpoint stays: it is the campaign's exact record, from which ``--resume`` with added scenarios
@@ -785,7 +775,7 @@ def _complete_tables(out: Path) -> pd.DataFrame | None:
     return runs
 
 
-def one_time_costs(rows: list[dict], warm_ups: dict[str, float]) -> dict:
+def one_time_costs(rows: list[dict]) -> dict:
     """Per configuration: the untimed warm-up runs (seconds, one per process that made one), the median
     timed runtime, the one-time cost (the longest warm-up less that median: imports, compiles, cache
     loads) and the largest ratio of a process's first timed run to the median (1 when warming works)."""
@@ -800,8 +790,6 @@ def one_time_costs(rows: list[dict], warm_ups: dict[str, float]) -> dict:
             entry["runtimes"].append(float(runtime))
             if extra.get("first_in_process"):
                 entry["first"].append(float(runtime))
-    for label, seconds in warm_ups.items():
-        by.setdefault(label, {"warm": [], "runtimes": [], "first": []})["warm"].append(float(seconds))
     out = {}
     for label, e in by.items():
         median = float(np.median(e["runtimes"])) if e["runtimes"] else float("nan")
@@ -813,12 +801,11 @@ def one_time_costs(rows: list[dict], warm_ups: dict[str, float]) -> dict:
 
 
 def _write_campaign_tables(campaign: Campaign, out: Path, rows: list[dict], skipped: list[dict], command: str,
-                           wall: float, jobs: int, dask_address: str | None, n_missing: int,
-                           warm_ups: dict[str, float] | None = None) -> pd.DataFrame:
+                           wall: float, jobs: int, dask_address: str | None, n_missing: int) -> pd.DataFrame:
     from magbench.benchmarks.tables import write_tables
 
     traces, fields, flat = [], [], []
-    costs = one_time_costs(rows, warm_ups or {})
+    costs = one_time_costs(rows)
     for row in rows:
         row = dict(row)
         extra = row.pop("_extra", {}) or {}

@@ -536,18 +536,22 @@ def _compare_outputs(args, runs, out: Path, progress: bool) -> int:
     attrs = runs.attrs
     figures = not args.no_figures and (not attrs.get("already_complete") or not (out / "report.html").is_file())
     comparison = len(runs) and runs["configuration"].nunique() >= 2  # a comparison needs two methods
+    prepare = None
     if comparison and not attrs.get("already_complete"):
         from magbench.benchmarks.comparison import write_comparison
 
-        write_comparison(out, figures=False)  # its figures are drawn below with the others, in parallel
+        def prepare():  # the comparison's tables; its figures are drawn with the others, in parallel
+            write_comparison(out, figures=False)
     if figures:
         from magbench.benchmarks.figures import make_figures
         from magbench.benchmarks.report import write_report
 
         images: dict = {}  # the report embeds the figures drawn here at screen resolution
         make_figures(out, formats=tuple(args.format), dpi=args.dpi, images=images, progress=progress,
-                     jobs=max(1, args.jobs or 1))
+                     jobs=max(1, args.jobs or 1), prepare=prepare)
         write_report(out, images=images)
+    elif prepare is not None:
+        prepare()
     failed = int((runs["error"] != "").sum())
     obj = {"out": str(out), "n_runs": len(runs), "n_failed": failed, "complete": True,
            "n_new": int(attrs.get("n_new", len(runs))), "n_resumed": int(attrs.get("n_resumed", 0)),

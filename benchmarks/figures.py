@@ -603,12 +603,14 @@ def _pool(jobs: int):
 
 def make_figures(campaign_dir: str | Path, out_dir: str | Path | None = None, formats=("png", "svg"),
                  dpi: int = DPI, images: dict | None = None, progress: bool = False, jobs: int = 1,
-                 kinds=ALL_KINDS) -> list[Path]:
+                 kinds=ALL_KINDS, prepare=None) -> list[Path]:
     """Draw every figure the campaign's data support (``kinds``: the per-scenario families and the method
     comparison's ECDF, anytime and profile figures) in each of ``formats`` (png, svg, pdf; PNG at ``dpi``);
     return the written paths.  ``images``, when given, receives ``{stem: PNG bytes}`` at screen resolution
     for the report (``formats=()`` then writes nothing).  ``jobs`` > 1 draws on that many processes; the
-    files are the same either way.  ``progress`` shows progress on stderr."""
+    files are the same either way.  ``prepare``, when given, is called in this process once the
+    per-scenario figures are under way (the method comparison's tables: their figures are drawn after it),
+    so that it overlaps the drawing.  ``progress`` shows progress on stderr."""
     from magbench.benchmarks.progress import progress_bar
 
     bad = [f for f in formats if f not in FORMATS]
@@ -616,22 +618,32 @@ def make_figures(campaign_dir: str | Path, out_dir: str | Path | None = None, fo
         raise ValueError(f"unknown figure format {bad[0]!r}; known: {', '.join(FORMATS)}")
     campaign_dir = Path(campaign_dir)
     out_dir = Path(out_dir) if out_dir is not None else campaign_dir / "figures"
-    tasks = figure_tasks(campaign_dir, kinds)
+    first = [k for k in kinds if k in KINDS]
+    later = [k for k in kinds if k not in KINDS]
+    tasks = figure_tasks(campaign_dir, first)
     runs = _read_csv(campaign_dir / "runs.csv", str_cols=("error", "configuration", "scenario"))
-    styles = campaign_styles(campaign_dir, _col(runs, "configuration"),
-                             *(_col(d, "configuration") for _, _, d in tasks if isinstance(d, pd.DataFrame)))
-    if formats and tasks:
+    styles = campaign_styles(campaign_dir, _col(runs, "configuration"))
+    if formats:
         out_dir.mkdir(parents=True, exist_ok=True)
-    args = [(t, styles, out_dir, tuple(formats), dpi, images is not None) for t in tasks]
+
+    def args_of(batch):
+        return [(t, styles, out_dir, tuple(formats), dpi, images is not None) for t in batch]
+
     done: list[tuple[str, list[Path], bytes | None]] = []
-    with progress_bar(len(args), "figures", "fig", enabled=progress) as bar:
-        if jobs > 1 and len(args) > 1:
-            with _pool(min(jobs, len(args))) as pool:
-                for out in pool.map(_draw_star, args):
-                    done.append(out)
+    with progress_bar(len(tasks) + len(later), "figures", "fig", enabled=progress) as bar:
+        if jobs > 1:
+            with _pool(jobs) as pool:
+                futures = [pool.submit(_draw_star, a) for a in args_of(tasks)]
+                if prepare is not None:
+                    prepare()
+                futures += [pool.submit(_draw_star, a) for a in args_of(figure_tasks(campaign_dir, later))]
+                for fut in futures:
+                    done.append(fut.result())
                     bar.update(1)
         else:
-            for a in args:
+            if prepare is not None:
+                prepare()
+            for a in args_of(tasks + figure_tasks(campaign_dir, later)):
                 done.append(_draw_star(a))
                 bar.update(1)
     written: list[Path] = []

@@ -301,9 +301,9 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
         run_campaign(Campaign(SCENARIOS, methods, trials=trials, seed=ROOT_SEED), camp_dir, jobs=jobs,
                      command=f"magbench reproduce{' --quick' if quick else ''}", progress=progress)
         clock.start("campaign: comparison, figures, report")
-        write_comparison(camp_dir, figures=False)
         images: dict = {}
-        make_figures(camp_dir, images=images, progress=progress, jobs=jobs)
+        make_figures(camp_dir, images=images, progress=progress, jobs=jobs,
+                     prepare=lambda: write_comparison(camp_dir, figures=False))
         written += [camp_dir / "runs.csv", camp_dir / "summary.md", write_report(camp_dir, images=images)]
         (camp_dir / CHECKPOINT).unlink(missing_ok=True)  # the tables are the record here; the checkpoint (what
         # lets a campaign grow) would add megabytes of traces to the repository

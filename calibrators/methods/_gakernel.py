@@ -246,16 +246,21 @@ def prefer_compiled(flag: bool = True) -> None:
 
 
 def _cached_on_disk(loops) -> bool:
-    """Whether numba's on-disk cache holds ``loops`` (its index file next to this module, or under
-    ``NUMBA_CACHE_DIR``), so that loading costs ``CACHE_LOAD_S`` rather than ``COMPILE_S``."""
+    """Whether numba's on-disk cache holds ``loops``, so that loading costs ``CACHE_LOAD_S`` rather than
+    ``COMPILE_S``: its index file where numba looks (``NUMBA_CACHE_DIR`` when set; else ``__pycache__``
+    beside this module, then the user-wide cache), under numba's subdirectory name for this folder."""
+    import hashlib
     import os
     from pathlib import Path
 
     here = Path(__file__).resolve()
     pattern = f"{here.stem}.{loops.__name__}-*.nbi"
-    places = [here.parent / "__pycache__"]
+    sub = f"{here.parent.name}_{hashlib.sha1(str(here.parent).encode()).hexdigest()}"
     if os.environ.get("NUMBA_CACHE_DIR"):
-        places.append(Path(os.environ["NUMBA_CACHE_DIR"]).joinpath(*here.parent.parts[1:]))
+        places = [Path(os.environ["NUMBA_CACHE_DIR"]) / sub]
+    else:
+        user = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "numba" / sub
+        places = [here.parent / "__pycache__", user]
     return any(any(place.glob(pattern)) for place in places if place.is_dir())
 
 
