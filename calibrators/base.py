@@ -8,6 +8,7 @@ state is kept on the calibrator.
 from __future__ import annotations
 
 import contextvars
+import functools
 import hashlib
 import inspect
 import time
@@ -230,7 +231,7 @@ class Calibrator(metaclass=_Sealed):
     @classmethod
     def _param_names(cls) -> list[str]:
         """The constructor's keyword arguments (scikit-learn's ``_get_param_names``: no ``*args``)."""
-        sig = inspect.signature(cls.__init__)
+        sig = _init_signature(cls)
         if any(p.kind == p.VAR_POSITIONAL for p in sig.parameters.values()):
             raise TypeError(f"{cls.__name__}.__init__ takes *args: calibrators list every hyper-parameter "
                             "as a keyword argument")
@@ -264,7 +265,7 @@ class Calibrator(metaclass=_Sealed):
         (``population: int`` refuses ``"abc"`` and ``2.5``; ``float`` takes integers; ``X | None`` takes
         None); annotations naming other types are not checked."""
         validate_params(cls.name or cls.__name__, cls._parameter_constraints, params)
-        sig = inspect.signature(cls.__init__)
+        sig = _init_signature(cls)
         for name, value in params.items():
             if name not in sig.parameters or name in cls._parameter_constraints:
                 continue
@@ -546,6 +547,12 @@ def _uncertainty(objective: ScalarObjective, x: np.ndarray, noise_nT: float | No
     except (np.linalg.LinAlgError, ValueError):
         std = np.full(len(names), np.nan)
     return {name: float(v) for name, v in zip(names, std)}, float(noise_nT)
+
+
+@functools.cache
+def _init_signature(cls) -> inspect.Signature:
+    """A calibrator class's constructor signature, read once per class (every fit reads its parameters)."""
+    return inspect.signature(cls.__init__)
 
 
 def _solver_point(x, p: int) -> tuple[np.ndarray, str]:
