@@ -405,7 +405,7 @@ def cmd_demo(args) -> int:
     if args.json:
         _emit(args, {"seed": args.seed, "rows": frame.replace({np.nan: None}).to_dict(orient="records")}, "")
         return EXIT_OK
-    lines = [f"magbench demo (seed {args.seed}): seed 000's turntable experiment (lu2014, 3 angles) and a "
+    lines = [f"magbench demo (seed {args.seed}): Lu et al. 2014's turntable experiment (lu2014, 3 angles) and a "
              "full-sphere 9-parameter sensor (sphere9), every registered calibrator.", ""]
     for name, part in frame.groupby("scenario", sort=False):
         lines.append(f"== {name}: {get_scenario(name).description}")
@@ -423,15 +423,21 @@ def cmd_demo(args) -> int:
                          for a in part.get("accepted", pd.Series(None, index=part.index, dtype=object))],
         })
         if "scale_err_max" in part and part["scale_err_max"].notna().any():
-            table.insert(4, "d_scale", part["scale_err_max"])
-            table.insert(5, "d_offset_nT", part["offset_err_max_nT"])
+            table.insert(4, "max_d_scale", part["scale_err_max"])
+            table.insert(5, "max_d_offset_nT", part["offset_err_max_nT"])
         lines.append(table.to_string(index=False, float_format=lambda v: f"{v:.3g}", na_rep="-"))
         for _, r in part[part["error"] != ""].iterrows():
             lines.append(f"  {r['method']}: not run: {cli_words(r['error'])}")
+        rejected = part[(part["error"] == "") & (part.get("accepted", pd.Series(True, index=part.index)) == False)]  # noqa: E712
+        for _, r in rejected.iterrows():
+            reasons = [t for t in str(r.get("rejections", "") or "").split("; ") if t]
+            more = f" (+{len(reasons) - 1} more)" if len(reasons) > 1 else ""
+            lines.append(f"  {r['method']} REJECTED: {cli_words(reasons[0]) if reasons else 'no reason recorded'}{more}")
         lines.append("")
-    lines.append("d_*: estimate minus truth (angles in arc-seconds); rms: total-field residual against the "
-                 "reference before and after calibration; accepted: whether the calibration passes its acceptance "
-                 "checks (magbench calibrate names the causes of a rejection).")
+    lines.append("d_*: estimate minus truth (angles in arc-seconds); max_d_scale, max_d_offset_nT: the largest over the "
+                 "three axes; rms: total-field residual against the reference before and after calibration; "
+                 "accepted: whether the calibration passes its acceptance checks (a finished fit can be rejected; "
+                 "the first reason is under the table).")
     _emit(args, {}, "\n".join(lines))
     return EXIT_OK
 
@@ -645,6 +651,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
 
     _add_list_parser(sub)
+    _add_data_parser(sub)
     _add_simulate_parser(sub)
     _add_calibrate_parser(sub)
     _add_apply_parser(sub)
@@ -655,6 +662,53 @@ def build_parser() -> argparse.ArgumentParser:
     _add_reproduce_parser(sub)
     _add_demo_parser(sub)
     return parser
+
+
+EXAMPLE_PREFIX = "example:"
+"""``example:NAME`` stands for the recording ``NAME.csv`` shipped with the package (``magbench data``)."""
+
+
+def example_recordings() -> dict[str, tuple[Path, str]]:
+    """The recordings shipped in ``magbench.simulate.data``: name -> (path, title from its provenance)."""
+    import magbench.simulate.dataset as dataset_module
+
+    root = Path(dataset_module.__file__).resolve().parent / "data"  # package data, installed with the wheel
+    out = {}
+    for csv in sorted(root.glob("*.csv")):
+        prov = next((p for p in (root / f"{csv.stem}.PROVENANCE.md", root / f"{csv.stem.split('_')[0]}.PROVENANCE.md")
+                     if p.is_file()), None)
+        title = prov.read_text(encoding="utf-8").splitlines()[0].lstrip("# ").strip() if prov else ""
+        out[csv.stem] = (csv, title)
+    return out
+
+
+def resolve_example(text: str) -> str:
+    """``example:NAME`` as the path of that shipped recording (any other text unchanged)."""
+    if not text.startswith(EXAMPLE_PREFIX):
+        return text
+    name = text[len(EXAMPLE_PREFIX):].strip().removesuffix(".csv")
+    known = example_recordings()
+    if name not in known:
+        raise InputError(f"no example recording {name!r}; 'magbench data' lists them ({', '.join(known)})")
+    return str(known[name][0])
+
+
+def cmd_data(args) -> int:
+    known = example_recordings()
+    obj = {name: {"path": str(path), "title": title} for name, (path, title) in known.items()}
+    width = max(map(len, known), default=0)
+    lines = ["Recordings shipped with magbench (real data, each with its provenance and licence beside it); use",
+             "one from any folder as example:NAME, e.g. magbench calibrate example:sap6_BB --units uT", ""]
+    lines += [f"  {name:<{width}}  {title}" for name, (_, title) in known.items()]
+    lines += ["", f"folder: {next(iter(known.values()))[0].parent}" if known else "no recordings installed"]
+    _emit(args, obj, "\n".join(lines))
+    return EXIT_OK
+
+
+def _add_data_parser(sub) -> None:
+    p = sub.add_parser("data", help="the example recordings shipped with magbench (use them as example:NAME)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_data)
 
 
 def _add_list_parser(sub) -> None:
@@ -679,7 +733,7 @@ def _add_calibrate_parser(sub) -> None:
     p.add_argument("file", metavar="FILE.csv")
     p.add_argument("--method", required=True)
     p.add_argument("--model", default="nine", choices=["offset", "diag", "angles", "nine", "auto"],
-                   help="offset (3 offsets), diag (+3 scales), angles (seed 000's 3 angles), nine (angles, scales, "
+                   help="offset (3 offsets), diag (+3 scales), angles (the 3 angles of Lu et al. 2014), nine (angles, scales, "
                         "offsets), auto (the simplest identifiable model within noise of the best held-out residual; "
                         "default nine)")
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
@@ -793,7 +847,7 @@ def _add_reproduce_parser(sub) -> None:
 
 
 def _add_demo_parser(sub) -> None:
-    p = sub.add_parser("demo", help="simulate seed 000's experiment and a sphere, compare every calibrator")
+    p = sub.add_parser("demo", help="simulate Lu et al. 2014's experiment and a sphere, compare every calibrator")
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_demo)
@@ -830,6 +884,8 @@ def main(argv=None) -> int:
             warnings.simplefilter("always")
             args = parser.parse_args(argv)
             args._argv = list(argv) if argv is not None else sys.argv[1:]
+            if isinstance(getattr(args, "file", None), str):
+                args.file = resolve_example(args.file)
             if not getattr(args, "command", None):
                 parser.print_help(sys.stderr)
                 return EXIT_USAGE

@@ -241,9 +241,9 @@ def fig_errors(runs: pd.DataFrame, scenario: str, styles: dict) -> Figure | None
     if relative:
         med = {a: np.nanmedian(_numeric(ok, f"crb_{a}_rad")) * ARCSEC_PER_RAD for a in ANGLES}
         sigma = "; Cramér-Rao σ (median): " + ", ".join(f"{GREEK[a]} {med[a]:.3g}″" for a in ANGLES)
-    fig.suptitle(f"Angle errors{' relative to the Cramér-Rao bound' if relative else ''} — {scenario} "
-                 f"({_trials(ok)} trials per method" + (f", {n_failed} failed runs excluded" if n_failed else "")
-                 + f"){sigma}")
+    fig.suptitle(_wrap(f"Angle errors{' relative to the Cramér-Rao bound' if relative else ''} — {scenario} "
+                       f"({_trials(ok)} trials per method" + (f", {n_failed} failed runs excluded" if n_failed else "")
+                       + f"){sigma}", 130))  # wrapped: a long title must not run off the figure
     if relative:
         fig.legend(handles=[Patch(color=BOUND_GREY, alpha=0.25, label="within 1 σ of the Cramér-Rao bound"),
                             Line2D([], [], color=BOUND_GREY, ls="--", label="1 σ (the bound)")],

@@ -213,7 +213,8 @@ _SENSOR_ROWS = (("ellipsoid", "single-sensor ellipsoid fits"), ("ga", "GA gradie
 
 
 def _header(r: dict) -> list[str]:
-    return [f"seed 001 gradiometer: two fluxgates on one body, seed {r['seed']}, {r['n_points']} attitudes "
+    return [f"gradiometer of Jin, Zhuang & Wang (seed 001): two fluxgates on one body, seed {r['seed']}, "
+            f"{r['n_points']} attitudes "
             f"({r['attitude']}) over {r['duration_s']:g} s",
             f"field {r['field_nT']:.0f} nT (I {r['inclination_deg']:.0f} deg, D {r['declination_deg']:.0f} deg), "
             f"fluctuation up to {r['fluctuation_nT']:g} nT, noise {r['noise_nT']:g} nT per axis per sensor"]

@@ -190,7 +190,9 @@ def _scenario_description(name: str) -> str:
 # -------------------------------------------------------------------------------------------- tables
 
 HEADERS = [("calibrator", "", "the calibration method and its hyperparameters"), ("runs", "", "runs in the campaign"),
-           ("success", "%", "runs that converged"), ("accepted", "%", "runs whose acceptance checks passed")]
+           ("finished", "%", "runs whose solver ended normally (converged, or stopped by its budget); the answer may "
+            "still be rejected"), ("accepted", "%", "runs whose answer passed the acceptance checks: a number magbench "
+                                   "stands behind")]
 
 
 def _columns(summary: pd.DataFrame) -> list:
@@ -418,7 +420,7 @@ def render_report(campaign_dir: str | Path, images: dict | None = None, progress
                         "bootstrap intervals.")
     if n_failed:
         warnings.append(f"{n_failed} runs failed and are left out of the medians (see Failed runs).")
-    table_note = ("Medians over the successful runs, the inter-quartile range (IQR) underneath; under an "
+    table_note = ("Medians over the finished runs, the inter-quartile range (IQR) underneath; under an "
                   "efficiency, its 95 % bootstrap interval. Wide tables scroll sideways. Each column is defined "
                   "in Column definitions below (also shown on hovering a column name).")
     skipped = [f"{s.get('scenario')} / {s.get('configuration')}: {s.get('reason')}"

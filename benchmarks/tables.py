@@ -129,10 +129,10 @@ ANGLE_COLUMNS = [Column(f"median_abs_{a}_err_arcsec", f"{g} error", "arcsec", rf
                                                                   ("gamma", "γ", r"\gamma"))]
 COLUMNS = {
     "runs": Column("n_runs", "runs", kind="int", tex_title="runs"),
-    "success": Column("success_rate", "success", "%", kind="pct", tex_title=r"success (\%)"),
+    "success": Column("success_rate", "finished", "%", kind="pct", tex_title=r"finished (\%)"),
     "accepted": Column("accept_rate", "accepted", "%", kind="pct", tex_title=r"accepted (\%)"),
-    "scale": Column("median_scale_err_max", "scale error", "", r"$\max|\Delta k|$", "", "iqr_scale_err_max"),
-    "offset": Column("median_offset_err_max_nT", "offset error", "nT", r"$\max|\Delta o|$", r"\nano\tesla",
+    "scale": Column("median_scale_err_max", "max scale error", "", r"$\max|\Delta k|$", "", "iqr_scale_err_max"),
+    "offset": Column("median_offset_err_max_nT", "max offset error", "nT", r"$\max|\Delta o|$", r"\nano\tesla",
                      "iqr_offset_err_max_nT"),
     "rms_fit": Column("median_rms_after_nT", "RMS fit", "nT", "RMS fit", r"\nano\tesla", "iqr_rms_after_nT"),
     "rms_val": Column("median_val_rms_after_nT", "RMS held-out", "nT", "RMS held-out", r"\nano\tesla",
@@ -225,7 +225,7 @@ def to_markdown(summary: pd.DataFrame) -> str:
     """GitHub Markdown: one row per (scenario, calibrator); a measured quantity as ``median (IQR)``; the
     efficiency with its 95 % bootstrap interval, marked † below ``MIN_TRIALS_EFFICIENCY`` trials."""
     cols = _present(summary, MARKDOWN_VIEW)
-    head = ["scenario", "calibrator", "runs", "success %"] + (["accepted %"] if "accept_rate" in summary else [])
+    head = ["scenario", "calibrator", "runs", "finished %"] + (["accepted %"] if "accept_rate" in summary else [])
     head += [f"{c.title} ({c.unit})" if c.unit and c.kind != "pct" else c.title for c in cols]
     rows = []
     for _, r in summary.iterrows():
@@ -243,10 +243,13 @@ def to_markdown(summary: pd.DataFrame) -> str:
     return _md_table(head, rows, ["l", "l"] + ["r"] * (len(head) - 2))
 
 
-MARKDOWN_NOTE = ("Medians over the successful runs, the inter-quartile range in parentheses. α, β, γ error: absolute "
-                 "recovery error of the non-orthogonality angles (arc-seconds); scale and offset error: the largest "
-                 "over the three axes; RMS fit: total-field residual on the calibration data; RMS held-out: on a "
-                 "second data set from the same sensor. Efficiency: the smallest over the three angles of "
+MARKDOWN_NOTE = ("Finished: runs whose solver ended normally (converged, or stopped by its budget); accepted: runs "
+                 "whose answer passed the acceptance checks (a finished run can still be rejected, for example when "
+                 "the data do not determine a parameter). Medians over the finished runs, the inter-quartile range "
+                 "in parentheses. α, β, γ error: absolute recovery error of the non-orthogonality angles "
+                 "(arc-seconds); max scale and max offset error: the largest over the three axes; RMS fit: "
+                 "total-field residual on the calibration data; RMS held-out: on a second data set from the same "
+                 "sensor. Efficiency: the smallest over the three angles of "
                  "(Cramér-Rao variance) / (mean squared error), 1 for an efficient estimator, with its 95 % bootstrap "
                  f"interval; † marks fewer than {MIN_TRIALS_EFFICIENCY} successful trials, too few for the number "
                  "to mean much.\n")

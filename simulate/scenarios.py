@@ -141,7 +141,7 @@ def simulate(name: str, seed: int = 0) -> Dataset:
 
 register_scenario(Scenario(
     "lu2014",
-    "seed 000's experiment: FGM-2000 on a level turntable, 36 steps of 10 deg, Xi'an 2013 (IGRF "
+    "Lu et al. 2014's experiment: FGM-2000 on a level turntable, 36 steps of 10 deg, Xi'an 2013 (IGRF "
     "inclination), F = 51978.74 nT, Table 1 angles, 1 nT noise, 0.1 nT resolution",
     model="angles", schedule="turntable", n_points=36,
     sensor=SensorModel(LU2014_ANGLES, noise_nT=1.0, quantization_nT=0.1),
@@ -158,7 +158,7 @@ register_scenario(Scenario(
     sensor=SensorModel(SPHERE9_ERRORS, noise_nT=2.0), schedule_kw=dict(max_tilt_deg=90.0)))
 register_scenario(Scenario(
     "vehicle9",
-    "seed 004's regime: land vehicle, one full turn of yaw with pitch and roll within 5 deg, 9-parameter "
+    "Zhang et al.'s regime (seed 004): land vehicle, one full turn of yaw with pitch and roll within 5 deg, 9-parameter "
     "sensor, 360 points, 2 nT noise",
     model="nine", schedule="vehicle", n_points=360,
     sensor=SensorModel(SPHERE9_ERRORS, noise_nT=2.0), schedule_kw=dict(pitch_roll_deg=5.0)))
@@ -170,7 +170,7 @@ register_scenario(Scenario(
     sensor=SensorModel(SPHERE9_ERRORS, noise_nT=2.0), drift_nT=200.0, schedule_kw=dict(duration_s=600.0)))
 register_scenario(Scenario(
     "vehicle9n",
-    "seed 004's regime with vehicle-level noise: one turn of yaw, pitch and roll within 3 deg, 9-parameter "
+    "Zhang et al.'s regime (seed 004) with vehicle-level noise: one turn of yaw, pitch and roll within 3 deg, 9-parameter "
     "sensor, 200 points, 20 nT noise",
     model="nine", schedule="vehicle", n_points=200,
     sensor=SensorModel(SPHERE9_ERRORS, noise_nT=20.0), schedule_kw=dict(pitch_roll_deg=3.0)))
@@ -181,7 +181,7 @@ register_scenario(Scenario(
     sensor=SensorModel(SPHERE9_ERRORS, noise_nT=2.0), schedule_kw=dict(duration_s=600.0)))
 register_scenario(Scenario(
     "tumble3",
-    "smooth 10-minute tumble in a quiet field, sensor with the three angles only (seed 000's model), "
+    "smooth 10-minute tumble in a quiet field, sensor with the three angles only (Lu et al. 2014's model), "
     "600 points, 2 nT noise",
     model="angles", schedule="tumble", n_points=600,
     sensor=SensorModel(LU2014_ANGLES, noise_nT=2.0), schedule_kw=dict(duration_s=600.0)))

@@ -40,7 +40,7 @@ class AdaptiveGA(Calibrator):
     """
 
     name = "aga"
-    summary = "seed 000's adaptive binary GA (Pc, Pm of eq. 4-5, roulette, 10 bits/parameter)"
+    summary = "Lu et al. 2014's adaptive binary GA (Pc, Pm of eq. 4-5, roulette, 10 bits/parameter)"
     stochastic = True
     supported_models = ("angles", "nine")  # the paper's models (seed 000's 3 angles; seeds 002-003's nine)
     # As specified the AGA converges prematurely (results/aga_quality.md): on the battery's low-noise
@@ -135,7 +135,7 @@ class AdaptiveGAPolished(AdaptiveGA):
     answer is no longer limited to the 10-bit grid nor lost to premature convergence."""
 
     name = "aga-lm"
-    summary = "seed 000's AGA + elitism + Levenberg-Marquardt polish of the best individual"
+    summary = "Lu et al. 2014's AGA + elitism + Levenberg-Marquardt polish of the best individual"
     check_tolerance = {"angle_rad": 2e-5, "scale": 2e-5, "offset_nT": 0.5}
 
     def __init__(self, model: str = "angles", seed: int | None = 0, budget=None, population: int = 80,
@@ -334,7 +334,7 @@ class ElitistRealGA(RealGA):
     ours (MATLAB's shrink of 1 with a scale of 0.5 left the residual 10x above the optimum on sphere9)."""
 
     name = "rga"
-    summary = "seed 002's real-coded elitist GA (rank/SUS selection, scattered crossover, shrinking Gaussian)"
+    summary = "the real-coded elitist GA of seed 002 (rank/SUS selection, scattered crossover, shrinking Gaussian)"
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, population: int = 80,
                  generations: int = 1000, pc: float = 0.8, pm: float = 0.2, blx_alpha: float = 0.0,
