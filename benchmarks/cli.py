@@ -572,7 +572,16 @@ def _compare_outputs(args, runs, out: Path, progress: bool) -> int:
                 f"{attrs['n_new']} run now")
     else:
         note = f"\n{len(runs)} runs ({failed} failed) in {out}"
-    _emit(args, obj, (out / "summary.md").read_text() + note)
+    import pandas as pd
+
+    from magbench.benchmarks.tables import to_terminal
+
+    summary = pd.read_csv(out / "summary.csv", keep_default_na=False, na_values=[""]) \
+        if (out / "summary.csv").is_file() else None
+    table = to_terminal(summary) if summary is not None and len(summary) else (out / "summary.md").read_text()
+    _emit(args, obj, table + "fin: the solver ended normally; acc: the answer passed the acceptance checks; max angle: "
+                             "the largest median error of α, β, γ\n"
+                             f"every column: {out / 'summary.md'}" + note)
     return EXIT_OK
 
 

@@ -243,6 +243,36 @@ def to_markdown(summary: pd.DataFrame) -> str:
     return _md_table(head, rows, ["l", "l"] + ["r"] * (len(head) - 2))
 
 
+TERMINAL_VIEW = ("runs", "success", "accepted", "rms_fit", "rms_val", "evals", "runtime")
+
+
+def to_terminal(summary: pd.DataFrame, max_calibrator: int = 28) -> str:
+    """A compact plain-text table for the terminal (it must not wrap at 100 columns): scenario, calibrator,
+    runs, finished and accepted %, the worst angle error, RMS fit and held-out, evaluations, runtime; the
+    full table is summary.md."""
+    angle_keys = [c.key for c in ANGLE_COLUMNS if c.key in summary]
+    rows = []
+    for _, r in summary.iterrows():
+        conf = str(r["configuration"])
+        conf = conf if len(conf) <= max_calibrator else conf[:max_calibrator - 1] + "…"
+        worst = pd.to_numeric(r[angle_keys], errors="coerce").max() if angle_keys else float("nan")
+        cells = [str(r["scenario"]), conf]
+        for key in TERMINAL_VIEW[:3]:
+            if COLUMNS[key].key in summary:
+                cells.append(_value(r, COLUMNS[key]))
+        cells.append("-" if pd.isna(worst) else f"{worst:.3g}")
+        cells += [_value(r, COLUMNS[k]) or "-" for k in TERMINAL_VIEW[3:] if COLUMNS[k].key in summary]
+        rows.append(cells)
+    head = ["scenario", "calibrator"] + [{"runs": "runs", "success": "fin%", "accepted": "acc%"}[k]
+                                         for k in TERMINAL_VIEW[:3] if COLUMNS[k].key in summary]
+    head += ["max angle\""] + [{"rms_fit": "RMS nT", "rms_val": "held-out nT", "evals": "evals",
+                                "runtime": "runtime s"}[k] for k in TERMINAL_VIEW[3:] if COLUMNS[k].key in summary]
+    widths = [max(len(h), *(len(c[i]) for c in rows)) if rows else len(h) for i, h in enumerate(head)]
+    def line(cells):
+        return "  ".join(c.ljust(w) if i < 2 else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths)))
+    return "\n".join([line(head)] + [line(c) for c in rows]) + "\n"
+
+
 MARKDOWN_NOTE = ("Finished: runs whose solver ended normally (converged, or stopped by its budget); accepted: runs "
                  "whose answer passed the acceptance checks (a finished run can still be rejected, for example when "
                  "the data do not determine a parameter). Medians over the finished runs, the inter-quartile range "

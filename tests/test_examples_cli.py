@@ -45,3 +45,13 @@ def test_summary_tables_define_finished_and_accepted(tmp_path, capsys):
     md = (out / "summary.md").read_text()
     assert "finished %" in md and "accepted %" in md and "success %" not in md
     assert "Finished: runs whose solver ended normally" in md and "max offset error" in md
+
+
+def test_the_terminal_gets_a_compact_table(tmp_path, capsys):
+    out = tmp_path / "c"
+    assert main(["compare", "--scenarios", "lu2014", "--methods", "lsq", "ga:budget=1000", "--trials", "2", "--out",
+                 str(out), "--quiet", "--no-figures"]) == 0
+    text = capsys.readouterr().out
+    table = text.split("fin: ")[0].splitlines()
+    assert max(len(ln) for ln in table) <= 100 and "|" not in text
+    assert "fin%" in text and "acc%" in text and "summary.md" in text
