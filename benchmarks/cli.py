@@ -330,8 +330,13 @@ def cmd_calibrate(args) -> int:
         args.field = None  # the reference options below then only read the file
     cal = make(args.method, model=args.model, seed=args.seed, **params)  # an unknown method before reading
     target = _save_target(args)
-    data = load_dataset(args)
-    result = cal.fit(data, field="auto") if field_auto else cal.fit(data)
+    from magbench.benchmarks.progress import slow_phase
+
+    talk = not getattr(args, "json", False)
+    with slow_phase(f"reading {args.file}", talk):
+        data = load_dataset(args)
+    with slow_phase(f"calibrating {len(data):,} readings ({args.method}, then the acceptance checks)", talk):
+        result = cal.fit(data, field="auto") if field_auto else cal.fit(data)
     obj = result.as_dict()
     obj["input_sha256"] = data.meta.get("file_sha256")  # the bytes the readings were parsed from
     ref = result.reference
@@ -587,14 +592,19 @@ def _compare_outputs(args, runs, out: Path, progress: bool) -> int:
 
 def cmd_diagnose(args) -> int:
     from magbench.benchmarks.diagnosis import diagnose, diagnosis_figure, diagnosis_text, read_gravity
+    from magbench.benchmarks.progress import slow_phase
 
-    data = load_dataset(args, require_vector=False)
+    talk = not getattr(args, "json", False)
+    with slow_phase(f"reading {args.file}", talk):
+        data = load_dataset(args, require_vector=False)
     figure = Path(args.figure) if args.figure and not args.no_figure else None
     if figure is not None:
         if figure.exists() and not args.force and not figure.is_dir():
             raise InputError(f"{figure} exists; refusing to overwrite it (use another --figure PATH or --force)")
         check_output(figure, [args.file], args.force, what="--figure file")
-    result = diagnose(data, base=args.model, folds=args.folds, seed=args.seed, gravity=read_gravity(args.file))
+    with slow_phase(f"diagnosing {len(data):,} readings (fits of every candidate effect, blocked in time and "
+                    "attitude)", talk):
+        result = diagnose(data, base=args.model, folds=args.folds, seed=args.seed, gravity=read_gravity(args.file))
     if figure is not None:
         with atomic_output(figure, [args.file], args.force, what="--figure file") as tmp:
             diagnosis_figure(data, result, tmp)

@@ -4,6 +4,7 @@ at the end, never carriage-return updates)."""
 from __future__ import annotations
 
 import sys
+import threading
 import time
 
 PLAIN_EVERY_S = 10.0
@@ -88,3 +89,37 @@ def progress_bar(total: int, desc: str, unit: str = "it", enabled: bool = True, 
 
     return tqdm(total=total, initial=initial, desc=desc, unit=unit, file=sys.stderr, mininterval=0.5,
                 dynamic_ncols=True, leave=leave)
+
+
+class slow_phase:
+    """A phase that says so only when it is slow: nothing if it ends within ``after_s`` seconds; else a
+    line ``magbench: <desc> ...`` once it has taken that long (from a timer thread, so a phase busy in one
+    long call is reported too) and ``magbench: <desc>: done in N s`` at its end.  Plain lines, so logs stay
+    readable; ``enabled=False`` (--json, --quiet) prints nothing."""
+
+    def __init__(self, desc: str, enabled: bool = True, after_s: float = SHOW_AFTER_S, stream=None):
+        self.desc, self.enabled, self.after_s = desc, enabled, after_s
+        self.stream = sys.stderr if stream is None else stream
+        self.announced = False
+        self._timer: threading.Timer | None = None
+
+    def _announce(self) -> None:
+        self.announced = True
+        self.stream.write(f"magbench: {self.desc} ...\n")
+        self.stream.flush()
+
+    def __enter__(self) -> slow_phase:
+        self.t0 = time.monotonic()
+        if self.enabled:
+            self._timer = threading.Timer(self.after_s, self._announce)
+            self._timer.daemon = True
+            self._timer.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer.join()
+        if self.announced and exc[0] is None:
+            self.stream.write(f"magbench: {self.desc}: done in {time.monotonic() - self.t0:.0f} s\n")
+            self.stream.flush()

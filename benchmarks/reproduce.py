@@ -216,11 +216,26 @@ def _benchmark_suite(out: Path) -> Path:
     return raw
 
 
-def _bar(items, desc: str, progress: bool, **kw):
-    """A progress bar on stderr over ``items`` (nothing when ``progress`` is false)."""
+def _bar(items, desc: str, progress: bool, total: int | None = None, **kw):
+    """Progress on stderr over ``items`` (nothing when ``progress`` is false): a bar on a terminal, plain
+    periodic lines otherwise (``benchmarks.progress``)."""
+    from magbench.benchmarks.progress import is_terminal, progress_bar
+
+    if progress and not is_terminal():
+        if total is None:
+            items = list(items)
+            total = len(items)
+
+        def plain():
+            with progress_bar(total, desc, enabled=True) as bar:
+                for item in items:
+                    yield item
+                    bar.update(1)
+        return plain()
     from tqdm import tqdm
 
-    return tqdm(items, desc=desc, disable=not progress, file=sys.stderr, leave=False, dynamic_ncols=True, **kw)
+    return tqdm(items, desc=desc, disable=not progress, file=sys.stderr, leave=False, dynamic_ncols=True,
+                total=total, **kw)
 
 
 class PhaseClock:
@@ -283,14 +298,20 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
     out.mkdir(parents=True, exist_ok=True)
     written = []
     trials = 3 if quick else 50
-    phases = tqdm(total=4 if quick else 8, desc="reproduce", unit="phase", disable=not progress, file=sys.stderr,
-                  position=1, leave=True, bar_format="{desc}: {n}/{total} phases {bar} [{elapsed}]")
+    from magbench.benchmarks.progress import is_terminal
+
+    tty = is_terminal()
+    phases = tqdm(total=4 if quick else 8, desc="reproduce", unit="phase", disable=not (progress and tty),
+                  file=sys.stderr, position=1, leave=True, bar_format="{desc}: {n}/{total} phases {bar} [{elapsed}]")
 
     clock = PhaseClock()
 
     def phase(name: str) -> None:
         phases.set_description(f"reproduce: {name}")
         phases.update(1)
+        if progress and not tty:  # a log: one plain line per phase, with the time so far
+            sys.stderr.write(f"magbench reproduce: {name} ({sum(clock.seconds.values()):.0f} s so far)\n")
+            sys.stderr.flush()
         clock.start(name)
 
     try:

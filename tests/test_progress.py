@@ -44,3 +44,20 @@ def test_the_kind_follows_stderr(monkeypatch):
 
     monkeypatch.setattr(progress.sys, "stderr", Tty())
     assert type(progress.progress_bar(3, "x")).__name__ == "tqdm"
+
+
+def test_a_slow_phase_says_so_and_a_fast_one_does_not():
+    import time
+
+    out = io.StringIO()
+    with progress.slow_phase("fast", stream=out, after_s=0.5):
+        pass
+    assert out.getvalue() == ""
+    with progress.slow_phase("slow work", stream=out, after_s=0.05):
+        time.sleep(0.2)
+    lines = out.getvalue().splitlines()
+    assert lines[0] == "magbench: slow work ..." and lines[1].startswith("magbench: slow work: done in")
+    quiet = io.StringIO()
+    with progress.slow_phase("slow work", enabled=False, stream=quiet, after_s=0.01):
+        time.sleep(0.05)
+    assert quiet.getvalue() == ""
