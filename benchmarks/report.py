@@ -22,6 +22,7 @@ from urllib.parse import quote
 import pandas as pd
 
 from magbench.benchmarks.figures import KINDS, failed_mask, make_figures, safe_name
+from magbench.benchmarks.styles import campaign_styles
 from magbench.benchmarks.tables import (
     ANGLE_COLUMNS,
     COLUMNS,
@@ -89,6 +90,7 @@ table.summary th,table.summary td{border-width:0 1px 1px 0}
 table.summary td{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}
 table.summary td.text{text-align:left}
 td.fewtrials{background:var(--warn-bg)}
+.swatch{display:inline-block;width:.8em;height:.8em;border-radius:2px;margin-right:.35em;vertical-align:-.05em}
 .scroll{overflow-x:auto;max-width:100%;margin:.6em 0}
 .scroll>table{margin:0}
 .scroll:focus-visible{outline:2px solid #3867b0;outline-offset:2px}
@@ -225,10 +227,14 @@ def _header(summary: pd.DataFrame, cols: list) -> list[dict]:
     return head
 
 
-def _rows(part: pd.DataFrame, cols: list, accept: bool) -> list[list[dict]]:
+def _rows(part: pd.DataFrame, cols: list, accept: bool, styles: dict | None = None) -> list[list[dict]]:
+    """The results table's cells; the calibrator's cell carries its colour in every figure (``swatch``)."""
+    styles = styles or {}
     rows = []
     for _, r in part.iterrows():
-        cells = [{"value": r["configuration"], "cls": "text"}, {"value": _value(r, COLUMNS["runs"]), "cls": ""},
+        swatch = styles.get(str(r["configuration"]), {}).get("color", "")
+        cells = [{"value": r["configuration"], "cls": "text", "swatch": swatch},
+                 {"value": _value(r, COLUMNS["runs"]), "cls": ""},
                  {"value": _value(r, COLUMNS["success"]), "cls": ""}]
         if accept:
             cells.append({"value": _value(r, COLUMNS["accepted"]) or "–", "cls": ""})
@@ -286,15 +292,25 @@ def _figure_items(images: dict, scenario: str, trials: int, fig_dir: Path) -> li
     return items
 
 
-def _extra_figures(fig_dir: Path) -> list[dict]:
-    """Figures written by others into figures/ (the method comparison): embedded as they are, each linked
-    to its file."""
-    if not fig_dir.is_dir():
-        return []
-    ours = re.compile("^(" + "|".join(KINDS) + ")_")
+def _extra_figures(fig_dir: Path, images: dict | None = None) -> list[dict]:
+    """The campaign-wide figures: the method comparison's (ECDF, anytime, profile) from ``images`` (drawn at
+    screen resolution by ``make_figures``, each linked to its full-size file), then any other figure written
+    into figures/ by others, embedded as it is."""
+    from magbench.benchmarks.comparison_figures import COMPARISON_KINDS
+
+    images = images or {}
     items = []
+    for stem in COMPARISON_KINDS:
+        if stem in images:
+            title, caption = EXTRA.get(stem, (stem.capitalize(), ""))
+            files, full = _figure_files(fig_dir, stem)
+            items.append({"data": base64.b64encode(images[stem]).decode("ascii"), "mime": "image/png", "alt": title,
+                          "title": title, "caption": caption, "warning": "", "files": files, "full": full})
+    if not fig_dir.is_dir():
+        return items
+    ours = re.compile("^(" + "|".join(KINDS) + ")_")
     for path in sorted(fig_dir.iterdir()):
-        if ours.match(path.stem) or path.suffix not in (".png", ".svg"):
+        if ours.match(path.stem) or path.stem in images or path.suffix not in (".png", ".svg"):
             continue
         if path.suffix == ".svg" and path.with_suffix(".png").is_file():
             continue
@@ -386,6 +402,7 @@ def render_report(campaign_dir: str | Path, images: dict | None = None, progress
     manifest = _read_manifest(campaign_dir / "manifest.json")
     cols = _columns(summary)
     accept = "accept_rate" in summary
+    styles = campaign_styles(campaign_dir, list(runs.get("configuration", [])))  # the figures' one style map
     ok = runs[~failed_mask(runs)] if len(runs) else runs
     trials = int(ok.groupby(["scenario", "configuration"]).size().min()) if len(ok) else 0
 
@@ -402,7 +419,7 @@ def render_report(campaign_dir: str | Path, images: dict | None = None, progress
                             f"({', '.join(few)}): too few to quote; the 95 % interval under each value says how "
                             "little it is pinned down.")
         scenarios.append({"name": name, "anchor": _anchor(name), "description": _scenario_description(name),
-                          "rows": _rows(part, cols, accept), "warnings": warnings,
+                          "rows": _rows(part, cols, accept, styles), "warnings": warnings,
                           "figures": _figure_items(images, name, n, fig_dir)})
 
     configs = list(dict.fromkeys(summary.get("configuration", [])))
@@ -431,7 +448,7 @@ def render_report(campaign_dir: str | Path, images: dict | None = None, progress
     return template.render(
         title=f"magbench campaign report — {campaign_dir.resolve().name}", lede=lede, warnings=warnings, css=Markup(CSS),
         scenarios=scenarios, columns=_header(summary, cols), table_note=table_note,
-        extra_figures=_extra_figures(fig_dir), comparison=_comparison_tables(campaign_dir),
+        extra_figures=_extra_figures(fig_dir, images), comparison=_comparison_tables(campaign_dir),
         failures=_failures(runs), skipped=skipped,
         command=_command_text(manifest), manifest=_manifest_rows(manifest))
 

@@ -18,7 +18,9 @@ PALETTE = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#0
 """Okabe-Ito blue, vermillion, bluish green, reddish purple, orange, sky blue, black; Tol's wine (#882255)
 instead of Okabe-Ito's yellow (#F0E442), which is unreadable as a line on white."""
 LINESTYLES = ("-", "--")
-MARKERS = ("o", "s", "D", "^", "v", "P", "X", "<", ">", "*", "h", "p", "d", "H", "8", "$\\clubsuit$")
+MARKERS = ("o", "s", "D", "^", "v", "P", "X", "<", ">", "*", "h", "p", "d", "H", "8", "+")
+"""Marker codes every matplotlib call takes, including ``errorbar``'s ``fmt`` string (a mathtext marker is
+not a format string)."""
 DISTINCT = len(MARKERS)
 """Configurations with pairwise distinct styles; beyond this the styles repeat in the same order."""
 BOUND_GREY = "0.5"  # the Cramér-Rao bound and other references: neutral grey, never a method's colour

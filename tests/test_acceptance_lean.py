@@ -1,4 +1,4 @@
-"""The lean acceptance checks (issue 20) decide as the full ones do: the profile test's quadratic shortcut,
+"""The lean acceptance checks decide as the full ones do: the profile test's quadratic shortcut,
 the profile and coverage checks on a systematic sample of a long record, and the step search by the
 Frisch-Waugh-Lovell form."""
 from __future__ import annotations

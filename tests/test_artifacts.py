@@ -1,4 +1,4 @@
-"""Calibrations as artifacts (issue 12, points 1-2): a recording calibrated, saved, applied to a second
+"""Calibrations as artifacts: a recording calibrated, saved, applied to a second
 recording and exported to each format round-trips; the models offset/diag/auto; array and DataFrame
 input; --field auto; uncertainties in every result."""
 import json

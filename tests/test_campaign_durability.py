@@ -278,7 +278,7 @@ def test_force_clears_the_campaign_outputs_and_nothing_else(tmp_path):
     assert json.loads((out / "manifest.json").read_text())["complete"] is True
 
 
-# ------------------------------------------------------------------ integrity: lock and checksums (issue 19)
+# ------------------------------------------------------------------ integrity: lock and checksums
 def _small(out, *extra):
     return ["compare", "--scenarios", "sphere9", "--methods", "lsq", "--trials", "3", "--seed", "5", "--out", str(out),
             "--no-figures", "--quiet", *extra]
@@ -368,7 +368,7 @@ def test_a_corrupt_checkpoint_header_is_named_as_such(tmp_path, monkeypatch, cap
 
 
 def test_a_campaign_started_while_another_process_runs_one_is_refused(tmp_path, capsys):
-    """The race of issue 19 with two real processes: the second campaign (another seed, --force) on the
+    """The race of two real processes: the second campaign (another seed, --force) on the
     folder of a running one exits 2 naming it, and the running one's checkpoint is untouched."""
     out = tmp_path / "camp"
     proc = start(compare_args(out, "--quiet"), tmp_path, "first")

@@ -99,3 +99,26 @@ def test_markers_and_palette_cycle_beyond_the_distinct_range():
     first, again = styles["m0"], styles[f"m{DISTINCT}"]
     assert first["marker"] == again["marker"]  # documented repetition past DISTINCT
     assert len({(s["color"], s["marker"], s["ls"]) for s in itertools.islice(styles.values(), DISTINCT)}) == DISTINCT
+
+
+def test_the_report_shows_each_calibrator_in_its_figure_colour(campaign):
+    import re
+
+    html = (campaign / "report.html").read_text()
+    shown = dict((name.strip(), colour) for colour, name in
+                 re.findall(r'class="swatch" style="background:(#[0-9A-Fa-f]{6})" aria-hidden="true"></span>([^<]+)<',
+                            html))
+    styles = campaign_styles(campaign)
+    assert shown and all(shown[c] == styles[c]["color"] for c in shown)
+    assert set(shown) == set(styles)
+
+
+def test_every_style_draws_as_a_format_string_too():
+    """errorbar's fmt parses the marker: every marker of the map must be a format-string code (a mathtext
+    marker broke the 16th method's accuracy-runtime point)."""
+    from matplotlib.figure import Figure
+
+    ax = Figure().subplots()
+    for st in style_map([f"m{i}" for i in range(DISTINCT)]).values():
+        ax.errorbar([1.0], [1.0], yerr=[[0.1], [0.1]], fmt=st["marker"], color=st["color"])
+        ax.plot([1.0, 2.0], [1.0, 2.0], st["ls"] + st["marker"], color=st["color"])

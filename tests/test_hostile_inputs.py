@@ -195,7 +195,7 @@ CASES = [
      "--igrf"),
     ("directory", "DIRECTORY", [], 2, "is a directory"),
     ("missing-file", None, [], 2, "no such file"),
-    # ambiguous input (issue 19): metadata, quotes, field counts, units
+    # ambiguous input: metadata, quotes, field counts, units
     ("conflicting-field-meta", _csv(RAW, header=("bx", "by", "bz"), meta=("# field_nT: 50000", "# field_nT: 57000")),
      [], 2, "conflicting metadata lines '# field_nT: 50000' and '# field_nT: 57000'"),
     ("same-field-meta-twice", _csv(RAW, header=("bx", "by", "bz"), meta=("# field_nT: 50000", "# field_nT: 50000")),
@@ -218,7 +218,7 @@ CASES = [
     ("units-line-agrees", _csv(RAW / 1000.0, f_ref=50.0, fmt="{:.6g}", meta=("# units: uT",)), ["--units", "uT"], 0,
      ""),
     ("units-line-unknown", _csv(RAW, meta=("# units: furlongs",)), [], 2, "names no unit"),
-    # bounded reads (issue 19)
+    # bounded reads
     ("overlong-line", _edit_row(GOOD, 4, "1," * 600_000 + "1"), [], 2, "longer than 1,048,576 bytes"),
     ("overlong-header", "#\n" + "a," * 2_000_000 + "bx\n1\n", [], 2, "longer than 1,048,576 bytes"),
     ("too-many-columns", ",".join(["bx", "by", "bz", "f_ref"] + [f"c{i}" for i in range(5000)]) + "\n1,2,3,4\n",
@@ -310,7 +310,7 @@ def test_igrf_warnings_never_reach_stdout(tmp_path, capsys):
     assert code == 2 and out == ""
 
 
-# ------------------------------------------------------------------ issue 19: the second hostile corpus
+# ------------------------------------------------------------------ the second hostile corpus
 def _run(capsys, args):
     code = main([str(a) for a in args])
     out, err = capsys.readouterr()

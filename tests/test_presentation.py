@@ -1,4 +1,4 @@
-"""Tables, report, figures, help and packaging fit for a paper (issue 12, points 3-7)."""
+"""Tables, report, figures, help and packaging fit for a paper."""
 from __future__ import annotations
 
 import argparse

@@ -1,4 +1,4 @@
-"""The campaign report on a phone (issue 21, item 2): every table scrolls sideways in its own container so
+"""The campaign report on a phone: every table scrolls sideways in its own container so
 that the page is never wider than a 390 px screen, every embedded figure links to its full-size file in
 figures/, and the column definitions can be read without hovering."""
 from __future__ import annotations

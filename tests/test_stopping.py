@@ -1,4 +1,4 @@
-"""Early stops of the population calibrators (issue 13): cmaes and aco end a converged search instead of
+"""Early stops of the population calibrators: cmaes and aco end a converged search instead of
 burning a fixed budget, without losing quality against lsq's optimum; turning the stop off restores the
 fixed budget.  And reproduce's per-phase wall-time report."""
 import numpy as np
