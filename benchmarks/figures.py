@@ -306,8 +306,10 @@ def _direct_labels(ax, points: list[tuple[str, float, float, str]], font_pt: flo
             if abs(px - qx) < max(width, qw) + 8 and abs(py + dy - qy) < font_pt + 2:
                 dy = qy + font_pt + 2 - py
         placed.append((px, py + dy, width))
+        leader = {"arrowprops": {"arrowstyle": "-", "color": colour, "lw": 0.6, "shrinkA": 0, "shrinkB": 3}} \
+            if dy > font_pt else {}  # a label pushed away from its point is joined to it by a thin line
         ax.annotate(name, (x, y), xytext=(7, dy + 3), textcoords="offset points", fontsize=font_pt, color=colour,
-                    ha="left", va="bottom", annotation_clip=False)
+                    ha="left", va="bottom", annotation_clip=False, **leader)
 
 
 def _segments(part: pd.DataFrame) -> list[pd.DataFrame]:

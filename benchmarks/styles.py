@@ -17,8 +17,9 @@ from pathlib import Path
 PALETTE = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#882255")
 """Okabe-Ito blue, vermillion, bluish green, reddish purple, orange, sky blue, black; Tol's wine (#882255)
 instead of Okabe-Ito's yellow (#F0E442), which is unreadable as a line on white."""
-LINESTYLES = ("-", "--")
-MARKERS = ("o", "s", "D", "^", "v", "P", "X", "<", ">", "*", "h", "p", "d", "H", "8", "+")
+LINESTYLES = ("-", "--", ":")
+MARKERS = ("o", "s", "D", "^", "v", "P", "X", "<", ">", "*", "h", "p", "d", "H", "8", "+", "x", "1", "2", "3", "4",
+           "|", "_", ".")
 """Marker codes every matplotlib call takes, including ``errorbar``'s ``fmt`` string (a mathtext marker is
 not a format string)."""
 DISTINCT = len(MARKERS)
@@ -38,8 +39,8 @@ point larger for titles; mathtext in the text font; SVG with a fixed hash salt a
 
 def style_map(configurations) -> dict[str, dict]:
     """``{configuration: {"color", "marker", "ls"}}`` in the given order: the i-th configuration gets
-    colour ``i mod 8``, line style ``i div 8`` and marker ``i``, so that the first ``DISTINCT`` are pairwise
-    distinct.  Repeated names keep their first style."""
+    colour ``i mod 8``, line style ``i div 8`` and marker ``i``, so that the first ``DISTINCT`` (24) are
+    pairwise distinct in marker and in (colour, line style).  Repeated names keep their first style."""
     out: dict[str, dict] = {}
     for name in configurations:
         name = str(name)
