@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from magbench.benchmarks.progress import progress_bar
 from magbench.errors import InputError
 
 RUNTIME_COLUMNS = ("runtime_s", "median_runtime_s")
@@ -372,8 +373,6 @@ def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, p
     warmed (``warm_up``) before its first timed run in each process, the workers in parallel.  On Ctrl-C
     or SIGTERM the pending work is cancelled, local workers terminated, and ``KeyboardInterrupt``
     re-raised."""
-    from magbench.benchmarks.progress import progress_bar
-
     bar = progress_bar(n_done + len(tasks), "runs", "run", enabled=progress, initial=n_done, leave=True)
     results: list[dict | None] = [None] * len(tasks)
 

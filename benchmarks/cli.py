@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from magbench import __version__
+from magbench.benchmarks.progress import slow_phase
 from magbench.errors import InputError
 from magbench.safeio import atomic_output, check_output, os_reason
 
@@ -330,7 +332,6 @@ def cmd_calibrate(args) -> int:
         args.field = None  # the reference options below then only read the file
     cal = make(args.method, model=args.model, seed=args.seed, **params)  # an unknown method before reading
     target = _save_target(args)
-    from magbench.benchmarks.progress import slow_phase
 
     talk = not getattr(args, "json", False)
     with slow_phase(f"reading {args.file}", talk):
@@ -592,7 +593,6 @@ def _compare_outputs(args, runs, out: Path, progress: bool) -> int:
 
 def cmd_diagnose(args) -> int:
     from magbench.benchmarks.diagnosis import diagnose, diagnosis_figure, diagnosis_text, read_gravity
-    from magbench.benchmarks.progress import slow_phase
 
     talk = not getattr(args, "json", False)
     with slow_phase(f"reading {args.file}", talk):
@@ -663,7 +663,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="magbench", description="Simulate tri-axial fluxgate magnetometers and benchmark "
                      "their calibration algorithms.", epilog=EXIT_STATUS_HELP,
                      formatter_class=_HelpFormatter)
-    from magbench import __version__
     from magbench.benchmarks.gradiometer_cli import add_gradiometer_command
 
     parser.add_argument("--version", action="version", version=f"magbench {__version__}")

@@ -35,6 +35,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from magbench.benchmarks import comparison_figures
+from magbench.benchmarks.progress import progress_bar
 from magbench.benchmarks.styles import BOUND_GREY, RC, WARN_COLOUR, campaign_styles
 from magbench.benchmarks.tables import MIN_TRIALS_EFFICIENCY, efficiency_interval
 from magbench.paper import ARCSEC_PER_RAD
@@ -613,8 +614,6 @@ def make_figures(campaign_dir: str | Path, out_dir: str | Path | None = None, fo
     files are the same either way.  ``prepare``, when given, is called in this process once the
     per-scenario figures are under way (the method comparison's tables: their figures are drawn after it),
     so that it overlaps the drawing.  ``progress`` shows progress on stderr."""
-    from magbench.benchmarks.progress import progress_bar
-
     bad = [f for f in formats if f not in FORMATS]
     if bad:
         raise ValueError(f"unknown figure format {bad[0]!r}; known: {', '.join(FORMATS)}")

@@ -11,6 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from magbench.errors import InputError
+
 COMMAND = "python -m magbench.benchmarks.speed"
 
 
@@ -21,8 +23,6 @@ def suite_file(name: str) -> Path:
     for base in (Path(__file__).resolve().parent / "suite", Path.cwd() / "benchmarks" / "suite"):
         if (base / name).is_file():
             return base / name
-    from magbench.errors import InputError
-
     raise InputError(f"the benchmark suite (benchmarks/suite/{name}) is not here: run from a source checkout")
 
 
