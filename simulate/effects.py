@@ -749,6 +749,9 @@ class LagEffect(Effect):
                                              "lag2_x_s2", "lag2_y_s2", "lag2_z_s2")
     """lag_j and the second-order terms lag_j^2 (fitted freely, so the form stays linear): a shift of a
     smooth signal is x(t - s) = x - s x' + s^2 x'' / 2 + ..."""
+    shift_terms: ClassVar[tuple[str, ...]] = ("lag_x_s", "lag_y_s", "lag_z_s", "lag_ref_s")
+    """The first-order terms: a time shift of less than a few samples is carried by them, the second-order
+    terms only correct it (the naming rule asks for this signature)."""
     RANDOM_LAG_S: ClassVar[float] = 0.05
     lag_s: tuple[float, float, float] = (0.05, 0.0, -0.03)
 

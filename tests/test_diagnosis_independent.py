@@ -12,7 +12,7 @@ from independent_blind_table import run, table  # noqa: E402
 from independent_forward import OUTSIDE, make_case, paper_p, rotation  # noqa: E402
 from independent_scoring import parse, score  # noqa: E402
 
-CASES = 48
+CASES = 240
 
 
 @pytest.fixture(scope="module")

@@ -153,17 +153,22 @@ def blind_dataset(i: int) -> tuple[str, str, Dataset]:
 
 def classify(label: str, verdict: str) -> str:
     """right / partly / honest_unexplained / wrong / missed (none or insufficient_data on an effect) /
-    false_alarm (an effect or unexplained on clean data)."""
+    false_alarm (an effect or unexplained on clean data).  An ``a|b`` (the data cannot tell a from b) names
+    whichever of the two is in the label, and is wrong when neither is."""
     parts = verdict.split("+")
-    named = {p for p in parts if p not in ("unexplained", "none", "insufficient_data")}
     unexplained = "unexplained" in parts
+    truth = set() if label == "none" or label.startswith("outside:") else set(label.split("+"))
+    named = set()
+    for part in parts:
+        if part not in ("unexplained", "none", "insufficient_data"):
+            group = set(part.split("|"))
+            named |= (group & truth) or {part}
     if label == "none":
         return "right" if verdict == "none" else ("missed" if verdict == "insufficient_data" else "false_alarm")
     if label.startswith("outside:"):
         if not named:
             return "right" if unexplained else "missed"
         return "partly" if unexplained else "wrong"
-    truth = set(label.split("+"))
     if not named:
         return "honest_unexplained" if unexplained else "missed"
     if named == truth:

@@ -319,15 +319,21 @@ class Tangent:
 
     def fit_rms(self, names: list[str]) -> float:
         """RMS on every sample of base + ``names`` fitted on every sample (from the Gram matrices)."""
-        free = self.model.free_indices(names)
+        sse = self.sse_free(self.model.free_indices(names), robust=False)
+        return float(np.sqrt(sse / max(len(self.model.d), 1)))
+
+    def sse_free(self, free: list[int], robust: bool) -> float:
+        """Sum of squares on every sample (the spikes left out when ``robust``) of the model whose free
+        parameters are ``free`` (any subset of the parameters, the others at their neutral values), fitted
+        on every sample (one tangent step, from the Gram matrices)."""
         c = self._shift(free)
-        g = self.gram.sum(axis=0)
+        g = self.gram.sum(axis=0) - (self.gram_spk.sum(axis=0) if robust else 0.0)
         p = self.model.p
         jj, jr, rr = g[:p, :p], g[:p, p], g[p, p]
         jfy = jr[free] + jj[free] @ c
         delta = -solve_normal(jj[np.ix_(free, free)], jfy)
         sse = rr + 2 * c @ jr + c @ jj @ c + 2 * delta @ jfy + delta @ jj[np.ix_(free, free)] @ delta
-        return float(np.sqrt(max(sse, 0.0) / max(g[0, 0] * 0 + len(self.model.d), 1)))
+        return float(max(sse, 0.0))
 
     def full_fit(self, names: list[str], robust: bool) -> np.ndarray:
         """Parameters of base + ``names`` fitted on every fold."""

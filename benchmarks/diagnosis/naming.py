@@ -19,18 +19,32 @@ An effect is therefore *named* only when all of these hold:
 3. **Above the floor.**  The base residual must itself be significantly above the noise floor, and the
    effect's own held-out contribution (the RMS it removes) at least the minimum detectable effect.
 
+4. **Its own signature.**  A time shift (``lag``) is carried by its first-order terms (at least
+   LAG_SHIFT_SHARE of its gain): when the second-order terms do most of the work, the structure is a loss of
+   magnitude where the attitude changes fastest (a low-pass response of something else: an induced field
+   that lags, eddy currents), not a shifted reading.  Spikes (``outliers``) are glitches at random times:
+   isolated, not where the readings change fastest, and spread over the record like the samples.
+5. **Not a by-product of a larger unexplained structure.**  When a significant remainder is left, every
+   named effect must remove at least as much as is left (its own held-out contribution at least the
+   remainder's RMS above the floor): a flexible basis fits part of any structure it is offered, and a
+   name that explains less than what stays unexplained is more likely that part than a cause.
+
 Spikes (``outliers``) keep their own count test (their evidence is their number).
 
-Two explanations the data cannot tell apart are said out loud (``a|b``): a temperature effect and a time
-effect (``offset_drift``, ``field_drift``) when the logged temperature is itself a smooth function of time,
-and either of them can replace the other with a held-out residual within the tests' error on every fold
-family.
+Two explanations the data cannot tell apart are said out loud (``a|b``).  When the logged temperature is
+itself a smooth function of time, a slow drift of the offsets and a temperature effect are the same thing
+to these data (a temperature coefficient of any smooth shape is a drift), so ``offset_drift`` is always
+said with ``temperature`` (and a temperature effect with ``offset_drift`` when that alone explains the
+residual significantly), and an offset drift named beside a temperature effect is folded into it (what it
+removed is then part of the remainder).  ``field_drift`` (one scalar series, the same on every axis) is
+paired with a temperature effect only when either can replace the other with a held-out residual within the
+tests' error on every fold family.
 """
 from __future__ import annotations
 
 import numpy as np
 from numpy.polynomial import legendre
-from scipy.stats import norm
+from scipy.stats import kstest, norm
 
 from magbench.simulate.effects import EFFECTS
 
@@ -44,6 +58,13 @@ told from time by these data."""
 SWAP_Z = 3.0
 """Two explanations are equivalent when each alone is significant on every fold family and replacing one by
 the other changes the held-out residual by less than this many standard errors (paired) on every family."""
+LAG_SHIFT_SHARE = 0.5
+"""A time shift's gain must come at least this much from its first-order terms (see the module docstring)."""
+DOMINANCE = 1.0
+"""Beside a significant remainder, a named effect's own held-out contribution must be at least this multiple
+of the remainder's RMS above the floor."""
+SPIKE_TIMES_ALPHA = FAMILY_ALPHA
+"""Level of the test that spike times are spread over the record like the samples (Kolmogorov-Smirnov)."""
 TIME_EFFECTS = ("offset_drift", "field_drift")
 BODY_DRIFTS = ("offset_drift",)
 """Effects that are a body-fixed field changing slowly in time (a single step is a switch, not one of them)."""
@@ -152,8 +173,9 @@ FAST_QUANTILE = 0.9
 
 def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None,
                     raw_nT: np.ndarray | None = None) -> tuple[bool, float]:
-    """Whether the spike samples are isolated outliers: not in runs in time and not concentrated where the
-    readings change fastest; and the share of them that has a spike as a time neighbour."""
+    """Whether the spike samples are isolated outliers: not in runs in time, not concentrated where the
+    readings change fastest, and spread over the record like the samples (a step that switches on mid-record
+    puts every large residual after it); and the share of them that has a spike as a time neighbour."""
     order = np.arange(len(spikes)) if t_s is None else np.argsort(t_s, kind="stable")
     s = spikes[order]
     if s.sum() == 0:
@@ -169,7 +191,11 @@ def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None,
         rate[1:-1] = np.linalg.norm(x[2:] - x[:-2], axis=1)
         fast = rate >= np.quantile(rate, FAST_QUANTILE)
         fast_ok = float((s & fast).sum() / s.sum()) <= FAST_SHARE_MAX
-    return share <= RUN_FRACTION_MAX and fast_ok, share
+    spread_ok = True
+    if t_s is not None and s.sum() >= 3 and np.ptp(t_s) > 0:  # glitches come at random times
+        ts = np.sort(t_s)
+        spread_ok = kstest(t_s[spikes], lambda x: np.searchsorted(ts, x, side="right") / len(ts)).pvalue > SPIKE_TIMES_ALPHA
+    return share <= RUN_FRACTION_MAX and fast_ok and spread_ok, share
 
 
 def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: float,
@@ -202,8 +228,9 @@ def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: flo
                 named.append(name)
             else:
                 row["named"] = False
-                row["why"] = (f"the spikes come in runs in time ({100 * spikes_ok[1]:.0f} % have a spike as a neighbour) "
-                              "or where the readings change fastest: the peaks of a structured residual, not outliers")
+                row["why"] = (f"the spikes come in runs in time ({100 * spikes_ok[1]:.0f} % have a spike as a neighbour), "
+                              "where the readings change fastest or in one part of the record: the peaks of a "
+                              "structured residual, not outliers")
             continue
         failed = [f for f in fams if not passed.get((name, f), False)]
         own = min(v["own_rms_nT"] for v in fams.values())
@@ -271,18 +298,90 @@ def step_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_d
     return {"time_s": best[1], "size_nT": float(np.linalg.norm(best[2])), "sse_step": best[0], "sse_drift": sse_drift}
 
 
+def shift_share(sse_without: float, sse_first_order: float, sse_with: float) -> float:
+    """The share of a time shift's gain (sum of squares removed) that its first-order terms alone give."""
+    gain = sse_without - sse_with
+    return (sse_without - sse_first_order) / gain if gain > 0 else 1.0
+
+
+def own_rms(row: dict) -> float:
+    """An evidence row's own held-out contribution: the smallest over the fold families (nT RMS)."""
+    return min(v["own_rms_nT"] for v in row["families"].values())
+
+
+def undominated(evidence: list[dict], named: list[str], remainder_of) -> list[str]:
+    """Rule 5 of the module docstring: while a significant remainder is left (``remainder_of(names)``, the
+    dict of ``scoring.remainder``), the named effect that removes least is dropped when it removes less than
+    DOMINANCE times the remainder; its evidence row says why.  Spikes keep their count test."""
+    rows = {row["name"]: row for row in evidence}
+    named = list(named)
+    while True:
+        rem = remainder_of(named)
+        if not rem["remainder_significant"]:
+            return named
+        weak = [(own_rms(rows[nm]), nm) for nm in named if not EFFECTS[nm].robust and nm in rows
+                and own_rms(rows[nm]) < DOMINANCE * rem["remainder_nT"]]
+        if not weak:
+            return named
+        own, name = min(weak)
+        named.remove(name)
+        rows[name]["named"] = False
+        rows[name]["why"] = (f"it removes {own:.3g} nT, less than the {rem['remainder_nT']:.3g} nT left unexplained beside it: "
+                             "more likely the part of an unmodelled structure that its form can fit than a cause")
+
+
+def fold_drift_into_temperature(evidence: list[dict], named: list[str], temp_r2: float | None) -> list[str]:
+    """An offset drift named beside a temperature effect, when the temperature follows time, is a temperature
+    coefficient of another shape as much as a drift: only the temperature effect is named (module docstring)."""
+    if temp_r2 is None or temp_r2 < TEMPERATURE_FOLLOWS_TIME_R2 or not any(_is_thermal(nm) for nm in named):
+        return named
+    for row in evidence:
+        if row["name"] in BODY_DRIFTS and row["name"] in named:
+            row["named"] = False
+            row["why"] = (f"the logged temperature follows time (R² {temp_r2:.2f}): an offset drift beside the temperature "
+                          "effect is as much a temperature coefficient of another shape; what it removed is left as a remainder")
+    return [nm for nm in named if nm not in BODY_DRIFTS]
+
+
+def _pair(a: str, b: str, temp_r2: float, statement: str, evidence: dict) -> dict:
+    return {"alternatives": [a, b], "evidence": {"temperature_time_r2": temp_r2, **evidence, "statement": statement},
+            "separate_by": "a record in which the temperature changes independently of time (heat and cool the sensor "
+                           "more than once, or hold it at a constant temperature for part of it)"}
+
+
 def confounded_pairs(heldout_by_family: dict, named: list[str], candidates: list[str],
                      temp_r2: float | None) -> list[dict]:
-    """Pairs the data cannot tell apart: a named temperature or time effect and its look-alike, when the
-    temperature follows time and swapping one for the other changes no fold family's held-out residual by
-    more than SWAP_Z standard errors."""
+    """Pairs the data cannot tell apart when the temperature follows time (module docstring): an offset drift
+    and a temperature effect always; a temperature effect and a field drift when swapping one for the other
+    changes no fold family's held-out residual by more than SWAP_Z standard errors."""
     if temp_r2 is None or temp_r2 < TEMPERATURE_FOLLOWS_TIME_R2:
         return []
+    thermal = [c for c in candidates if _is_thermal(c)]
     out = []
+
+    def alone_z(a: str, b: str) -> dict:
+        rest = [s for s in named if s != a]
+        return {f: paired_z(h(rest), h(rest + [b])) for f, h in heldout_by_family.items()}
+
     for a in named:
-        thermal = [c for c in candidates if _is_thermal(c)]
+        if a in BODY_DRIFTS and thermal and thermal[0] not in named:
+            b = thermal[0]
+            out.append(_pair(a, b, temp_r2, f"the logged temperature follows time (R² {temp_r2:.2f} on a smooth function "
+                             "of time): a drift of the offsets and a temperature coefficient of any smooth shape are the "
+                             "same to these data", {f"{b}_alone_z_by_fold_family": alone_z(a, b)}))
+            continue
         if _is_thermal(a):
-            others = [c for c in TIME_EFFECTS if c in candidates and c not in named]
+            drifts = [c for c in BODY_DRIFTS if c in candidates and c not in named]
+            zs = {c: alone_z(a, c) for c in drifts}
+            strong = [c for c in drifts if zs[c]["random"] > SWAP_Z]
+            if strong:
+                b = strong[0]
+                out.append(_pair(a, b, temp_r2, f"the logged temperature follows time (R² {temp_r2:.2f} on a smooth "
+                                 f"function of time), and {b} alone explains the residual significantly: a temperature "
+                                 "coefficient and a drift of the offsets are the same to these data",
+                                 {f"{b}_alone_z_by_fold_family": zs[b]}))
+                continue
+            others = [c for c in TIME_EFFECTS if c in candidates and c not in named and c not in BODY_DRIFTS]
         elif a in TIME_EFFECTS and thermal and thermal[0] not in named:
             others = thermal[:1]
         else:
@@ -290,18 +389,14 @@ def confounded_pairs(heldout_by_family: dict, named: list[str], candidates: list
         for b in others:
             swapped = [b if s == a else s for s in named]
             rest = [s for s in named if s != a]
-            zs, alone = {}, {}
+            zs_swap, alone = {}, {}
             for family, heldout in heldout_by_family.items():
-                zs[family] = paired_z(heldout(swapped), heldout(named))
+                zs_swap[family] = paired_z(heldout(swapped), heldout(named))
                 alone[family] = paired_z(heldout(rest), heldout(swapped))
-            if all(abs(z) < SWAP_Z for z in zs.values()) and alone["random"] > SWAP_Z:
-                out.append({"alternatives": [a, b], "evidence": {
-                    "temperature_time_r2": temp_r2,
-                    "swap_z_by_fold_family": zs, f"{b}_alone_z_by_fold_family": alone,
-                    "statement": f"the logged temperature follows time (R² {temp_r2:.2f} on a smooth function of "
-                                 f"time), and {b} in place of {a} leaves every fold family's held-out residual "
-                                 f"within {SWAP_Z:g} standard errors"},
-                    "separate_by": "a record in which the temperature changes independently of time (heat and cool "
-                                   "the sensor more than once, or hold it at a constant temperature for part of it)"})
+            if all(abs(z) < SWAP_Z for z in zs_swap.values()) and alone["random"] > SWAP_Z:
+                out.append(_pair(a, b, temp_r2, f"the logged temperature follows time (R² {temp_r2:.2f} on a smooth "
+                                 f"function of time), and {b} in place of {a} leaves every fold family's held-out "
+                                 f"residual within {SWAP_Z:g} standard errors",
+                                 {"swap_z_by_fold_family": zs_swap, f"{b}_alone_z_by_fold_family": alone}))
                 break
     return out

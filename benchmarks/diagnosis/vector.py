@@ -36,15 +36,19 @@ from .model import BASE_FREE, ExtendedModel, Tangent
 from .naming import (
     BODY_DRIFTS,
     FAMILY_ALPHA,
+    LAG_SHIFT_SHARE,
     attitude_blocks,
     attitude_confounds,
     confirm,
     confounded_pairs,
+    fold_drift_into_temperature,
+    shift_share,
     spikes_isolated,
     step_explains,
     temperature_follows_time,
     time_blocks,
     time_predicts_attitude,
+    undominated,
 )
 from .resimulate import resimulate
 from .scoring import (
@@ -267,6 +271,15 @@ class Diagnosis:
                         row["named"], row["step"] = False, step
                         row["why"] = (f"a single step at t = {step['time_s']:.4g} s in a body-fixed field explains the "
                                       "residual as well as a slow drift: a switch (outside the library), not a drift")
+        named = fold_drift_into_temperature(evidence, named, temp_r2)
+        named = self._shift_signature(evidence, named)
+
+        def remainder_of(names):
+            robust = "outliers" in names
+            return remainder(heldout["random"](names), floor, floor_se, len(self.model.free_indices(names)), n_train,
+                             robust=robust)
+
+        named = undominated(evidence, named, remainder_of)
         if named != selected:
             current = heldout["random"](named)
         confounded = confounded_pairs(heldout, named, every, temp_r2) + attitude_confounds(evidence, slow)
@@ -278,6 +291,30 @@ class Diagnosis:
                   "base_significant": bool(base_rem["remainder_significant"]),
                   "time_predicts_attitude_r2": slow, "temperature_follows_time_r2": temp_r2, "evidence": evidence}
         return named, current, naming, confounded
+
+    def _shift_signature(self, evidence: list[dict], named: list[str]) -> list[str]:
+        """Rule 4 of the naming rule for effects with first-order terms (``shift_terms``: the time shift):
+        named only when those terms alone give at least LAG_SHIFT_SHARE of the effect's in-sample gain."""
+        model, tangent = self.model, self.tangent
+        robust = "outliers" in named
+        for name in list(named):
+            terms = getattr(EFFECTS[name], "shift_terms", None)
+            if not terms:
+                continue
+            own = model.groups[name]
+            free = model.free_indices(named)
+            first = [i for i in free if i not in own or model.names[i] in terms]
+            share = shift_share(tangent.sse_free([i for i in free if i not in own], robust),
+                                tangent.sse_free(first, robust), tangent.sse_free(free, robust))
+            row = next(r for r in evidence if r["name"] == name)
+            row["first_order_share"] = share
+            if share < LAG_SHIFT_SHARE:
+                named.remove(name)
+                row["named"] = False
+                row["why"] = (f"its first-order terms give only {100 * share:.0f} % of its gain: the structure is a loss of "
+                              "magnitude where the attitude changes fastest (a low-pass response of something else, such "
+                              "as an induced field that lags or eddy currents), not a shifted reading")
+        return named
 
     def _contributions(self, selected, every, current, base_res, rms_base, floor, floor_se) -> list[dict]:
         """Each selected effect's own held-out contribution (the selected set with and without it), and what

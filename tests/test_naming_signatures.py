@@ -1,0 +1,111 @@
+"""The naming rule's signatures, each with a control that must still be named: a time shift carried by its
+first-order terms, spikes spread over the record, no name smaller than what stays unexplained, and an offset
+drift said with temperature when the logged temperature follows time.  Records come from the independent
+forward model (tests/independent_forward.py), which shares no code with the diagnosis."""
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from independent_forward import make_case  # noqa: E402
+
+from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
+from magbench.benchmarks.diagnosis.naming import (  # noqa: E402
+    LAG_SHIFT_SHARE,
+    confounded_pairs,
+    shift_share,
+    spikes_isolated,
+    undominated,
+)
+from magbench.simulate.dataset import Dataset  # noqa: E402
+
+
+def run_case(index: int) -> tuple[dict, object]:
+    case = make_case(index, 2026)
+    data = Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C)
+    return diagnose(data, gravity=case.gravity), case
+
+
+def evidence_row(result: dict, name: str) -> dict:
+    return next(r for r in result["naming"]["evidence"] if r["name"] == name)
+
+
+@pytest.mark.parametrize("index", [53, 17])  # a lagged soft iron; a gravity-following body field
+def test_a_rate_dependent_structure_without_a_first_order_shift_is_not_a_lag(index):
+    result, case = run_case(index)
+    assert "lag" not in case.present and "lag" in [r["name"] for r in result["naming"]["evidence"]]
+    row = evidence_row(result, "lag")
+    assert not row["named"] and row["first_order_share"] < LAG_SHIFT_SHARE, row
+    assert "lag" not in result["verdict"] and result["verdict"].endswith("unexplained")
+
+
+@pytest.mark.parametrize("index", [62, 14])  # one axis sampled late
+def test_a_true_time_shift_is_still_named(index):
+    result, case = run_case(index)
+    assert case.present == ("lag",)
+    row = evidence_row(result, "lag")
+    assert row["named"] and row["first_order_share"] > 0.9, row
+    assert result["verdict"].split("+")[0] == "lag"
+
+
+def test_shift_share_arithmetic():
+    assert shift_share(100.0, 20.0, 10.0) == pytest.approx(80 / 90)
+    assert shift_share(100.0, 100.0, 10.0) == 0.0
+    assert shift_share(100.0, 100.0, 100.0) == 1.0  # no gain: nothing to judge
+
+
+def test_spikes_crowded_into_one_part_of_the_record_are_not_glitches():
+    rng = np.random.default_rng(4)
+    t = np.arange(1200.0)
+    late = np.zeros(1200, bool)
+    late[rng.choice(np.arange(700, 1200), 20, replace=False)] = True
+    spread = np.zeros(1200, bool)
+    spread[rng.choice(1200, 20, replace=False)] = True
+    assert not spikes_isolated(late, t)[0]
+    assert spikes_isolated(spread, t)[0]  # the control: glitches at random times
+
+
+def test_a_switch_on_is_not_called_outliers():
+    result, case = run_case(167)
+    assert case.outside == ("switch_on",)
+    assert "outliers" not in result["verdict"]
+
+
+def test_a_name_smaller_than_what_stays_unexplained_is_dropped():
+    def row(name, own):
+        return {"name": name, "named": True, "families": {f: {"own_rms_nT": own, "z": 9.0}
+                                                            for f in ("random", "time-blocked")}}
+
+    def remainder_of(names):  # what is left: 10 nT with both, 12 nT with one
+        left = {2: 10.0, 1: 12.0, 0: 15.0}[len(names)]
+        return {"remainder_nT": left, "remainder_significant": True}
+
+    evidence = [row("temperature", 30.0), row("nonlinearity", 4.0)]
+    assert undominated(evidence, ["temperature", "nonlinearity"], remainder_of) == ["temperature"]
+    assert not evidence[1]["named"] and "left unexplained" in evidence[1]["why"]
+    assert evidence[0]["named"]
+    quiet = [row("temperature", 30.0), row("nonlinearity", 4.0)]  # the control: nothing significant left
+    assert undominated(quiet, ["temperature", "nonlinearity"],
+                       lambda names: {"remainder_nT": 0.5, "remainder_significant": False}) == ["temperature", "nonlinearity"]
+
+
+@pytest.mark.parametrize("index", [205, 145])  # offset drifts in records whose temperature rises with time
+def test_an_offset_drift_is_said_with_temperature_when_the_temperature_follows_time(index):
+    result, case = run_case(index)
+    assert case.present == ("offset_drift",)
+    groups = [set(g.split("|")) for g in result["verdict"].split("+")]
+    assert {"offset_drift", "temperature"} in groups, result["verdict"]
+    assert result["naming"]["temperature_follows_time_r2"] >= 0.9
+    pair = result["confounded"][0]
+    assert set(pair["alternatives"]) == {"offset_drift", "temperature"} and pair["separate_by"]
+
+
+def test_no_pair_when_the_temperature_does_not_follow_time():
+    never = {"random": lambda names: np.ones(10)}
+    assert confounded_pairs(never, ["offset_drift"], ["offset_drift", "temperature"], temp_r2=0.3) == []
+    assert confounded_pairs(never, ["offset_drift"], ["offset_drift", "temperature"], temp_r2=None) == []
+    said = confounded_pairs(never, ["offset_drift"], ["offset_drift", "temperature"], temp_r2=0.99)
+    assert [p["alternatives"] for p in said] == [["offset_drift", "temperature"]]
