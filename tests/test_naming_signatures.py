@@ -14,8 +14,11 @@ from independent_forward import make_case  # noqa: E402
 
 from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
 from magbench.benchmarks.diagnosis.naming import (  # noqa: E402
+    BULK_RATIO_MAX,
     LAG_SHIFT_SHARE,
+    bulk_ratio,
     confounded_pairs,
+    holds,
     shift_share,
     spikes_isolated,
     undominated,
@@ -109,3 +112,44 @@ def test_no_pair_when_the_temperature_does_not_follow_time():
     assert confounded_pairs(never, ["offset_drift"], ["offset_drift", "temperature"], temp_r2=None) == []
     said = confounded_pairs(never, ["offset_drift"], ["offset_drift", "temperature"], temp_r2=0.99)
     assert [p["alternatives"] for p in said] == [["offset_drift", "temperature"]]
+
+
+def test_spikes_on_noise_pass_and_a_heavy_tailed_bulk_does_not():
+    rng = np.random.default_rng(7)
+    r = rng.normal(0.0, 2.0, 2000)
+    spikes = np.zeros(2000, bool)
+    spikes[rng.choice(2000, 40, replace=False)] = True
+    r[spikes] += rng.normal(0.0, 300.0, 40)
+    assert bulk_ratio(r, spikes) <= BULK_RATIO_MAX  # glitches on Gaussian noise: the bulk is the noise
+    heavy = rng.standard_t(2, 4000) * 100.0  # heavy-tailed at every size (tail ratio 1.47 in theory)
+    assert bulk_ratio(heavy, np.zeros(4000, bool)) > BULK_RATIO_MAX
+
+
+@pytest.mark.parametrize("index", [430, 459])  # one axis late on a record of random attitudes
+def test_a_lag_at_random_attitudes_is_not_called_outliers(index):
+    result, case = run_case(index)
+    assert "lag" in case.present and "outliers" not in result["verdict"]
+    assert "heavy-tailed" in evidence_row(result, "outliers")["why"]
+
+
+def test_held_attitudes_are_found_and_continuous_rotation_is_not():
+    steps = make_case(286, 2026)
+    assert steps.schedule == "steps"
+    data = Dataset(steps.raw_nT, f_ref_nT=steps.f_ref_nT, t_s=steps.t_s)
+    unit = data.raw_nT / np.linalg.norm(data.raw_nT, axis=1)[:, None]
+    label = holds(steps.t_s, unit)
+    assert label is not None and 10 <= label.max() + 1 <= 14  # the generator holds 12 attitudes
+    tumble = make_case(14, 2026)
+    assert tumble.schedule == "tumble"
+    unit = tumble.raw_nT / np.linalg.norm(tumble.raw_nT, axis=1)[:, None]
+    assert holds(tumble.t_s, unit) is None
+
+
+def test_a_time_effect_in_held_attitudes_must_show_within_the_holds():
+    result, case = run_case(286)  # a nonlinearity seen in 12 held attitudes: its levels differ between holds
+    assert case.present == ("nonlinearity",)
+    assert not any(g in result["verdict"] for g in ("temperature", "offset_drift", "field_drift")), result["verdict"]
+    control, case = run_case(394)  # a field drift on the same schedule: it moves within each hold
+    assert case.present == ("field_drift",) and case.schedule == "steps"
+    assert control["verdict"] == "field_drift"
+    assert evidence_row(control, "field_drift")["within_holds_z"] > 3

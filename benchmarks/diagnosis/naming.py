@@ -22,8 +22,12 @@ An effect is therefore *named* only when all of these hold:
 4. **Its own signature.**  A time shift (``lag``) is carried by its first-order terms (at least
    LAG_SHIFT_SHARE of its gain): when the second-order terms do most of the work, the structure is a loss of
    magnitude where the attitude changes fastest (a low-pass response of something else: an induced field
-   that lags, eddy currents), not a shifted reading.  Spikes (``outliers``) are glitches at random times:
-   isolated, not where the readings change fastest, and spread over the record like the samples.
+   that lags, eddy currents), not a shifted reading.  Spikes (``outliers``) are glitches at random times
+   on top of the noise: isolated, not where the readings change fastest, spread over the record like the
+   samples, and the rest of the residual noise-like (BULK_RATIO_MAX).
+   In a record of held attitudes (the sensor set down in a few positions, each held for a while), a time
+   effect must lower the residual *within* the holds: between them, each attitude was seen at one time
+   only, and a drift in time cannot be told from structure that depends on the attitude.
 5. **Not a by-product of a larger unexplained structure.**  When a significant remainder is left, every
    named effect must remove at least as much as is left (its own held-out contribution at least the
    remainder's RMS above the floor): a flexible basis fits part of any structure it is offered, and a
@@ -65,6 +69,15 @@ DOMINANCE = 1.0
 of the remainder's RMS above the floor."""
 SPIKE_TIMES_ALPHA = FAMILY_ALPHA
 """Level of the test that spike times are spread over the record like the samples (Kolmogorov-Smirnov)."""
+HOLD_ANGLE_RAD = 0.005
+"""Consecutive samples (in time) whose field directions differ by less than this belong to one hold."""
+HOLD_MIN_SAMPLES = 10
+HOLD_SHARE = 0.8
+"""A record is one of held attitudes when at least this share of its samples lie in holds of at least
+HOLD_MIN_SAMPLES samples."""
+HOLD_Z = 3.0
+"""A time effect in a record of held attitudes must lower the residual within the holds by this many
+standard errors (paired, on the held-out residuals with each hold's mean removed)."""
 TIME_EFFECTS = ("offset_drift", "field_drift")
 BODY_DRIFTS = ("offset_drift",)
 """Effects that are a body-fixed field changing slowly in time (a single step is a switch, not one of them)."""
@@ -171,6 +184,25 @@ mark where the field changes fastest (an unmodelled lag or eddy current), not ra
 FAST_QUANTILE = 0.9
 
 
+BULK_RATIO_MAX = 1.35
+"""Spikes are glitches on top of the noise: once they are left out, the rest must look like noise.  Its
+tail ratio (the 90th percentile of the absolute deviation from the median over the median one, divided by
+the Gaussian value 2.44) must be at most this: 1 for Gaussian noise, and a few small spikes left under the
+threshold barely move it; a continuous heavy-tailed error, such as a reading mixed with the previous one at
+random attitudes, gives 1.4 and more."""
+GAUSSIAN_Q90_OVER_Q50 = 2.4387
+
+
+def bulk_ratio(r: np.ndarray, spikes: np.ndarray) -> float:
+    """The tail ratio of the residual's non-spike samples (BULK_RATIO_MAX)."""
+    bulk = r[~spikes]
+    if len(bulk) < 10:
+        return 1.0
+    dev = np.abs(bulk - np.median(bulk))
+    mid = float(np.quantile(dev, 0.5))
+    return float(np.quantile(dev, 0.9) / mid / GAUSSIAN_Q90_OVER_Q50) if mid > 0 else 1.0
+
+
 def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None,
                     raw_nT: np.ndarray | None = None) -> tuple[bool, float]:
     """Whether the spike samples are isolated outliers: not in runs in time, not concentrated where the
@@ -199,7 +231,7 @@ def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None,
 
 
 def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: float,
-            base_significant: bool, spikes_ok: tuple[bool, float] = (True, 0.0),
+            base_significant: bool, spikes_ok: tuple = (True, 0.0),
             slow_attitude_r2: float | None = None, temp_time_r2: float | None = None) -> tuple[list[str], list[dict]]:
     """Apply the naming rule.  ``heldout_by_family[family](names)`` returns the held-out residual of base +
     ``names`` on that fold family.  Returns (named effects, in the selection's order; the evidence rows)."""
@@ -226,6 +258,10 @@ def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: flo
             if spikes_ok[0]:
                 row["named"], row["why"] = True, "spikes: the count test of the selection; isolated in time"
                 named.append(name)
+            elif len(spikes_ok) > 2 and spikes_ok[2] > BULK_RATIO_MAX:
+                row["named"] = False
+                row["why"] = (f"the samples that are not spikes have a tail {spikes_ok[2]:.2f} times a Gaussian's: the errors "
+                              "are heavy-tailed throughout, not sparse glitches on top of the noise")
             else:
                 row["named"] = False
                 row["why"] = (f"the spikes come in runs in time ({100 * spikes_ok[1]:.0f} % have a spike as a neighbour), "
@@ -296,6 +332,32 @@ def step_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_d
     if sse_base - best[0] < STEP_SHARE * (sse_base - sse_drift):
         return None
     return {"time_s": best[1], "size_nT": float(np.linalg.norm(best[2])), "sse_step": best[0], "sse_drift": sse_drift}
+
+
+def holds(t_s: np.ndarray | None, unit: np.ndarray) -> np.ndarray | None:
+    """The hold of each sample (labels in the samples' order) when the record is one of held attitudes
+    (module docstring), else None."""
+    n = len(unit)
+    if t_s is None or n < 2 * HOLD_MIN_SAMPLES:
+        return None
+    order = np.argsort(t_s, kind="stable")
+    u = unit[order]
+    step = np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1.0, 1.0))
+    seg = np.concatenate([[0], np.cumsum(step > HOLD_ANGLE_RAD)])
+    sizes = np.bincount(seg)
+    if np.sum(sizes[sizes >= HOLD_MIN_SAMPLES]) < HOLD_SHARE * n:
+        return None
+    label = np.empty(n, dtype=int)
+    label[order] = seg
+    return label
+
+
+def within_holds_z(without: np.ndarray, with_effect: np.ndarray, label: np.ndarray) -> float:
+    """Paired z of the decrease of the squared residual within the holds (each hold's mean removed)."""
+    def demeaned(r: np.ndarray) -> np.ndarray:
+        means = np.bincount(label, weights=r) / np.maximum(np.bincount(label), 1)
+        return r - means[label]
+    return paired_z(demeaned(without), demeaned(with_effect))
 
 
 def shift_share(sse_without: float, sse_first_order: float, sse_with: float) -> float:

@@ -35,13 +35,19 @@ from .localize import folds, localize, tails
 from .model import BASE_FREE, ExtendedModel, Tangent
 from .naming import (
     BODY_DRIFTS,
+    BULK_RATIO_MAX,
     FAMILY_ALPHA,
+    HOLD_Z,
     LAG_SHIFT_SHARE,
+    TIME_EFFECTS,
+    _is_thermal,
     attitude_blocks,
     attitude_confounds,
+    bulk_ratio,
     confirm,
     confounded_pairs,
     fold_drift_into_temperature,
+    holds,
     shift_share,
     spikes_isolated,
     step_explains,
@@ -49,6 +55,7 @@ from .naming import (
     time_blocks,
     time_predicts_attitude,
     undominated,
+    within_holds_z,
 )
 from .resimulate import resimulate
 from .scoring import (
@@ -257,8 +264,11 @@ class Diagnosis:
         mde = min_detectable_nT(floor, n)
         slow = time_predicts_attitude(d.t_s, self.unit)
         temp_r2 = temperature_follows_time(d.t_s, d.temp_C)
+        iso = spikes_isolated(tangent.spikes, d.t_s, d.raw_nT)
+        ratio = bulk_ratio(tangent.r, tangent.spikes)
+        spikes_ok = (iso[0] and ratio <= BULK_RATIO_MAX, iso[1], ratio)
         named, evidence = confirm(heldout, selected, floor, mde, bool(base_rem["remainder_significant"]),
-                                  spikes_isolated(tangent.spikes, d.t_s, d.raw_nT), slow, temp_r2)
+                                  spikes_ok, slow, temp_r2)
         if any(s in BODY_DRIFTS for s in named):  # a switch is not a slow drift
             drift_res = np.nan_to_num(self.model_residuals(named))
             others = [s for s in named if s not in BODY_DRIFTS]
@@ -273,6 +283,7 @@ class Diagnosis:
                                       "residual as well as a slow drift: a switch (outside the library), not a drift")
         named = fold_drift_into_temperature(evidence, named, temp_r2)
         named = self._shift_signature(evidence, named)
+        named = self._within_holds(evidence, named, heldout["random"])
 
         def remainder_of(names):
             robust = "outliers" in names
@@ -314,6 +325,25 @@ class Diagnosis:
                 row["why"] = (f"its first-order terms give only {100 * share:.0f} % of its gain: the structure is a loss of "
                               "magnitude where the attitude changes fastest (a low-pass response of something else, such "
                               "as an induced field that lags or eddy currents), not a shifted reading")
+        return named
+
+    def _within_holds(self, evidence: list[dict], named: list[str], heldout) -> list[str]:
+        """Rule 4 for time effects in a record of held attitudes: named only when they lower the held-out
+        residual within the holds (HOLD_Z)."""
+        label = holds(self.columns.t_s, self.unit)
+        if label is None:
+            return named
+        with_all = heldout(named)
+        for name in [nm for nm in named if nm in TIME_EFFECTS or _is_thermal(nm)]:
+            z = within_holds_z(heldout([s for s in named if s != name]), with_all, label)
+            row = next(r for r in evidence if r["name"] == name)
+            row["within_holds_z"] = z
+            if z < HOLD_Z:
+                named = [s for s in named if s != name]
+                row["named"] = False
+                row["why"] = (f"the attitudes were held ({int(label.max()) + 1} holds) and it lowers the residual within "
+                              f"them by only {z:.1f} standard errors: between holds each attitude was seen at one time "
+                              "only, so a time effect cannot be told from structure that depends on the attitude")
         return named
 
     def _contributions(self, selected, every, current, base_res, rms_base, floor, floor_se) -> list[dict]:
