@@ -52,3 +52,27 @@ def test_the_command_answers_with_exit_0(tmp_path, capsys):
     assert main(["diagnose", str(path), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["time_only"]["constant_nT"] > 8 and out["attitude"] == "insufficient_data"
+
+
+def test_glitches_in_a_fixed_record_are_named_outliers_and_clean_records_have_none():
+    rng = np.random.default_rng(11)
+    d = fixed(drift_nT_per_day=0.0, seed=5)
+    raw = d.raw_nT.copy()
+    rows = rng.choice(len(raw), 30, replace=False)
+    raw[rows] += rng.normal(0, 1, (30, 3)) * 60.0
+    r = diagnose(Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s, temp_C=d.temp_C))
+    assert r["verdict"] == "outliers" and r["attitude"] == "insufficient_data"
+    assert r["time_only"]["spikes"]["named"] and r["time_verdict"] == "outliers"
+    assert abs(r["time_only"]["constant_nT"] - 7.0) < 0.1  # the spikes are left out of the constant and drift
+    clean = diagnose(fixed(drift_nT_per_day=0.0, seed=5))  # the control: the same record without them
+    assert clean["verdict"] == "insufficient_data" and not clean["time_only"]["spikes"]["named"]
+
+
+def test_a_burst_in_one_part_of_a_fixed_record_is_not_outliers():
+    d = fixed(drift_nT_per_day=0.0, seed=6)
+    raw = d.raw_nT.copy()
+    rng = np.random.default_rng(2)
+    late = rng.choice(np.arange(1500, 2000), 30, replace=False)  # all in the last quarter: a disturbance
+    raw[late] += rng.normal(0, 1, (30, 3)) * 60.0
+    r = diagnose(Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s, temp_C=d.temp_C))
+    assert r["verdict"] == "insufficient_data" and not r["time_only"]["spikes"]["named"]

@@ -6,6 +6,13 @@ calibration model can be fitted; its time question still has an answer.  With th
 in nT per hour, with its standard error, and a smooth trend), its temperature dependence beyond what time
 predicts (when ``temp`` is logged), the noise floor from time neighbours, and a verdict on the time part;
 the attitude part is stated as ``insufficient_data``.
+
+Spikes are the one effect a fixed sensor can name: glitches in ``|B| - F`` beyond the smooth trend, judged
+by the vector diagnosis's own tests (their count, isolation and spread in time, a noise-like rest); the
+verdict is then ``outliers`` when nothing else moves.  A drift cannot be named: with one direction seen and
+a scalar reference, a drift of the offsets, of the scale, of the field's magnitude and a temperature effect
+all move ``|B| - F`` alike, so it is reported in ``time_only`` and ``time_verdict``, and the verdict stays
+``insufficient_data``.
 """
 from __future__ import annotations
 
@@ -13,8 +20,10 @@ import numpy as np
 from numpy.polynomial import legendre
 
 from magbench.simulate.dataset import Dataset
+from magbench.simulate.effects import OutlierEffect
 
 from .floor import time_difference_floor
+from .naming import BULK_RATIO_MAX, bulk_ratio, spikes_isolated
 from .scoring import rms
 
 SECONDS_PER_HOUR = 3600.0
@@ -56,20 +65,23 @@ def time_only(data: Dataset, reason: str) -> dict:
     t, r = t[order], r[order]
     hours = (t - t[0]) / SECONDS_PER_HOUR
     out: dict = {"kind": "time_only", "n_points": n, "attitude": "insufficient_data", "attitude_reason": reason}
-    floor = time_difference_floor(r, t if data.t_s is not None else None)
+    spikes, spike_info = _spikes(r, t)
+    keep = ~spikes
+    floor = time_difference_floor(r[keep], t[keep] if data.t_s is not None else None)
     design = np.column_stack([np.ones(n), hours - hours.mean()])
-    coef, se, resid = _linear(design, r)
+    coef, se, resid = _linear(design[keep], r[keep])
     drift = {"drift_nT_per_h": float(coef[1]), "drift_se_nT_per_h": float(se[1]),
              "significant": bool(abs(coef[1]) > DRIFT_Z * se[1]) if np.ptp(hours) > 0 else False}
     span = np.ptp(t)
     if span > 0 and n > 3 * TREND_DEGREE:
         s = 2 * (t - t[0]) / span - 1
         trend_design = legendre.legvander(s, TREND_DEGREE)
-        trend = trend_design @ np.linalg.lstsq(trend_design, r, rcond=None)[0]
+        trend = trend_design @ np.linalg.lstsq(trend_design[keep], r[keep], rcond=None)[0]
         drift["trend_range_nT"] = float(np.ptp(trend))
-        drift["rms_after_trend_nT"] = rms(r - trend)
+        drift["rms_after_trend_nT"] = rms((r - trend)[keep])
     out["time_only"] = {
-        "constant_nT": float(np.median(r)), "mean_nT": float(np.mean(r)), "rms_nT": rms(r),
+        "constant_nT": float(np.median(r)), "mean_nT": float(np.mean(r[keep])), "rms_nT": rms(r[keep]),
+        "spikes": spike_info,
         "span_h": float(np.ptp(hours)), "drift": drift, "noise_floor_nT": floor["noise_floor_nT"],
         "floor_method": floor["floor_method"],
         "statement": "|B| - F of the uncalibrated readings: a constant is a scale or offset error along the one "
@@ -77,13 +89,38 @@ def time_only(data: Dataset, reason: str) -> dict:
     if data.temp_C is not None and np.ptp(data.temp_C) > 0:
         temp = np.asarray(data.temp_C, dtype=float)[order]
         tdesign = np.column_stack([design, temp - temp.mean()])
-        tcoef, tse, _ = _linear(tdesign, r)
+        tcoef, tse, _ = _linear(tdesign[keep], r[keep])
         out["time_only"]["temperature"] = {
             "temperature_nT_per_C": float(tcoef[2]), "temperature_se_nT_per_C": float(tse[2]),
             "beyond_time": "the coefficient with a linear drift in time fitted beside it",
             "significant": bool(abs(tcoef[2]) > DRIFT_Z * tse[2])}
     named = [name for name, part in (("drift", drift), ("temperature", out["time_only"].get("temperature", {})))
              if part.get("significant")]
-    out["verdict"] = "insufficient_data"
+    if spike_info["named"]:
+        named = ["outliers", *named]
+    out["verdict"] = "outliers" if named == ["outliers"] else "insufficient_data"
     out["time_verdict"] = "+".join(named) if named else "constant"
     return out
+
+
+def _spikes(r: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, dict]:
+    """Glitches in the time series ``r`` (in time order): samples beyond SPIKE_SIGMA robust sigma of what a
+    smooth trend leaves, named only when their count, isolation and spread in time and a noise-like rest say
+    they are outliers (the naming rule's spike tests); (mask, the evidence)."""
+    n = len(r)
+    if n < 3 * TREND_DEGREE or np.ptp(t) <= 0:
+        return np.zeros(n, dtype=bool), {"n": 0, "named": False}
+    s = 2 * (t - t[0]) / np.ptp(t) - 1
+    design = legendre.legvander(s, TREND_DEGREE)
+    resid = r - design @ np.linalg.lstsq(design, r, rcond=None)[0]
+    mask = OutlierEffect.spike_mask(resid)
+    if mask.any():  # the trend again without them, so that large spikes do not bend it
+        resid = r - design @ np.linalg.lstsq(design[~mask], r[~mask], rcond=None)[0]
+        mask = OutlierEffect.spike_mask(resid)
+    isolated, share = spikes_isolated(mask, t)
+    ratio = bulk_ratio(resid, mask)
+    named = bool(OutlierEffect.enough(int(mask.sum()), n) and isolated and ratio <= BULK_RATIO_MAX)
+    return (mask if named else np.zeros(n, dtype=bool)), {
+        "n": int(mask.sum()), "named": named, "neighbour_share": share, "bulk_tail_ratio": ratio,
+        "rule": "beyond 5 robust sigma of a smooth trend; named when more than noise gives, isolated and spread in "
+                "time, on a noise-like rest"}
