@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from magbench import paper
+from magbench.benchmarks.tables import md_escape
 
 SCENARIOS = ("lu2014", "sphere9", "cap9", "vehicle9")
 ROOT_SEED = 2014
@@ -126,7 +127,7 @@ def diagnosis_reports(out: Path, blind_n: int = 300, progress: bool = False, job
             best = next((e for e in result["effects"] if e["significant"]), None)
             best_text = f"{best['name']} ({best['shrink_pct']:.0f} %)" if best else "-"
             rows.append(f"| {name} | {result['n_points']} | {result['base_model']} | {result['rms_base_nT']:.2f} | "
-                        f"{result['noise_floor_nT']:.2f} | {result['verdict']} | {best_text} |")
+                        f"{result['noise_floor_nT']:.2f} | {md_escape(result['verdict'])} | {best_text} |")
         else:
             msg = err.getvalue().strip()
             (folder / f"{name}.txt").write_text(f"magbench diagnose refused: {msg}\n")
@@ -187,7 +188,7 @@ def blind_check(n: int, progress: bool = False, jobs: int = 1) -> str:
 
     held_out = [c for c in cases if c["case"] >= BLIND_HELD_OUT]
     rows = [f"| {c['case']} | {c['label']} | {c['points']} | {c['noise_nT']:.2f} | {c['floor_nT']:.2f} | "
-            f"{c['coverage']} | {c['beyond_base_nT']:.2f} | {c['min_detectable_nT']:.2f} | {c['verdict']} | "
+            f"{c['coverage']} | {c['beyond_base_nT']:.2f} | {c['min_detectable_nT']:.2f} | {md_escape(c['verdict'])} | "
             f"{c['outcome']} |" for c in cases]
     lines = [f"## Blind check: {n} cases from an independent generator (diagnosis told base model nine)", "",
              *summary(cases)]

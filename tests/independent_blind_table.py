@@ -43,6 +43,11 @@ def run(indices, jobs: int = 1, root: int = 2026) -> list[dict]:
         return list(pool.map(verdict_of, indices, [root] * len(indices)))
 
 
+def cell(text: str) -> str:
+    """Text for a Markdown table cell: a verdict's ``a|b`` escaped, so that it does not split the cell."""
+    return (text or "").replace("|", "\\|")
+
+
 def table(rows: list[dict]) -> str:
     cats = sorted({r["category"] for r in rows})
     lines = ["| category | cases | wrong names | recall of present effects | mean score |", "|---|---|---|---|---|"]
@@ -63,8 +68,9 @@ def main() -> None:
     ap.add_argument("--start", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", type=Path)
-    ap.add_argument("--split", type=str, default="48,144",
-                    help="case indices where a new part begins (development / tuning / first run with the final code)")
+    ap.add_argument("--split", type=str, default="240,480",
+                    help="case indices where a new part begins (looked at while the naming rule was developed / "
+                         "while it was tuned / first run with the final code)")
     args = ap.parse_args()
     rows = run(range(args.start, args.start + args.cases), args.jobs)
     text = ["# Independent blind check of the diagnosis", "",
@@ -75,7 +81,7 @@ def main() -> None:
             "A wrong name is an effect named that is not in the record (the headline: a user acts on it).", "",
             "## All cases", "", table(rows), ""]
     cuts = [args.start] + [int(c) for c in args.split.split(",") if c] + [args.start + args.cases]
-    labels = ["looked at while the naming rule was developed", "looked at while it was tuned",
+    labels = ["looked at while the naming rule was developed", "looked at while its signatures were added",
               "first run with the final code (held out)"]
     for (a, b), label in zip(zip(cuts[:-1], cuts[1:]), labels):
         part = [r for r in rows if a <= r["index"] < b]
@@ -85,7 +91,7 @@ def main() -> None:
              "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         text.append(f"| {r['index']} | {r['category']} | {r['schedule']} | {r['present'] or '-'} | {r['outside'] or '-'} "
-                    f"| `{r['verdict']}` | {r['wrong'] or ''} | {r['score']:g} |")
+                    f"| `{cell(r['verdict'])}` | {cell(r['wrong'])} | {r['score']:g} |")
     out = "\n".join(text) + "\n"
     if args.out:
         args.out.write_text(out, encoding="utf-8")
