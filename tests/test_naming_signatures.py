@@ -153,3 +153,13 @@ def test_a_time_effect_in_held_attitudes_must_show_within_the_holds():
     assert case.present == ("field_drift",) and case.schedule == "steps"
     assert control["verdict"] == "field_drift"
     assert evidence_row(control, "field_drift")["within_holds_z"] > 3
+
+
+def test_the_text_report_says_why_an_effect_is_not_named_and_which_pair_cannot_be_told_apart():
+    from magbench.benchmarks.diagnosis import diagnosis_text
+
+    text = diagnosis_text(run_case(53)[0])
+    assert "lag: not named: its first-order terms give only" in text
+    text = diagnosis_text(run_case(205)[0])
+    assert "cannot tell them apart" in text and "to separate them:" in text
+    assert "the naming rule" not in diagnosis_text(run_case(62)[0])  # a lag named, nothing to explain

@@ -121,11 +121,23 @@ def diagnosis_text(result: dict, source: str = "") -> str:
         both = result["offset_and_scale_together"]
         lines.append(f"  offset (1/rev) and scale (2/rev) together: held-out RMS {both['rms_heldout_nT']:.2f} nT "
                      f"(shrink {both['shrink_pct']:.0f} %)")
+    lines += _naming_lines(result)
     lines.append("")
     lines.append(f"  verdict: {result['verdict']}")
     if result.get("figure"):
         lines.append(f"  figure: {result['figure']}")
     return "\n".join(lines)
+
+
+def _naming_lines(result: dict) -> list[str]:
+    """Why a selected effect was not named, and the pairs the data cannot tell apart (the naming rule)."""
+    naming = result.get("naming") or {}
+    lines = [f"    {row['name']}: not named: {row['why']}" for row in naming.get("evidence", []) if not row.get("named")]
+    for pair in result.get("confounded", []):
+        a, b = pair["alternatives"]
+        lines.append(f"    {a}|{b}: the data cannot tell them apart ({pair['evidence']['statement']}); "
+                     f"to separate them: {pair['separate_by']}")
+    return ["", "  the naming rule:", *lines] if lines else []
 
 
 def _plot_scalar(ax, series: ScalarSeries) -> str:
