@@ -56,25 +56,3 @@ def test_held_samples_are_left_out_of_the_floor():
     from magbench.benchmarks.diagnosis.floor import time_difference_floor
 
     assert time_difference_floor(r, t)["noise_floor_nT"] < 1.8
-
-
-def test_random_attitudes_take_the_floor_from_attitude_neighbours():
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from independent_forward import make_case
-
-    from magbench.benchmarks.diagnosis import diagnose
-    from magbench.simulate.dataset import Dataset
-
-    case = make_case(178, 2026)  # a nonlinearity on a sphere of random attitudes
-    assert case.schedule == "sphere" and case.present == ("nonlinearity",)
-    r = diagnose(Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C))
-    assert r["floor_method"].startswith("nearest neighbours in attitude") and r["floor_is_upper_bound"]
-    assert r["noise_floor_nT"] < 0.5 * r["floor_time_neighbours_nT"]  # the time neighbours carry the structure
-    assert 0.7 * case.notes["noise_nT"] < r["noise_floor_nT"] < 1.5 * case.notes["noise_nT"]
-    assert r["verdict"] == "nonlinearity"
-    control = make_case(14, 2026)  # a smooth tumble: consecutive samples are the nearest in attitude
-    r = diagnose(Dataset(control.raw_nT, f_ref_nT=control.f_ref_nT, t_s=control.t_s, temp_C=control.temp_C))
-    assert r["floor_method"].startswith(("linear interpolation", "cubic interpolation"))

@@ -5,9 +5,6 @@ close in time (a smooth structured residual cancels in them), with its own inter
   linear interpolation between the time neighbours, r_i - (w r_(i-1) + (1 - w) r_(i+1)), scaled to white
   noise (the second differences / sqrt(6) on even sampling, exact for a line at any spacing); the errors
   of cubic interpolation from four neighbours check that structure does not leak into them;
-* with times on a record whose consecutive samples are at unrelated attitudes (a sphere of random
-  attitudes), the k-NN scatter in attitude when it is significantly lower than the time neighbours' (these
-  then carry every attitude-dependent structure), flagged as an upper bound;
 * without any order the samples can be trusted in: the k-NN scatter in attitude, an upper bound (flagged).
 
 The interval is +-1.96 standard errors of the MAD-based scale (1.166 sigma / sqrt(m), m the number of
@@ -130,10 +127,9 @@ def vector_floor(unit: np.ndarray, d: Columns, r: np.ndarray, rows_in_time_order
             out = time_difference_floor(r[keep], d.t_s[keep])
             out["floor_method"] += f" (on the {int((~held).sum())} distinct samples: {100 * share:.1f} % held)"
         else:
-            keep = order
             out = time_difference_floor(r[order], d.t_s[order])
         out["held_sample_fraction"] = share
-        return _attitude_neighbours_if_lower(out, unit[keep], r[keep])
+        return out
     if rows_in_time_order:
         out = time_difference_floor(r)
         out["floor_method"] += " (row order taken as time order)"
@@ -143,39 +139,6 @@ def vector_floor(unit: np.ndarray, d: Columns, r: np.ndarray, rows_in_time_order
     return {"noise_floor_nT": float(sigma), "floor_se_nT": float(se), "floor_interval_nT": [float(lo), float(hi)],
             "floor_method": "nearest neighbours in attitude (no time order: an upper bound, structure included)",
             "floor_is_upper_bound": True}
-
-
-UNRELATED_STEP = 3.0
-"""Consecutive samples are at unrelated attitudes when their median angular step is this many times the median
-distance to the nearest attitude neighbour, and more than UNRELATED_MIN_RAD (held or quantized readings have
-nearest neighbours at distance 0)."""
-UNRELATED_MIN_RAD = 0.02
-
-
-def _attitude_neighbours_if_lower(out: dict, unit: np.ndarray, r: np.ndarray) -> dict:
-    """The time-neighbour floor, or the k-NN scatter in attitude when that is significantly lower (below the
-    time floor's interval): on a record whose consecutive samples are at unrelated attitudes (a sphere of
-    random attitudes) the time neighbours' differences carry every attitude-dependent structure, while
-    neighbours in attitude cancel it.  Both are upper bounds of the noise (each keeps the structure the other
-    cancels), so the lower is the tighter; which one was used is stated."""
-    if len(r) <= 3 * KNN_NEIGHBOURS:
-        return out
-    # only where consecutive samples are far apart in attitude (unit is in time order): elsewhere the time
-    # neighbours are the closer ones, and the attitude neighbours only add what a smooth time effect moves
-    step = np.median(np.linalg.norm(np.diff(unit, axis=0), axis=1))
-    nearest = np.median(cKDTree(unit).query(unit, k=2)[0][:, 1])
-    if not (step > UNRELATED_STEP * nearest and step > UNRELATED_MIN_RAD):
-        return out
-    sigma = knn_floor(unit, r)
-    if not sigma < out["floor_interval_nT"][0]:
-        out["floor_attitude_neighbours_nT"] = float(sigma)
-        return out
-    se, lo, hi = _interval(sigma, int(INDEPENDENT_SHARE * len(r)))
-    return {**out, "noise_floor_nT": float(sigma), "floor_se_nT": float(se), "floor_interval_nT": [float(lo), float(hi)],
-            "floor_method": f"nearest neighbours in attitude (lower than the time neighbours' {out['noise_floor_nT']:.3g} "
-                            "nT: consecutive samples are at unrelated attitudes)",
-            "floor_is_upper_bound": True, "floor_time_neighbours_nT": out["noise_floor_nT"],
-            "floor_attitude_neighbours_nT": float(sigma)}
 
 
 def second_difference_floor(r_in_order: np.ndarray) -> float:
