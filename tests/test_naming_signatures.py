@@ -163,4 +163,3 @@ def test_the_text_report_says_why_an_effect_is_not_named_and_which_pair_cannot_b
     text = diagnosis_text(run_case(205)[0])
     assert "cannot tell them apart" in text and "to separate them:" in text
     assert "the naming rule" not in diagnosis_text(run_case(62)[0])  # a lag named, nothing to explain
-
