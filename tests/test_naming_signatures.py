@@ -17,6 +17,7 @@ from magbench.benchmarks.diagnosis.naming import (  # noqa: E402
     BULK_RATIO_MAX,
     LAG_SHIFT_SHARE,
     bulk_ratio,
+    clipped,
     confounded_pairs,
     holds,
     shift_share,
@@ -163,3 +164,14 @@ def test_the_text_report_says_why_an_effect_is_not_named_and_which_pair_cannot_b
     text = diagnosis_text(run_case(205)[0])
     assert "cannot tell them apart" in text and "to separate them:" in text
     assert "the naming rule" not in diagnosis_text(run_case(62)[0])  # a lag named, nothing to explain
+
+
+def test_clipped_readings_are_saturation_not_outliers():
+    result, case = run_case(917)  # an ADC limit just below the largest readings, random attitudes
+    assert case.outside == ("clipping",)
+    assert result["verdict"] == "unexplained"
+    assert "saturates" in evidence_row(result, "outliers")["why"]
+    control, case = run_case(2)  # glitches on a sphere of random attitudes
+    assert case.present == ("outliers",) and control["verdict"] == "outliers"
+    raw = np.array([[1.0, 5.0, 2.0], [3.0, 5.0, 0.0], [2.0, 5.0, 1.0], [0.5, 4.0, 3.0], [0.2, 1.0, 0.1]])
+    assert clipped(raw).tolist() == [True, True, True, False, False]  # y sits at its maximum three times

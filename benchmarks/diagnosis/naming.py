@@ -24,7 +24,8 @@ An effect is therefore *named* only when all of these hold:
    magnitude where the attitude changes fastest (a low-pass response of something else: an induced field
    that lags, eddy currents), not a shifted reading.  Spikes (``outliers``) are glitches at random times
    on top of the noise: isolated, not where the readings change fastest, spread over the record like the
-   samples, and the rest of the residual noise-like (BULK_RATIO_MAX).
+   samples, not readings clipped at a range limit, and the rest of the residual noise-like
+   (BULK_RATIO_MAX).
    In a record of held attitudes (the sensor set down in a few positions, each held for a while), a time
    effect must lower the residual *within* the holds: between them, each attitude was seen at one time
    only, and a drift in time cannot be told from structure that depends on the attitude.
@@ -195,6 +196,31 @@ random attitudes, gives 1.4 and more."""
 GAUSSIAN_Q90_OVER_Q50 = 2.4387
 
 
+CLIP_MIN_REPEATS = 3
+"""An axis is clipped when its largest (or smallest) reading occurs at least this many times exactly."""
+CLIPPED_SHARE_MAX = 0.5
+"""Spikes are not outliers when more than this share of them are clipped readings (saturation)."""
+
+
+def clipped(raw_nT: np.ndarray) -> np.ndarray:
+    """Samples whose reading on some axis sits exactly at that axis's largest or smallest value, where that value
+    repeats at least CLIP_MIN_REPEATS times: an ADC or range limit (saturation)."""
+    out = np.zeros(len(raw_nT), dtype=bool)
+    for a in range(raw_nT.shape[1]):
+        col = raw_nT[:, a]
+        for edge in (col.max(), col.min()):
+            at = col == edge
+            if at.sum() >= CLIP_MIN_REPEATS:
+                out |= at
+    return out
+
+
+def clipped_share(spikes: np.ndarray, raw_nT: np.ndarray) -> float:
+    """The share of the spikes that are clipped readings (``clipped``)."""
+    n = int(spikes.sum())
+    return float((spikes & clipped(raw_nT)).sum() / n) if n else 0.0
+
+
 def bulk_ratio(r: np.ndarray, spikes: np.ndarray) -> float:
     """The tail ratio of the residual's non-spike samples (BULK_RATIO_MAX)."""
     bulk = r[~spikes]
@@ -260,6 +286,10 @@ def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: flo
             if spikes_ok[0]:
                 row["named"], row["why"] = True, "spikes: the count test of the selection; isolated in time"
                 named.append(name)
+            elif len(spikes_ok) > 3 and spikes_ok[3] > CLIPPED_SHARE_MAX:
+                row["named"] = False
+                row["why"] = (f"{100 * spikes_ok[3]:.0f} % of the spikes are readings at an axis's repeated extreme value: "
+                              "the sensor or its converter saturates (clipping), these are not random glitches")
             elif len(spikes_ok) > 2 and spikes_ok[2] > BULK_RATIO_MAX:
                 row["named"] = False
                 row["why"] = (f"the samples that are not spikes have a tail {spikes_ok[2]:.2f} times a Gaussian's: the errors "

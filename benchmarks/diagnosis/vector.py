@@ -36,6 +36,7 @@ from .model import BASE_FREE, ExtendedModel, Tangent
 from .naming import (
     BODY_DRIFTS,
     BULK_RATIO_MAX,
+    CLIPPED_SHARE_MAX,
     FAMILY_ALPHA,
     HOLD_Z,
     LAG_SHIFT_SHARE,
@@ -44,6 +45,7 @@ from .naming import (
     attitude_blocks,
     attitude_confounds,
     bulk_ratio,
+    clipped_share,
     confirm,
     confounded_pairs,
     fold_drift_into_temperature,
@@ -266,7 +268,8 @@ class Diagnosis:
         temp_r2 = temperature_follows_time(d.t_s, d.temp_C)
         iso = spikes_isolated(tangent.spikes, d.t_s, d.raw_nT)
         ratio = bulk_ratio(tangent.r, tangent.spikes)
-        spikes_ok = (iso[0] and ratio <= BULK_RATIO_MAX, iso[1], ratio)
+        clip = clipped_share(tangent.spikes, d.raw_nT)
+        spikes_ok = (iso[0] and ratio <= BULK_RATIO_MAX and clip <= CLIPPED_SHARE_MAX, iso[1], ratio, clip)
         named, evidence = confirm(heldout, selected, floor, mde, bool(base_rem["remainder_significant"]),
                                   spikes_ok, slow, temp_r2)
         if any(s in BODY_DRIFTS for s in named):  # a switch is not a slow drift
