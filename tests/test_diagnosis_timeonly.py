@@ -42,6 +42,23 @@ def test_temperature_beyond_time():
     tc = r["time_only"]["temperature"]
     assert tc["significant"] and abs(tc["temperature_nT_per_C"] - 0.8) < 0.05
     assert "temperature" in r["time_verdict"]
+    assert r["verdict"] == "temperature" and r["time_only"]["temperature"]["named"]  # beyond any smooth trend
+
+
+def test_a_fixed_sensor_names_temperature_only_when_it_follows_the_temperature_beyond_time():
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from independent_forward import make_case
+
+    for index, expected in ((33, "temperature"), (177, "temperature"), (21, "insufficient_data"),
+                            (69, "insufficient_data")):  # temperature, temperature, offset drift, field drift
+        case = make_case(index, 2026)
+        assert case.category == "fixed"
+        r = diagnose(Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C))
+        assert r["verdict"] == expected, (index, case.present, r["time_only"]["temperature"])
+        assert r["attitude"] == "insufficient_data"
 
 
 def test_the_command_answers_with_exit_0(tmp_path, capsys):

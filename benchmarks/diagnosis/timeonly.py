@@ -7,11 +7,12 @@ in nT per hour, with its standard error, and a smooth trend), its temperature de
 predicts (when ``temp`` is logged), the noise floor from time neighbours, and a verdict on the time part;
 the attitude part is stated as ``insufficient_data``.
 
-Spikes are the one effect a fixed sensor can name: glitches in ``|B| - F`` beyond the smooth trend, judged
-by the vector diagnosis's own tests (their count, isolation and spread in time, a noise-like rest); the
-verdict is then ``outliers`` when nothing else moves.  A drift cannot be named: with one direction seen and
-a scalar reference, a drift of the offsets, of the scale, of the field's magnitude and a temperature effect
-all move ``|B| - F`` alike, so it is reported in ``time_only`` and ``time_verdict``, and the verdict stays
+Spikes and a temperature effect are what a fixed sensor can name.  Spikes: glitches in ``|B| - F`` beyond
+the smooth trend, judged by the vector diagnosis's own tests (their count, isolation and spread in time, a
+noise-like rest).  A temperature effect: ``|B| - F`` follows the logged temperature beyond a smooth function
+of time (the temperature's own changes, not only the time they share).  A drift alone cannot be named: with
+one direction seen and a scalar reference, a drift of the offsets, of the scale and of the field's magnitude
+move ``|B| - F`` alike, so it is reported in ``time_only`` and ``time_verdict``, and the verdict stays
 ``insufficient_data``.
 """
 from __future__ import annotations
@@ -31,6 +32,9 @@ DRIFT_Z = 3.0
 """A drift or temperature coefficient is reported as significant beyond this many standard errors (its
 standard error inflated for the residual's autocorrelation: effective samples from the lag-1 correlation)."""
 TREND_DEGREE = 6
+TEMPERATURE_NAME_Z = 4.0
+"""A fixed sensor's temperature effect is named when |B| - F follows the logged temperature beyond a smooth
+function of time by this many standard errors."""
 
 
 def _effective_n(resid: np.ndarray) -> float:
@@ -94,11 +98,23 @@ def time_only(data: Dataset, reason: str) -> dict:
             "temperature_nT_per_C": float(tcoef[2]), "temperature_se_nT_per_C": float(tse[2]),
             "beyond_time": "the coefficient with a linear drift in time fitted beside it",
             "significant": bool(abs(tcoef[2]) > DRIFT_Z * tse[2])}
+        if span > 0 and n > 3 * TREND_DEGREE:  # beyond any smooth function of time: the temperature's own signature
+            sdesign = np.column_stack([trend_design, temp - temp.mean()])
+            scoef, sse, _ = _linear(sdesign[keep], r[keep])
+            z = float(abs(scoef[-1]) / sse[-1]) if sse[-1] > 0 else 0.0
+            out["time_only"]["temperature"].update({
+                "beyond_smooth_time_nT_per_C": float(scoef[-1]), "beyond_smooth_time_z": z,
+                "named": bool(z > TEMPERATURE_NAME_Z),
+                "named_rule": f"the coefficient with a degree-{TREND_DEGREE} polynomial of time fitted beside it, beyond "
+                              f"{TEMPERATURE_NAME_Z:g} standard errors (inflated for autocorrelation): |B| - F follows the "
+                              "logged temperature's own changes, not only the time they share"})
     named = [name for name, part in (("drift", drift), ("temperature", out["time_only"].get("temperature", {})))
              if part.get("significant")]
     if spike_info["named"]:
         named = ["outliers", *named]
-    out["verdict"] = "outliers" if named == ["outliers"] else "insufficient_data"
+    verdict = (["outliers"] if spike_info["named"] else []) + \
+        (["temperature"] if out["time_only"].get("temperature", {}).get("named") else [])
+    out["verdict"] = "+".join(verdict) if verdict else "insufficient_data"
     out["time_verdict"] = "+".join(named) if named else "constant"
     return out
 
