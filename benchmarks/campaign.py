@@ -45,8 +45,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from magbench.benchmarks.metrics import budget_violation, crb_row, run_metrics
 from magbench.benchmarks.progress import progress_bar
+from magbench.benchmarks.tables import write_tables
+from magbench.calibrators import available, make, prefer_compiled_kernels
 from magbench.errors import InputError
+from magbench.simulate.scenarios import get_scenario
 
 RUNTIME_COLUMNS = ("runtime_s", "median_runtime_s")
 TRACE_POINTS = 100  # convergence traces (kept for every trial) are thinned to at most this many points per run
@@ -129,8 +133,6 @@ class Campaign:
 
     def tasks(self) -> tuple[list[dict], list[dict]]:
         """All runs as picklable dicts, and the (scenario, method) pairs skipped as not applicable."""
-        from magbench.calibrators import available
-        from magbench.simulate.scenarios import get_scenario
 
         cals = available()
         tasks, skipped = [], []
@@ -161,9 +163,6 @@ class Campaign:
 
 def run_task(task: dict) -> dict:
     """One run: simulate the trial's data and validation data, fit, measure.  Never raises."""
-    from magbench.benchmarks.metrics import budget_violation, crb_row, run_metrics
-    from magbench.calibrators import make
-    from magbench.simulate.scenarios import get_scenario
 
     row = {k: task[k] for k in ("scenario", "method", "configuration", "model", "trial", "seed", "data_seed")}
     row["error"] = ""
@@ -212,7 +211,6 @@ def warm_up(task: dict) -> float | None:
         if pid == os.getpid() or seconds >= REWARM_S:
             _WARM[key] = (os.getpid(), seconds)
             return None
-    from magbench.calibrators import prefer_compiled_kernels
 
     prefer_compiled_kernels()  # many fits follow: compiled GA kernels from the first, loaded here, untimed
     t0 = time.perf_counter()
@@ -666,7 +664,6 @@ def _git_commit() -> str:
 
 
 def manifest(campaign: Campaign, skipped: list[dict], command: str) -> dict:
-    from magbench.calibrators import make
 
     versions = {}
     for pkg in ("magbench", "numpy", "scipy", "nlopt", "pandas", "matplotlib", "ppigrf", "dask", "distributed"):
@@ -801,7 +798,6 @@ def one_time_costs(rows: list[dict]) -> dict:
 
 def _write_campaign_tables(campaign: Campaign, out: Path, rows: list[dict], skipped: list[dict], command: str,
                            wall: float, jobs: int, dask_address: str | None, n_missing: int) -> pd.DataFrame:
-    from magbench.benchmarks.tables import write_tables
 
     traces, fields, flat = [], [], []
     costs = one_time_costs(rows)

@@ -18,10 +18,22 @@ from pathlib import Path
 
 import numpy as np
 
+import magbench.simulate.dataset as dataset_module
 from magbench import __version__
+from magbench.benchmarks.argtypes import integer, seed
+from magbench.benchmarks.gradiometer_cli import add_gradiometer_command
 from magbench.benchmarks.progress import slow_phase
+from magbench.calibrators import available, make
+from magbench.calibrators.artifacts import apply_problems, apply_to_csv, export, export_path, load_calibration
+from magbench.calibrators.registry import plugin_errors
 from magbench.errors import InputError
+from magbench.paper import ARCSEC_PER_RAD
 from magbench.safeio import atomic_output, check_output, os_reason
+from magbench.simulate.dataset import read_csv, write_truth
+from magbench.simulate.effects import EFFECTS
+from magbench.simulate.field import igrf_field
+from magbench.simulate.scenarios import get_scenario, scenario_names
+from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_REJECTED = 0, 1, 2, 3
 EXIT_STATUS_HELP = """exit status:
@@ -97,7 +109,6 @@ def _reference_from_args(args) -> float | None:
             raise InputError(f"--igrf wants LAT,LON,ALT_KM,YYYY-MM-DD, got {args.igrf!r}")
         try:
             lat, lon, alt = (float(v) for v in parts[:3])
-            from magbench.simulate.field import igrf_field
 
             return igrf_field(lat, lon, alt, parts[3].strip()).total_nT
         except ValueError as exc:
@@ -107,7 +118,6 @@ def _reference_from_args(args) -> float | None:
 
 def load_dataset(args, require_vector: bool = True):
     """Read FILE with the reference options; f_ref column > --field > --igrf > '# field_nT:'."""
-    from magbench.simulate.dataset import read_csv
 
     cli_ref = _reference_from_args(args)
     data = read_csv(args.file, units=args.units, require_vector=require_vector, expected_field_nT=cli_ref)
@@ -132,23 +142,8 @@ def load_dataset(args, require_vector: bool = True):
     return data
 
 
-def _integer(text: str, minimum: int, why: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < minimum:
-        raise argparse.ArgumentTypeError(f"{value} {why}")
-    return value
-
-
-def _seed(text: str) -> int:
-    """argparse type of every --seed: a non-negative integer (numpy's SeedSequence and nlopt.srand need one)."""
-    return _integer(text, 0, "is negative; seeds are non-negative integers")
-
-
 def _positive_int(text: str) -> int:
-    return _integer(text, 1, "must be at least 1")
+    return integer(text, 1, "must be at least 1")
 
 
 def _printable(text: str) -> str:
@@ -209,10 +204,6 @@ def _json_default(o):
 
 # ---------------------------------------------------------------------------------------- commands
 def cmd_list(args) -> int:
-    from magbench.calibrators import available
-    from magbench.calibrators.registry import plugin_errors
-    from magbench.simulate.scenarios import get_scenario, scenario_names
-    from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
     cals = [{"name": n, "models": list(c.supported_models), "stochastic": c.stochastic, "summary": c.summary,
              "hyperparameters": c._param_names()} for n, c in sorted(available().items())]
@@ -237,7 +228,6 @@ def cmd_list(args) -> int:
 
 def list_effects() -> list[dict]:
     """Effects the simulator can switch on (CONTRACT section 3 names)."""
-    from magbench.simulate.effects import EFFECTS
 
     return [{"name": name, "in_library": cls.in_library, "needs": list(cls.needs),
              "optional": list(getattr(cls, "optional", ())), "n_parameters": len(cls.fit_params),
@@ -245,8 +235,6 @@ def list_effects() -> list[dict]:
 
 
 def cmd_simulate(args) -> int:
-    from magbench.simulate.dataset import write_truth
-    from magbench.simulate.scenarios import get_scenario
 
     scenario = get_scenario(args.scenario)
     out = Path(args.out)
@@ -289,7 +277,6 @@ def _save_target(args):
         if args.export is not None:
             raise InputError("--export picks the format of --save PATH: give --save too")
         return None
-    from magbench.calibrators.artifacts import export_path
 
     path = export_path(args.save, args.export or "json")
     return check_output(path, [args.file], args.force, what="--save file")
@@ -318,7 +305,6 @@ def _calibration_lines(result, n_points: int) -> list[str]:
 
 
 def cmd_calibrate(args) -> int:
-    from magbench.calibrators import make
 
     params = _parse_params(args.param)
     if args.algorithm:
@@ -349,7 +335,6 @@ def cmd_calibrate(args) -> int:
     lines = _calibration_lines(result, len(data))
     saved = None
     if target is not None and (result.accepted or args.accept_any):
-        from magbench.calibrators.artifacts import export
 
         saved = export(result.calibration(), target, args.export or "json", force=args.force, inputs=[args.file])
         lines.append(f"  saved {args.export or 'json'} calibration to {saved}")
@@ -372,7 +357,6 @@ def cmd_calibrate(args) -> int:
 
 
 def cmd_apply(args) -> int:
-    from magbench.calibrators.artifacts import apply_problems, apply_to_csv, load_calibration
 
     check_output(args.out, [args.calibration, args.file], args.force, what="--out file")
     cal = load_calibration(args.calibration)
@@ -397,9 +381,6 @@ def cmd_demo(args) -> int:
 
     from magbench.benchmarks.metrics import evaluations_label
     from magbench.benchmarks.runner import run_one
-    from magbench.calibrators import available
-    from magbench.paper import ARCSEC_PER_RAD
-    from magbench.simulate.scenarios import get_scenario
 
     rows = []
     for name in ("lu2014", "sphere9"):
@@ -471,8 +452,6 @@ def _campaign_from_args(args):
     ``--out`` is touched: unknown scenarios or methods, bad counts, a non-empty folder without --force or
     --resume."""
     from magbench.benchmarks.campaign import CHECKPOINT, LOCK, Campaign, MethodSpec, lock_holder
-    from magbench.calibrators import available
-    from magbench.simulate.scenarios import get_scenario
 
     scenarios = tuple(s for item in args.scenarios for s in item.split(",") if s)
     for s in scenarios:
@@ -663,7 +642,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="magbench", description="Simulate tri-axial fluxgate magnetometers and benchmark "
                      "their calibration algorithms.", epilog=EXIT_STATUS_HELP,
                      formatter_class=_HelpFormatter)
-    from magbench.benchmarks.gradiometer_cli import add_gradiometer_command
 
     parser.add_argument("--version", action="version", version=f"magbench {__version__}")
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
@@ -688,7 +666,6 @@ EXAMPLE_PREFIX = "example:"
 
 def example_recordings() -> dict[str, tuple[Path, str]]:
     """The recordings shipped in ``magbench.simulate.data``: name -> (path, title from its provenance)."""
-    import magbench.simulate.dataset as dataset_module
 
     root = Path(dataset_module.__file__).resolve().parent / "data"  # package data, installed with the wheel
     out = {}
@@ -738,7 +715,7 @@ def _add_list_parser(sub) -> None:
 def _add_simulate_parser(sub) -> None:
     p = sub.add_parser("simulate", help="simulate a scenario to a CSV file and its truth to JSON")
     p.add_argument("--scenario", required=True)
-    p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--out", required=True, metavar="FILE.csv")
     p.add_argument("--truth", metavar="FILE.json")
     p.add_argument("--force", action="store_true", help="overwrite existing output files")
@@ -754,7 +731,7 @@ def _add_calibrate_parser(sub) -> None:
                    help="offset (3 offsets), diag (+3 scales), angles (the 3 angles of Lu et al. 2014), nine (angles, scales, "
                         "offsets), auto (the simplest identifiable model within noise of the best held-out residual; "
                         "default nine)")
-    p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--algorithm", help="NLopt algorithm name (method nlopt)")
     p.add_argument("--blas-threads", type=_positive_int, metavar="N",
                    help="limit BLAS/OpenMP to N threads for this fit (default: the library's own; campaigns always "
@@ -801,7 +778,7 @@ def _add_diagnose_parser(sub) -> None:
     p.add_argument("file", metavar="FILE.csv")
     p.add_argument("--model", default="nine", choices=["angles", "nine"], help="the base calibration model")
     p.add_argument("--folds", type=_positive_int, default=5, help="cross-validation folds (default 5)")
-    p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--figure", metavar="PATH.png", help="write the figure of the residual before/after the selected "
                    "effects to PATH (no figure without it)")
     p.add_argument("--no-figure", action="store_true", help="no figure even with --figure (kept for old scripts)")
@@ -822,7 +799,7 @@ def _add_compare_parser(sub) -> None:
     p.add_argument("--budgets", type=_positive_int, nargs="+", metavar="N",
                    help="run every iterative method at each of these evaluation budgets (fixed-budget comparison); "
                         "closed-form methods run once")
-    p.add_argument("--seed", type=_seed, default=0,
+    p.add_argument("--seed", type=seed, default=0,
                    help="root seed, a non-negative integer; every run's seed follows from it and the run's identity "
                         "(scenario, trial, configuration), never from list positions (default 0)")
     p.add_argument("--out", required=True, metavar="DIR", help="campaign folder: tables, figures, report.html")
@@ -866,7 +843,7 @@ def _add_reproduce_parser(sub) -> None:
 
 def _add_demo_parser(sub) -> None:
     p = sub.add_parser("demo", help="simulate Lu et al. 2014's experiment and a sphere, compare every calibrator")
-    p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_demo)
 

@@ -26,6 +26,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from magbench.benchmarks.comparison_figures import COMPARISON_KINDS
+from magbench.benchmarks.figures import make_figures
+from magbench.benchmarks.tables import md_escape
+
 RMS_TARGETS = (10.0, 2.0, 1.1, 1.01, 1.001)
 """Targets in residual RMS as multiples of the trial's optimum (COCO uses a ladder of precisions)."""
 ANGLE_TARGETS = (10.0, 3.0, 1.5)
@@ -267,7 +271,6 @@ def _tost(diff: np.ndarray, margin: float, wilcoxon) -> float:
 
 
 def _md_table(frame: pd.DataFrame, columns: list[tuple[str, str, str]]) -> str:
-    from magbench.benchmarks.tables import md_escape
 
     head = [h for _, h, _ in columns]
     lines = ["| " + " | ".join(md_escape(h) for h in head) + " |", "|" + "---|" * len(head)]
@@ -305,8 +308,6 @@ def write_comparison(campaign_dir, figures: bool = True, formats=("png",), dpi: 
         written.append(path)
     written.append(_write_markdown(d / "comparison.md", runs, ert, tests, wins))
     if figures:
-        from magbench.benchmarks.comparison_figures import COMPARISON_KINDS
-        from magbench.benchmarks.figures import make_figures
 
         written += make_figures(d, formats=tuple(formats or ("png",)), dpi=dpi, kinds=COMPARISON_KINDS, jobs=jobs)
     return written

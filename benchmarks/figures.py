@@ -39,6 +39,7 @@ from magbench.benchmarks.progress import progress_bar
 from magbench.benchmarks.styles import BOUND_GREY, RC, WARN_COLOUR, campaign_styles
 from magbench.benchmarks.tables import MIN_TRIALS_EFFICIENCY, efficiency_interval
 from magbench.paper import ARCSEC_PER_RAD
+from magbench.simulate.scenarios import get_scenario
 
 ANGLES = ("alpha", "beta", "gamma")
 GREEK = {"alpha": "α", "beta": "β", "gamma": "γ"}
@@ -411,7 +412,6 @@ def _heading_kind(scenario: str, df: pd.DataFrame) -> str | None:
     """``"turntable"``, ``"vehicle"`` or another label when the data have a heading in the sense of a
     rotation about the vertical that sweeps the circle in order; None for random attitudes."""
     try:
-        from magbench.simulate.scenarios import get_scenario
 
         schedule = get_scenario(scenario).schedule
     except Exception:  # an unknown (or user) scenario: judge from the data

@@ -7,6 +7,7 @@ import argparse
 import json
 
 from magbench import paper
+from magbench.benchmarks.argtypes import seed
 
 
 def _cmd_gradiometer(args) -> int:
@@ -27,9 +28,7 @@ def add_gradiometer_command(subparsers) -> argparse.ArgumentParser:
                     "rigid body, 24 parameters) "
                     "in a field fluctuating in time, calibrate it by single-sensor ellipsoid fits and by the "
                     "paper's three 6-gene GAs, and report the per-axis gradient residual (paper: 1.85 nT).")
-    from magbench.benchmarks.cli import _seed  # the one seed type of the command line
-
-    p.add_argument("--seed", type=_seed, default=0, help="random seed, a non-negative integer (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--points", type=int, default=paper.GRADIOMETER_POINTS,
                    help=f"number of attitudes in the record (default {paper.GRADIOMETER_POINTS})")
     p.add_argument("--fluctuation-nT", dest="fluctuation_nT", type=float, default=paper.GRADIOMETER_FLUCTUATION_NT,

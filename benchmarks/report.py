@@ -21,6 +21,8 @@ from urllib.parse import quote
 
 import pandas as pd
 
+from magbench.benchmarks.comparison import ert_cell
+from magbench.benchmarks.comparison_figures import COMPARISON_KINDS
 from magbench.benchmarks.figures import KINDS, failed_mask, make_figures, safe_name
 from magbench.benchmarks.styles import campaign_styles
 from magbench.benchmarks.tables import (
@@ -33,6 +35,7 @@ from magbench.benchmarks.tables import (
     efficiency_text,
     summarize,
 )
+from magbench.simulate.scenarios import get_scenario
 
 TEMPLATES = Path(__file__).with_name("templates")
 
@@ -182,8 +185,6 @@ def _summary(campaign_dir: Path, runs: pd.DataFrame) -> pd.DataFrame:
 
 def _scenario_description(name: str) -> str:
     try:
-        from magbench.simulate.scenarios import get_scenario
-
         return get_scenario(name).description
     except Exception:  # a scenario this installation does not know
         return ""
@@ -296,7 +297,6 @@ def _extra_figures(fig_dir: Path, images: dict | None = None) -> list[dict]:
     """The campaign-wide figures: the method comparison's (ECDF, anytime, profile) from ``images`` (drawn at
     screen resolution by ``make_figures``, each linked to its full-size file), then any other figure written
     into figures/ by others, embedded as it is."""
-    from magbench.benchmarks.comparison_figures import COMPARISON_KINDS
 
     images = images or {}
     items = []
@@ -326,7 +326,6 @@ def _extra_figures(fig_dir: Path, images: dict | None = None) -> list[dict]:
 def _comparison_tables(campaign_dir: Path) -> list[dict]:
     """The method comparison's tables (benchmarks/comparison.py) per scenario: the expected running time to
     each target, the Holm-corrected paired tests and the win rates, as escaped HTML tables."""
-    from magbench.benchmarks.comparison import ert_cell
 
     d = campaign_dir / "comparison"
     if not (d / "ert.csv").is_file():

@@ -26,18 +26,25 @@ import numpy as np
 import pandas as pd
 
 from magbench import paper
+from magbench.benchmarks import quality, speed
+from magbench.benchmarks.campaign import CHECKPOINT, Campaign, MethodSpec, clear_outputs, run_campaign
+from magbench.benchmarks.claims import paper_table2, write_claims
+from magbench.benchmarks.cli import main as cli
+from magbench.benchmarks.comparison import write_comparison
+from magbench.benchmarks.diagnosis import diagnosis_text
+from magbench.benchmarks.diagnosis.blind import run_blind
+from magbench.benchmarks.figures import make_figures
+from magbench.benchmarks.progress import is_terminal, progress_bar
+from magbench.benchmarks.report import write_report
+from magbench.benchmarks.speed import suite_file
 from magbench.benchmarks.tables import md_escape
+from magbench.calibrators import available, make
+from magbench.simulate.scenarios import get_scenario
 
 SCENARIOS = ("lu2014", "sphere9", "cap9", "vehicle9")
 ROOT_SEED = 2014
 PAPER_ANGLES = {k.removesuffix("_rad"): v for k, v in paper.TABLE1_ANGLES_RAD.items()}  # seed 000, Table 1
 PAPER_TEXT_RMS = (411.82, 49.38)  # seed 000, section 3 text
-
-
-def paper_table2() -> pd.DataFrame:
-    """Seed 000's Table 2 as shipped in simulate/data (provenance beside it)."""
-    with resources.files("magbench.simulate").joinpath("data/lu2014_table2.csv").open("r", encoding="utf-8") as fh:
-        return pd.read_csv(fh, comment="#")
 
 
 def _rms(v) -> float:
@@ -46,8 +53,6 @@ def _rms(v) -> float:
 
 def lu2014_tables(campaign_dir: Path, out: Path) -> Path:
     """Seed 000's Table 1 (angles) and Table 2 (total field before/after) beside our reproduction."""
-    from magbench.calibrators import make
-    from magbench.simulate.scenarios import get_scenario
 
     runs = pd.read_csv(campaign_dir / "runs.csv", keep_default_na=False, na_values=[""])
     lu = runs[(runs["scenario"] == "lu2014") & runs["error"].isna()]
@@ -105,8 +110,6 @@ REAL_DATA = [("lu2014_table2", "nT", "nine"), ("ck_acc_mag", "G", "nine")] + \
 
 def diagnosis_reports(out: Path, blind_n: int = 300, progress: bool = False, jobs: int = 1) -> Path:
     """``magbench diagnose`` on the real recordings shipped in simulate/data, and the blind check."""
-    from magbench.benchmarks.cli import main as cli
-
     folder = out / "diagnosis"
     folder.mkdir(parents=True, exist_ok=True)
     rows = []
@@ -120,7 +123,6 @@ def diagnosis_reports(out: Path, blind_n: int = 300, progress: bool = False, job
         if code == 0:
             result = json.loads(buf.getvalue())
             result["figure"] = f"{name}.png"
-            from magbench.benchmarks.diagnosis import diagnosis_text
 
             (folder / f"{name}.json").write_text(json.dumps(result, indent=2) + "\n")
             (folder / f"{name}.txt").write_text(diagnosis_text(result, f"simulate/data/{name}.csv") + "\n")
@@ -166,7 +168,6 @@ def blind_check(n: int, progress: bool = False, jobs: int = 1) -> str:
     """The blind check (``diagnosis.blind``: cases written independently of the fitted effect classes):
     right / partly right / honest unexplained / wrong / missed per category, and every case.  Cases from
     BLIND_HELD_OUT on were first run after the diagnosis was final; they get their own summary."""
-    from magbench.benchmarks.diagnosis.blind import run_blind
 
     cases = run_blind(n, jobs=jobs, progress=lambda it, total: _bar(it, "blind check", progress, total=total))
     outcomes = ("right", "partly", "honest_unexplained", "wrong", "missed", "false_alarm")
@@ -207,7 +208,6 @@ def blind_check(n: int, progress: bool = False, jobs: int = 1) -> str:
     return "\n".join(lines)
 
 def _benchmark_suite(out: Path) -> Path:
-    from magbench.benchmarks.speed import suite_file
 
     suite = suite_file("test_bench_calibrators.py")
     raw = (out / "benchmarks" / "calibrators.json").resolve()
@@ -220,7 +220,6 @@ def _benchmark_suite(out: Path) -> Path:
 def _bar(items, desc: str, progress: bool, total: int | None = None, **kw):
     """Progress on stderr over ``items`` (nothing when ``progress`` is false): a bar on a terminal, plain
     periodic lines otherwise (``benchmarks.progress``)."""
-    from magbench.benchmarks.progress import is_terminal, progress_bar
 
     if progress and not is_terminal():
         if total is None:
@@ -290,16 +289,10 @@ def write_timing(clock: PhaseClock, out: Path, jobs: int, quick: bool) -> Path:
 def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = True) -> list[Path]:
     from tqdm import tqdm
 
-    from magbench.benchmarks.campaign import CHECKPOINT, Campaign, MethodSpec, clear_outputs, run_campaign
-    from magbench.benchmarks.comparison import write_comparison
-    from magbench.benchmarks.figures import make_figures
-    from magbench.benchmarks.report import write_report
-    from magbench.calibrators import available
 
     out.mkdir(parents=True, exist_ok=True)
     written = []
     trials = 3 if quick else 50
-    from magbench.benchmarks.progress import is_terminal
 
     tty = is_terminal()
     phases = tqdm(total=4 if quick else 8, desc="reproduce", unit="phase", disable=not (progress and tty),
@@ -345,8 +338,6 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
         phase("diagnosis of the real recordings and the blind check")
         written.append(diagnosis_reports(out, blind_n=14 if quick else 300, progress=progress, jobs=jobs))
         if not quick:
-            from magbench.benchmarks import quality, speed
-            from magbench.benchmarks.claims import write_claims
 
             phase("quality study")
             quality.write(out, 50, 10, jobs=jobs)

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from magbench import paper
 from magbench.errors import InputError
 from magbench.simulate.dataset import ScalarSeries
 from magbench.simulate.effects import EFFECTS, OutlierEffect, library_effects
@@ -133,7 +134,6 @@ CONFUSABLE_CORRELATION = 0.95
 
 
 def _paper_angles():
-    from magbench import paper
 
     a = paper.TABLE1_ANGLES_RAD
     return a["alpha_rad"], a["beta_rad"], a["gamma_rad"]
