@@ -303,10 +303,12 @@ def _direct_labels(ax, points: list[tuple[str, float, float, str]], font_pt: flo
         px = (np.log10(x) - np.log10(x0)) / (np.log10(x1) - np.log10(x0)) * w_in * 72
         py = (np.log10(y) - np.log10(y0)) / (np.log10(y1) - np.log10(y0)) * h_in * 72
         width = 0.55 * font_pt * len(name)
-        dy = 0.0
-        for qx, qy, qw in placed:
-            if abs(px - qx) < max(width, qw) + 8 and abs(py + dy - qy) < font_pt + 2:
-                dy = qy + font_pt + 2 - py
+        dy, moved = 0.0, True
+        while moved:  # a label pushed past one neighbour may land on another placed before it: check them all again
+            moved = False
+            for qx, qy, qw in placed:
+                if abs(px - qx) < max(width, qw) + 8 and abs(py + dy - qy) < font_pt + 1.99:  # 0.01: rounding
+                    dy, moved = qy + font_pt + 2 - py, True
         placed.append((px, py + dy, width))
         leader = {"arrowprops": {"arrowstyle": "-", "color": colour, "lw": 0.6, "shrinkA": 0, "shrinkB": 3}} \
             if dy > font_pt else {}  # a label pushed away from its point is joined to it by a thin line

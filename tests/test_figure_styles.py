@@ -122,3 +122,24 @@ def test_every_style_draws_as_a_format_string_too():
     for st in style_map([f"m{i}" for i in range(DISTINCT)]).values():
         ax.errorbar([1.0], [1.0], yerr=[[0.1], [0.1]], fmt=st["marker"], color=st["color"])
         ax.plot([1.0, 2.0], [1.0, 2.0], st["ls"] + st["marker"], color=st["color"])
+
+
+def test_direct_labels_never_overlap_even_where_points_coincide():
+    import numpy as np
+    from matplotlib.figure import Figure
+
+    from magbench.benchmarks.figures import _direct_labels
+
+    fig = Figure(figsize=(8.5, 4.8))
+    ax = fig.subplots()
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.plot([1e-4, 1e-1], [0.5, 1e3], alpha=0)
+    rng = np.random.default_rng(0)
+    points = [(f"method{i}", 3e-4, 1.1, "k") for i in range(12)]  # twelve on one spot
+    points += [(f"m{i}", 3e-4 * (1 + 1e-9 * i), 1.1 + 1e-12 * i, "k") for i in range(6)]  # float-close ones
+    points += [(f"p{i}", float(10 ** rng.uniform(-4, -1)), float(10 ** rng.uniform(0, 3)), "k") for i in range(10)]
+    _direct_labels(ax, points)  # returns (it once looped forever on labels a rounding error apart)
+    offsets = {a.get_text(): a.xyann[1] for a in ax.texts}
+    same_spot = sorted(offsets[f"method{i}"] for i in range(12))
+    assert all(b - a >= 7.5 + 1.9 for a, b in zip(same_spot, same_spot[1:]))  # stacked, one line apart
