@@ -93,3 +93,11 @@ def test_a_burst_in_one_part_of_a_fixed_record_is_not_outliers():
     raw[late] += rng.normal(0, 1, (30, 3)) * 60.0
     r = diagnose(Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s, temp_C=d.temp_C))
     assert r["verdict"] == "insufficient_data" and not r["time_only"]["spikes"]["named"]
+
+
+def test_readings_stuck_at_a_repeated_extreme_are_clipping_not_outliers():
+    d = fixed(drift_nT_per_day=0.0, seed=7)
+    raw = d.raw_nT.copy()
+    raw[::50] = raw.max(axis=0) + 300.0  # forty readings at the converter's limit on every axis
+    r = diagnose(Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s, temp_C=d.temp_C))
+    assert r["verdict"] == "insufficient_data" and r["time_only"]["spikes"]["clipped_share"] == 1.0

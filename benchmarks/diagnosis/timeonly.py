@@ -8,8 +8,8 @@ predicts (when ``temp`` is logged), the noise floor from time neighbours, and a 
 the attitude part is stated as ``insufficient_data``.
 
 Spikes and a temperature effect are what a fixed sensor can name.  Spikes: glitches in ``|B| - F`` beyond
-the smooth trend, judged by the vector diagnosis's own tests (their count, isolation and spread in time, a
-noise-like rest).  A temperature effect: ``|B| - F`` follows the logged temperature beyond a smooth function
+the smooth trend, judged by the vector diagnosis's own tests (their count, isolation and spread in time, not clipped
+readings, a noise-like rest).  A temperature effect: ``|B| - F`` follows the logged temperature beyond a smooth function
 of time (the temperature's own changes, not only the time they share).  A drift alone cannot be named: with
 one direction seen and a scalar reference, a drift of the offsets, of the scale and of the field's magnitude
 move ``|B| - F`` alike, so it is reported in ``time_only`` and ``time_verdict``, and the verdict stays
@@ -24,7 +24,7 @@ from magbench.simulate.dataset import Dataset
 from magbench.simulate.effects import OutlierEffect
 
 from .floor import time_difference_floor
-from .naming import BULK_RATIO_MAX, bulk_ratio, spikes_isolated
+from .naming import BULK_RATIO_MAX, CLIPPED_SHARE_MAX, bulk_ratio, clipped_share, spikes_isolated
 from .scoring import rms
 
 SECONDS_PER_HOUR = 3600.0
@@ -69,7 +69,7 @@ def time_only(data: Dataset, reason: str) -> dict:
     t, r = t[order], r[order]
     hours = (t - t[0]) / SECONDS_PER_HOUR
     out: dict = {"kind": "time_only", "n_points": n, "attitude": "insufficient_data", "attitude_reason": reason}
-    spikes, spike_info = _spikes(r, t)
+    spikes, spike_info = _spikes(r, t, raw[order])
     keep = ~spikes
     floor = time_difference_floor(r[keep], t[keep] if data.t_s is not None else None)
     design = np.column_stack([np.ones(n), hours - hours.mean()])
@@ -119,7 +119,7 @@ def time_only(data: Dataset, reason: str) -> dict:
     return out
 
 
-def _spikes(r: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, dict]:
+def _spikes(r: np.ndarray, t: np.ndarray, raw_nT: np.ndarray) -> tuple[np.ndarray, dict]:
     """Glitches in the time series ``r`` (in time order): samples beyond SPIKE_SIGMA robust sigma of what a
     smooth trend leaves, named only when their count, isolation and spread in time and a noise-like rest say
     they are outliers (the naming rule's spike tests); (mask, the evidence)."""
@@ -135,8 +135,11 @@ def _spikes(r: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, dict]:
         mask = OutlierEffect.spike_mask(resid)
     isolated, share = spikes_isolated(mask, t)
     ratio = bulk_ratio(resid, mask)
-    named = bool(OutlierEffect.enough(int(mask.sum()), n) and isolated and ratio <= BULK_RATIO_MAX)
+    clip = clipped_share(mask, raw_nT)
+    named = bool(OutlierEffect.enough(int(mask.sum()), n) and isolated and ratio <= BULK_RATIO_MAX
+                 and clip <= CLIPPED_SHARE_MAX)
     return (mask if named else np.zeros(n, dtype=bool)), {
         "n": int(mask.sum()), "named": named, "neighbour_share": share, "bulk_tail_ratio": ratio,
+        "clipped_share": clip,
         "rule": "beyond 5 robust sigma of a smooth trend; named when more than noise gives, isolated and spread in "
-                "time, on a noise-like rest"}
+                "time, not readings at a repeated extreme (clipping), on a noise-like rest"}
