@@ -175,3 +175,15 @@ def test_clipped_readings_are_saturation_not_outliers():
     assert case.present == ("outliers",) and control["verdict"] == "outliers"
     raw = np.array([[1.0, 5.0, 2.0], [3.0, 5.0, 0.0], [2.0, 5.0, 1.0], [0.5, 4.0, 3.0], [0.2, 1.0, 0.1]])
     assert clipped(raw).tolist() == [True, True, True, False, False]  # y sits at its maximum three times
+
+
+def test_temperature_is_told_from_a_drift_only_by_its_own_changes(monkeypatch):
+    from magbench.simulate.effects import TemperatureEffect
+    from magbench.simulate.scenarios import get_scenario
+
+    rippled = diagnose(get_scenario("tumble9q").with_effects(TemperatureEffect()).build(3), base="nine")
+    assert rippled["verdict"] == "temperature" and rippled["naming"]["temperature_beyond_time_z"] > 3
+    monkeypatch.setattr(TemperatureEffect, "RIPPLE_C", 0.0)  # the control: a temperature that is a smooth ramp
+    smooth = diagnose(get_scenario("tumble9q").with_effects(TemperatureEffect()).build(3), base="nine")
+    assert smooth["verdict"] == "temperature|offset_drift", smooth["naming"]["temperature_beyond_time_z"]
+    assert smooth["naming"]["temperature_beyond_time_z"] <= 3

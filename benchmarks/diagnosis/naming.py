@@ -39,8 +39,10 @@ Spikes (``outliers``) keep their own count test (their evidence is their number)
 Two explanations the data cannot tell apart are said out loud (``a|b``).  When the logged temperature is
 itself a smooth function of time, a slow drift of the offsets and a temperature effect are the same thing
 to these data (a temperature coefficient of any smooth shape is a drift), so ``offset_drift`` is always
-said with ``temperature`` (and a temperature effect with ``offset_drift`` when that alone explains the
-residual significantly), and an offset drift named beside a temperature effect is folded into it (what it
+said with ``temperature``, and a temperature effect with ``offset_drift`` when that alone explains the
+residual significantly, unless the readings follow the temperature's own changes: the fit with the logged
+temperature beats the fit with the temperature replaced by a smooth function of time by SWAP_Z standard
+errors, which no drift can.  An offset drift named beside a temperature effect is folded into it (what it
 removed is then part of the remainder).  ``field_drift`` (one scalar series, the same on every axis) is
 paired with a temperature effect only when either can replace the other with a held-out residual within the
 tests' error on every fold family.
@@ -60,6 +62,9 @@ FAMILY_ALPHA = 0.01
 TEMPERATURE_FOLLOWS_TIME_R2 = 0.9
 """A logged temperature whose variance a degree-4 polynomial of time explains at least this much cannot be
 told from time by these data."""
+TEMPERATURE_SMOOTH_DEGREE = 6
+"""A temperature effect is told from a drift in time when the fit with the logged temperature beats the fit
+with the temperature replaced by this degree of polynomial in time by SWAP_Z standard errors (paired)."""
 SWAP_Z = 3.0
 """Two explanations are equivalent when each alone is significant on every fold family and replacing one by
 the other changes the held-out residual by less than this many standard errors (paired) on every family."""
@@ -444,7 +449,7 @@ def _pair(a: str, b: str, temp_r2: float, statement: str, evidence: dict) -> dic
 
 
 def confounded_pairs(heldout_by_family: dict, named: list[str], candidates: list[str],
-                     temp_r2: float | None) -> list[dict]:
+                     temp_r2: float | None, temperature_beyond_time_z: float | None = None) -> list[dict]:
     """Pairs the data cannot tell apart when the temperature follows time (module docstring): an offset drift
     and a temperature effect always; a temperature effect and a field drift when swapping one for the other
     changes no fold family's held-out residual by more than SWAP_Z standard errors."""
@@ -465,6 +470,8 @@ def confounded_pairs(heldout_by_family: dict, named: list[str], candidates: list
                              "same to these data", {f"{b}_alone_z_by_fold_family": alone_z(a, b)}))
             continue
         if _is_thermal(a):
+            if temperature_beyond_time_z is not None and temperature_beyond_time_z > SWAP_Z:
+                continue  # the readings follow the temperature's own changes: no drift in time can stand in for it
             drifts = [c for c in BODY_DRIFTS if c in candidates and c not in named]
             zs = {c: alone_z(a, c) for c in drifts}
             strong = [c for c in drifts if zs[c]["random"] > SWAP_Z]

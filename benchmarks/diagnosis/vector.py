@@ -20,8 +20,10 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
+from numpy.polynomial import legendre
 
 from magbench.calibrators import make
 from magbench.calibrators.registry import get
@@ -40,6 +42,8 @@ from .naming import (
     FAMILY_ALPHA,
     HOLD_Z,
     LAG_SHIFT_SHARE,
+    TEMPERATURE_FOLLOWS_TIME_R2,
+    TEMPERATURE_SMOOTH_DEGREE,
     TIME_EFFECTS,
     _is_thermal,
     attitude_blocks,
@@ -161,6 +165,7 @@ class Diagnosis:
     def run(self) -> dict:
         d, n, k = self.columns, len(self.columns), self.k
         x9, r_all, unit = self.base_residual()
+        self.r_all = r_all
         self.unit = unit
         self.progress.step("base calibration")
         fl = vector_floor(unit, d, r_all, self.rows_in_time_order)
@@ -296,14 +301,18 @@ class Diagnosis:
         named = undominated(evidence, named, remainder_of)
         if named != selected:
             current = heldout["random"](named)
-        confounded = confounded_pairs(heldout, named, every, temp_r2) + attitude_confounds(evidence, slow)
+        follows = temp_r2 is not None and temp_r2 >= TEMPERATURE_FOLLOWS_TIME_R2
+        beyond = self._temperature_beyond_time(named) if follows else None
+        confounded = (confounded_pairs(heldout, named, every, temp_r2, temperature_beyond_time_z=beyond)
+                      + attitude_confounds(evidence, slow))
         naming = {"rule": "named only when significant on random, time-blocked and attitude-blocked folds (Holm, "
                           f"family-wise {FAMILY_ALPHA:g}), with the base residual above the floor and the effect's own "
                           "contribution above the minimum detectable effect",
                   "family_alpha": FAMILY_ALPHA, "min_detectable_effect_nT": mde,
                   "base_residual_z": base_rem["remainder_z"],
                   "base_significant": bool(base_rem["remainder_significant"]),
-                  "time_predicts_attitude_r2": slow, "temperature_follows_time_r2": temp_r2, "evidence": evidence}
+                  "time_predicts_attitude_r2": slow, "temperature_follows_time_r2": temp_r2,
+                  "temperature_beyond_time_z": beyond, "evidence": evidence}
         return named, current, naming, confounded
 
     def _shift_signature(self, evidence: list[dict], named: list[str]) -> list[str]:
@@ -329,6 +338,29 @@ class Diagnosis:
                               "magnitude where the attitude changes fastest (a low-pass response of something else, such "
                               "as an induced field that lags or eddy currents), not a shifted reading")
         return named
+
+    def _temperature_beyond_time(self, named: list[str]) -> float | None:
+        """Paired z of the fit of base + ``named`` with the logged temperature against the same fit with the
+        temperature replaced by its smooth function of time (a degree-TEMPERATURE_SMOOTH_DEGREE polynomial):
+        large when the readings follow the temperature's own changes, which no drift in time can (None without
+        a thermal effect named)."""
+        d = self.columns
+        thermal = [nm for nm in named if _is_thermal(nm)]
+        if not thermal or d.t_s is None or d.temp_C is None or np.ptp(d.t_s) <= 0:
+            return None
+        s = 2 * (d.t_s - d.t_s.min()) / np.ptp(d.t_s) - 1
+        design = legendre.legvander(s, TEMPERATURE_SMOOTH_DEGREE)
+        smooth = design @ np.linalg.lstsq(design, d.temp_C, rcond=None)[0]
+        d2 = replace(d, temp_C=smooth, extra=dict(d.extra))
+        spikes = self.tangent.spikes
+        info2 = dict(self.effect_info)
+        info2.update({nm: EFFECTS[nm].prepare(d2, self.norm, self.r_all, self.unit, spikes) for nm in thermal})
+        model2 = ExtendedModel(self.base, self.model.effects, d2, self.norm, self.model.o0, info2)
+        free = self.model.free_indices(named)
+        keep = ~spikes
+        r1 = self.model.residuals(self.model.fit(self.tangent.x, free, keep=keep))[keep]
+        r2 = model2.residuals(model2.fit(self.tangent.x, free, keep=keep))[keep]
+        return float(paired_z(r2, r1))
 
     def _within_holds(self, evidence: list[dict], named: list[str], heldout) -> list[str]:
         """Rule 4 for time effects in a record of held attitudes: named only when they lower the held-out
