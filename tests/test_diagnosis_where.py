@@ -1,6 +1,7 @@
 """'Where' in two dimensions and per axis: a switch-on is placed in time, a structure along one body axis is
 seen on that axis, and the attitude x time map separates an attitude from a time structure."""
 import numpy as np
+import pytest
 
 from magbench.benchmarks.diagnosis.wheremap import attitude_time_map, axis_projections, change_points
 
@@ -42,3 +43,31 @@ def test_the_map_tells_attitude_from_time():
     timely = attitude_time_map(6.0 * np.sin(t / 600) + rng.normal(0, 1, n), u, t)
     assert attitude["attitude_explained_pct"] > 50 > attitude["time_explained_pct"]
     assert timely["time_explained_pct"] > 50 > timely["attitude_explained_pct"]
+
+
+def test_the_switch_scan_from_sums_equals_a_least_squares_fit_per_candidate():
+    import numpy as np
+
+    from magbench.benchmarks.diagnosis.wheremap import MIN_SEGMENT, STEP_GRID, body_field_step
+
+    rng = np.random.default_rng(1)
+    n = 2000
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    t = np.sort(rng.uniform(0, 1000, n))
+    r = rng.normal(0, 1, n) + (t > 620) * (u @ np.array([30.0, -20.0, 10.0]))
+    best = None  # the reference: every candidate's own least-squares fit of [u H, u, 1]
+    base = np.column_stack([u, np.ones(n)])
+    for q in np.linspace(0.02, 0.98, STEP_GRID):
+        on = t >= np.quantile(t, q)
+        if on.sum() < MIN_SEGMENT or (~on).sum() < MIN_SEGMENT:
+            continue
+        cols = np.column_stack([u * on[:, None], base])
+        coef = np.linalg.lstsq(cols, r, rcond=None)[0]
+        sse = float(np.sum((r - cols @ coef) ** 2))
+        if best is None or sse < best[0]:
+            cut = int(np.argmax(on))
+            best = (sse, 0.5 * (t[cut - 1] + t[cut]), coef[:3])
+    step = body_field_step(r, u, t, 1.0)
+    assert step["time_s"] == pytest.approx(best[1])
+    assert np.allclose(step["vector_nT"], best[2], atol=1e-6)

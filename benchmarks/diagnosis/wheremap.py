@@ -150,22 +150,33 @@ of freedom, scanned over STEP_GRID candidate times)."""
 def body_field_step(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray, floor_nT: float) -> dict | None:
     """A field fixed in the body that switches on at one time (a current loop, a load) is seen in the scalar
     residual as ``u . d`` after the switch (u the unit reading): scan the switch time, fit ``[u H, u, 1]``
-    and keep the best; None when it is not significant against the floor."""
+    and keep the best; None when it is not significant against the floor.  Each candidate's least squares
+    comes from the normal equations, built from sums over the rows after it (one pass over the record, then
+    a 7 x 7 system per candidate), so the scan costs little more than one fit."""
     order = np.argsort(t_s, kind="stable")
     ts, rs, us = t_s[order], r[order], unit[order]
-    base = np.column_stack([us, np.ones(len(rs))])
-    sse0 = float(np.sum((rs - base @ np.linalg.lstsq(base, rs, rcond=None)[0]) ** 2))
+    n = len(rs)
+    base = np.column_stack([us, np.ones(n)])
+    g_base, b_base, rr = base.T @ base, base.T @ rs, float(rs @ rs)
+    sse0 = rr - float(b_base @ np.linalg.lstsq(g_base, b_base, rcond=None)[0])
+    cuts = np.searchsorted(ts, np.quantile(ts, np.linspace(0.02, 0.98, STEP_GRID)), side="left")
+    cuts = np.unique(cuts[(cuts >= MIN_SEGMENT) & (n - cuts >= MIN_SEGMENT)])
     best = None
-    for q in np.linspace(0.02, 0.98, STEP_GRID):
-        on = ts >= np.quantile(ts, q)
-        if on.sum() < MIN_SEGMENT or (~on).sum() < MIN_SEGMENT:
-            continue
-        cols = np.column_stack([us * on[:, None], base])
-        coef, *_ = np.linalg.lstsq(cols, rs, rcond=None)
-        sse = float(np.sum((rs - cols @ coef) ** 2))
-        if best is None or sse < best[0]:
-            cut = int(np.argmax(on))
-            best = (sse, float(0.5 * (ts[cut - 1] + ts[cut])), coef[:3])
+    if len(cuts):
+        rows = np.column_stack([(us[:, :, None] * us[:, None, :]).reshape(n, 9), us * rs[:, None]])
+        seg = np.add.reduceat(rows, cuts, axis=0)  # sums from each cut to the next (the last to the end)
+        after = np.cumsum(seg[::-1], axis=0)[::-1]  # sums over the rows at and after each cut
+        m_after = np.add.reduceat(us, cuts, axis=0)[::-1].cumsum(axis=0)[::-1]
+        for cut, sums, m in zip(cuts, after, m_after):
+            p_mat, c = sums[:9].reshape(3, 3), sums[9:]
+            a = np.zeros((7, 7))
+            a[:3, :3], a[:3, 3:6], a[3:6, :3], a[:3, 6], a[6, :3] = p_mat, p_mat, p_mat, m, m
+            a[3:, 3:] = g_base
+            b = np.concatenate([c, b_base])
+            coef = np.linalg.lstsq(a, b, rcond=None)[0]
+            sse = rr - float(b @ coef)
+            if best is None or sse < best[0]:
+                best = (sse, float(0.5 * (ts[cut - 1] + ts[cut])), coef[:3])
     if best is None or not floor_nT > 0:
         return None
     drop = (sse0 - best[0]) / floor_nT ** 2
