@@ -68,7 +68,7 @@ def main() -> None:
     ap.add_argument("--start", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", type=Path)
-    ap.add_argument("--split", type=str, default="240,480,720,960,1200",
+    ap.add_argument("--split", type=str, default="240,480,720,960,1200,1440",
                     help="case indices where a new part begins (see the labels below)")
     args = ap.parse_args()
     rows = run(range(args.start, args.start + args.cases), args.jobs)
@@ -83,7 +83,9 @@ def main() -> None:
     labels = ["looked at while the naming rule was developed", "looked at while its signatures were added",
               "looked at once, before a floor change that was tried and reverted",
               "looked at with that floor change and the clipping test",
-              "run once, before the fixed sensor's temperature test", "first run with the final code (held out)"]
+              "run once, before the fixed sensor's temperature test",
+              "run once, before the temperature-beyond-time test and the switch scan from sums",
+              "first run with the final code (held out)"]
     for (a, b), label in zip(zip(cuts[:-1], cuts[1:]), labels):
         part = [r for r in rows if a <= r["index"] < b]
         if part:
