@@ -414,7 +414,6 @@ def _heading_kind(scenario: str, df: pd.DataFrame) -> str | None:
     """``"turntable"``, ``"vehicle"`` or another label when the data have a heading in the sense of a
     rotation about the vertical that sweeps the circle in order; None for random attitudes."""
     try:
-
         schedule = get_scenario(scenario).schedule
     except Exception:  # an unknown (or user) scenario: judge from the data
         schedule = None

@@ -263,6 +263,18 @@ def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None,
     return share <= RUN_FRACTION_MAX and fast_ok and spread_ok, share
 
 
+def spike_signature(spikes: np.ndarray, r: np.ndarray, t_s: np.ndarray | None, raw_nT: np.ndarray,
+                    rate_readings: np.ndarray | None = None) -> tuple[bool, float, float, float]:
+    """Whether the spikes of residual ``r`` look like glitches: isolated and spread in time
+    (``spikes_isolated``, not where ``rate_readings`` change fastest when given), on a noise-like rest
+    (``bulk_ratio``) and not readings clipped at a range limit (``clipped_share``); with the neighbour share,
+    the tail ratio and the clipped share, in the form ``confirm`` takes as ``spikes_ok``."""
+    isolated, share = spikes_isolated(spikes, t_s, rate_readings)
+    ratio = bulk_ratio(r, spikes)
+    clip = clipped_share(spikes, raw_nT)
+    return isolated and ratio <= BULK_RATIO_MAX and clip <= CLIPPED_SHARE_MAX, share, ratio, clip
+
+
 def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: float,
             base_significant: bool, spikes_ok: tuple = (True, 0.0),
             slow_attitude_r2: float | None = None, temp_time_r2: float | None = None) -> tuple[list[str], list[dict]]:

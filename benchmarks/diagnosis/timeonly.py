@@ -24,7 +24,7 @@ from magbench.simulate.dataset import Dataset
 from magbench.simulate.effects import OutlierEffect
 
 from .floor import time_difference_floor
-from .naming import BULK_RATIO_MAX, CLIPPED_SHARE_MAX, bulk_ratio, clipped_share, spikes_isolated
+from .naming import spike_signature
 from .scoring import rms
 
 SECONDS_PER_HOUR = 3600.0
@@ -69,17 +69,16 @@ def time_only(data: Dataset, reason: str) -> dict:
     t, r = t[order], r[order]
     hours = (t - t[0]) / SECONDS_PER_HOUR
     out: dict = {"kind": "time_only", "n_points": n, "attitude": "insufficient_data", "attitude_reason": reason}
-    spikes, spike_info = _spikes(r, t, raw[order])
+    span = np.ptp(t)
+    trend_design = legendre.legvander(2 * (t - t[0]) / span - 1, TREND_DEGREE) if span > 0 else None
+    spikes, spike_info = _spikes(r, trend_design, t, raw[order])
     keep = ~spikes
     floor = time_difference_floor(r[keep], t[keep] if data.t_s is not None else None)
     design = np.column_stack([np.ones(n), hours - hours.mean()])
     coef, se, resid = _linear(design[keep], r[keep])
     drift = {"drift_nT_per_h": float(coef[1]), "drift_se_nT_per_h": float(se[1]),
              "significant": bool(abs(coef[1]) > DRIFT_Z * se[1]) if np.ptp(hours) > 0 else False}
-    span = np.ptp(t)
-    if span > 0 and n > 3 * TREND_DEGREE:
-        s = 2 * (t - t[0]) / span - 1
-        trend_design = legendre.legvander(s, TREND_DEGREE)
+    if trend_design is not None and n > 3 * TREND_DEGREE:
         trend = trend_design @ np.linalg.lstsq(trend_design[keep], r[keep], rcond=None)[0]
         drift["trend_range_nT"] = float(np.ptp(trend))
         drift["rms_after_trend_nT"] = rms((r - trend)[keep])
@@ -98,7 +97,7 @@ def time_only(data: Dataset, reason: str) -> dict:
             "temperature_nT_per_C": float(tcoef[2]), "temperature_se_nT_per_C": float(tse[2]),
             "beyond_time": "the coefficient with a linear drift in time fitted beside it",
             "significant": bool(abs(tcoef[2]) > DRIFT_Z * tse[2])}
-        if span > 0 and n > 3 * TREND_DEGREE:  # beyond any smooth function of time: the temperature's own signature
+        if trend_design is not None and n > 3 * TREND_DEGREE:  # beyond any smooth function of time: its own signature
             sdesign = np.column_stack([trend_design, temp - temp.mean()])
             scoef, sse, _ = _linear(sdesign[keep], r[keep])
             z = float(abs(scoef[-1]) / sse[-1]) if sse[-1] > 0 else 0.0
@@ -110,34 +109,28 @@ def time_only(data: Dataset, reason: str) -> dict:
                               "logged temperature's own changes, not only the time they share"})
     named = [name for name, part in (("drift", drift), ("temperature", out["time_only"].get("temperature", {})))
              if part.get("significant")]
-    if spike_info["named"]:
-        named = ["outliers", *named]
-    verdict = (["outliers"] if spike_info["named"] else []) + \
-        (["temperature"] if out["time_only"].get("temperature", {}).get("named") else [])
+    outliers = ["outliers"] if spike_info["named"] else []
+    named = outliers + named
+    verdict = outliers + (["temperature"] if out["time_only"].get("temperature", {}).get("named") else [])
     out["verdict"] = "+".join(verdict) if verdict else "insufficient_data"
     out["time_verdict"] = "+".join(named) if named else "constant"
     return out
 
 
-def _spikes(r: np.ndarray, t: np.ndarray, raw_nT: np.ndarray) -> tuple[np.ndarray, dict]:
+def _spikes(r: np.ndarray, design: np.ndarray | None, t: np.ndarray, raw_nT: np.ndarray) -> tuple[np.ndarray, dict]:
     """Glitches in the time series ``r`` (in time order): samples beyond SPIKE_SIGMA robust sigma of what a
-    smooth trend leaves, named only when their count, isolation and spread in time and a noise-like rest say
-    they are outliers (the naming rule's spike tests); (mask, the evidence)."""
+    smooth trend (the columns ``design``) leaves, named only when their count and the naming rule's spike
+    signature (``spike_signature``) say they are outliers; (mask, the evidence)."""
     n = len(r)
-    if n < 3 * TREND_DEGREE or np.ptp(t) <= 0:
+    if n < 3 * TREND_DEGREE or design is None:
         return np.zeros(n, dtype=bool), {"n": 0, "named": False}
-    s = 2 * (t - t[0]) / np.ptp(t) - 1
-    design = legendre.legvander(s, TREND_DEGREE)
     resid = r - design @ np.linalg.lstsq(design, r, rcond=None)[0]
     mask = OutlierEffect.spike_mask(resid)
     if mask.any():  # the trend again without them, so that large spikes do not bend it
         resid = r - design @ np.linalg.lstsq(design[~mask], r[~mask], rcond=None)[0]
         mask = OutlierEffect.spike_mask(resid)
-    isolated, share = spikes_isolated(mask, t)
-    ratio = bulk_ratio(resid, mask)
-    clip = clipped_share(mask, raw_nT)
-    named = bool(OutlierEffect.enough(int(mask.sum()), n) and isolated and ratio <= BULK_RATIO_MAX
-                 and clip <= CLIPPED_SHARE_MAX)
+    glitches, share, ratio, clip = spike_signature(mask, resid, t, raw_nT)
+    named = bool(OutlierEffect.enough(int(mask.sum()), n) and glitches)
     return (mask if named else np.zeros(n, dtype=bool)), {
         "n": int(mask.sum()), "named": named, "neighbour_share": share, "bulk_tail_ratio": ratio,
         "clipped_share": clip,

@@ -38,8 +38,6 @@ from .localize import folds, localize, tails
 from .model import BASE_FREE, ExtendedModel, Tangent
 from .naming import (
     BODY_DRIFTS,
-    BULK_RATIO_MAX,
-    CLIPPED_SHARE_MAX,
     FAMILY_ALPHA,
     HOLD_Z,
     LAG_SHIFT_SHARE,
@@ -49,14 +47,12 @@ from .naming import (
     _is_thermal,
     attitude_blocks,
     attitude_confounds,
-    bulk_ratio,
-    clipped_share,
     confirm,
     confounded_pairs,
     fold_drift_into_temperature,
     holds,
     shift_share,
-    spikes_isolated,
+    spike_signature,
     step_explains,
     temperature_follows_time,
     time_blocks,
@@ -275,10 +271,7 @@ class Diagnosis:
         mde = min_detectable_nT(floor, n)
         slow = time_predicts_attitude(d.t_s, self.unit)
         temp_r2 = temperature_follows_time(d.t_s, d.temp_C)
-        iso = spikes_isolated(tangent.spikes, d.t_s, d.raw_nT)
-        ratio = bulk_ratio(tangent.r, tangent.spikes)
-        clip = clipped_share(tangent.spikes, d.raw_nT)
-        spikes_ok = (iso[0] and ratio <= BULK_RATIO_MAX and clip <= CLIPPED_SHARE_MAX, iso[1], ratio, clip)
+        spikes_ok = spike_signature(tangent.spikes, tangent.r, d.t_s, d.raw_nT, d.raw_nT)
         named, evidence = confirm(heldout, selected, floor, mde, bool(base_rem["remainder_significant"]),
                                   spikes_ok, slow, temp_r2)
         if any(s in BODY_DRIFTS for s in named):  # a switch is not a slow drift
