@@ -27,12 +27,12 @@ import pandas as pd
 
 from magbench import paper
 from magbench.benchmarks import quality, speed
+from magbench.benchmarks.blindrun import run_blind
 from magbench.benchmarks.campaign import CHECKPOINT, Campaign, MethodSpec, clear_outputs, run_campaign
 from magbench.benchmarks.claims import paper_table2, write_claims
 from magbench.benchmarks.cli import main as cli
 from magbench.benchmarks.comparison import write_comparison
 from magbench.benchmarks.diagnosis import diagnosis_text
-from magbench.benchmarks.diagnosis.blind import run_blind
 from magbench.benchmarks.figures import make_figures
 from magbench.benchmarks.progress import is_terminal, progress_bar
 from magbench.benchmarks.report import write_report

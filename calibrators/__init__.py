@@ -11,7 +11,9 @@ from magbench.simulate.sensor import ErrorParams
 from .artifacts import Calibration, export, load_calibration
 from .base import CalibrationResult, Calibrator
 from .checks import check_calibrator
+from .core import loop
 from .core.evaluator import Budget, BudgetExhausted, Evaluator, audit_evaluations
+from .core.loop import Termination
 from .core.objective import ScalarObjective
 from .core.problem import Problem, ReadingsProblem, SolveOutput, search_bounds
 from .methods._gakernel import prefer_compiled as prefer_compiled_kernels
@@ -22,7 +24,8 @@ __all__ = [
     "ErrorParams", "CalibrationResult", "Calibrator", "Problem", "ReadingsProblem",
     "SolveOutput", "search_bounds", "Budget", "BudgetExhausted", "Evaluator", "audit_evaluations",
     "ScalarObjective", "ENTRY_POINT_GROUP", "available", "get", "make", "register",
-    "check_calibrator", "Calibration", "load_calibration", "export", "prefer_compiled_kernels",
+    "check_calibrator", "Calibration", "load_calibration", "export", "prefer_compiled_kernels", "loop",
+    "Termination",
 ]
 
 

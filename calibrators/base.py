@@ -12,6 +12,7 @@ import functools
 import hashlib
 import inspect
 import time
+from collections.abc import Generator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import partial
@@ -26,6 +27,7 @@ from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
 from .acceptance import DEFAULT_LIMITS, AcceptanceLimits, assess, reference_problems
 from .artifacts import Calibration
 from .core.evaluator import Budget, BudgetExhausted, Evaluator
+from .core.loop import Stopped, Termination, drive
 from .core.objective import ScalarObjective, identity_vector
 from .core.problem import (  # noqa: F401
     PHYSICAL_BOX,
@@ -363,12 +365,14 @@ class Calibrator(metaclass=_Sealed):
         x0 = identity_vector(model)
         rng = np.random.default_rng(self.seed)
         start = None if model == "angles" else partial(_algebraic_start, dataset.raw_nT, dataset.f_ref_nT, model)
+        termination = self.termination(budget)
         problem: Problem
         if self.closed_form:
             problem = ReadingsProblem(evaluator, model, x0, lower, upper, rng, self.seed, dataset.raw_nT,
-                                      dataset.f_ref_nT, start)
+                                      dataset.f_ref_nT, termination)
         else:
-            problem = Problem(evaluator, model, x0, lower, upper, rng, self.seed, start)
+            problem = Problem(evaluator, model, x0, lower, upper, rng, self.seed, termination)
+        stopped: Stopped | None = None  # how the strategy's search ended (None: no strategy ran)
         t0 = time.perf_counter()
         try:
             if not self.closed_form:
@@ -377,10 +381,16 @@ class Calibrator(metaclass=_Sealed):
                 evaluator.values(x0[None, :])
             with _decoys_exposed(objective):
                 out = self._solve(problem)
+                if isinstance(out, Generator):  # a strategy: the framework evaluates what it asks for
+                    out, stopped = drive(out, evaluator, termination, start)
         except BudgetExhausted as exc:
             if evaluator.best_x is None:
                 raise
             out = SolveOutput(evaluator.best_x, status="budget", message=f"stopped: {exc}", success=True)
+            stopped = Stopped(stopped.iterations if stopped else 0, "budget")
+        if not isinstance(out, SolveOutput):
+            out = SolveOutput(out, status="no_output", message=f"{self.name}'s _solve returned {type(out).__name__}, "
+                              "not a SolveOutput", success=False)
         runtime = time.perf_counter() - t0
 
         solver_x, bad_shape = _solver_point(out.x, len(x0))
@@ -409,7 +419,8 @@ class Calibrator(metaclass=_Sealed):
             n_function_evaluations=evaluator.n_function_evaluations, nit=int(out.nit),
             runtime_s=runtime, seed=self.seed, rms_before_nT=float(np.sqrt(f_start)),
             rms_after_nT=float(np.sqrt(f_x)), warnings=tuple(warnings),
-            hyperparameters=self.get_params(), trace=tuple(evaluator.trace), extra=dict(out.extra),
+            hyperparameters=self.get_params(), trace=tuple(evaluator.trace),
+            extra={**out.extra, **_stop_record(termination, stopped)},
             evaluation_mode="closed-form" if self.closed_form else "counted",
             solver_x=solver_x, solver_rms_nT=float(np.sqrt(f_solver)) if np.isfinite(f_solver) else float("nan"),
             n_overrun_calls=evaluator.n_overrun_calls, accepted=not rejections, rejections=tuple(rejections),
@@ -424,8 +435,23 @@ class Calibrator(metaclass=_Sealed):
                 return ["a scale factor is not positive: the estimate is not physical"]
         return []
 
-    def _solve(self, problem: Any) -> SolveOutput:  # pragma: no cover - abstract
-        """The method: a ``Problem`` (a ``ReadingsProblem`` when ``closed_form``) in, a ``SolveOutput`` out."""
+    def termination(self, budget: Budget) -> Termination:
+        """When this calibrator's search stops (``core/loop.py``): the comparison's ``budget`` and the
+        method's own limits from ``termination_settings``, in the one object the framework enforces."""
+        try:
+            return Termination(budget=budget, **self.termination_settings())
+        except ValueError as exc:  # a hyper-parameter out of its range (a negative tol, zero generations)
+            raise InputError(f"{self.name}: {exc}") from None
+
+    def termination_settings(self) -> dict:
+        """The method's ``Termination`` fields from its hyper-parameters (``max_iterations``,
+        ``max_evaluations``, ``tol``, ``tol_meaning``); none by default."""
+        return {}
+
+    def _solve(self, problem: Any) -> Any:  # pragma: no cover - abstract
+        """The method, handed a ``Problem`` (a ``ReadingsProblem`` when ``closed_form``): a strategy, i.e. a
+        generator that asks for evaluations (``core/loop.py``) and returns a ``SolveOutput``; or, for a
+        closed-form method, the ``SolveOutput`` itself."""
         raise NotImplementedError
 
 
@@ -444,6 +470,18 @@ def _annotation_types(annotation) -> tuple | None:
             return None
         types += _ANNOTATION_TYPES[part]
     return types
+
+
+def _stop_record(termination: Termination, stopped: Stopped | None) -> dict:
+    """What the result's ``extra`` says of a strategy's search: the termination the framework enforced, the
+    iterations it counted and its reason to stop (absent: the strategy returned on its own); nothing for a
+    closed-form method that asked for nothing."""
+    if stopped is None:
+        return {}
+    out: dict = {"termination": termination.as_dict(), "iterations": stopped.iterations}
+    if stopped.reason:
+        out["stopped_by"] = stopped.reason
+    return out
 
 
 def _budget_breaches(evaluator: Evaluator, budget: Budget) -> list[str]:

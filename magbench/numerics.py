@@ -2,6 +2,8 @@
 Levenberg-Marquardt iteration on accumulated normal equations.  Imports nothing of magbench's."""
 from __future__ import annotations
 
+from collections.abc import Generator
+
 import numpy as np
 
 MAD_TO_SIGMA = 1.4826
@@ -18,13 +20,28 @@ def robust_sigma(x: np.ndarray) -> float:
 
 def lm_normal(normal_equations, x: np.ndarray, lower: np.ndarray | None = None, upper: np.ndarray | None = None,
               tol: float = 1e-12, max_iter: int = 100, atol: float = 0.0) -> tuple[np.ndarray, float, int]:
+    """Levenberg-Marquardt on the normal equations (``lm_iterations``) with ``normal_equations(x)`` returning
+    ``(J^T J, J^T r, r^T r)``, which a long record accumulates block by block in bounded memory.  Returns
+    the point, its sum of squares and the number of calls."""
+    steps = lm_iterations(x, lower, upper, tol=tol, max_iter=max_iter, atol=atol)
+    try:
+        point = next(steps)
+        while True:
+            point = steps.send(normal_equations(point))
+    except StopIteration as done:
+        return done.value
+
+
+def lm_iterations(x: np.ndarray, lower: np.ndarray | None = None, upper: np.ndarray | None = None,
+                  tol: float = 1e-12, max_iter: int = 100, atol: float = 0.0
+                  ) -> Generator[np.ndarray, tuple, tuple[np.ndarray, float, int]]:
     """Levenberg-Marquardt on the normal equations (Marquardt's diagonal scaling; a step leaving the box
-    is projected back onto it): ``normal_equations(x)`` returns ``(J^T J, J^T r, r^T r)``, which a long
-    record accumulates block by block in bounded memory.  Stops when the sum of squares or the step no
-    longer changes relative to ``tol``, or the sum of squares by less than ``atol``.  Returns the point, its
-    sum of squares and the number of calls."""
+    is projected back onto it), as a generator: it yields each point whose ``(J^T J, J^T r, r^T r)`` it
+    needs and is sent them (the framework's ask/tell, ``calibrators/core/loop.py``).  Stops when the sum of
+    squares or the step no longer changes relative to ``tol``, or the sum of squares by less than ``atol``.
+    Returns the point, its sum of squares and the number of points asked for."""
     x = np.asarray(x, dtype=float).copy()
-    a, g, cost = normal_equations(x)
+    a, g, cost = yield x
     calls, damping = 1, 1e-3
     try:  # already at the optimum: the Gauss-Newton step would lower the sum of squares by almost nothing
         if float(g @ np.linalg.solve(a, g)) <= max(tol * cost, atol):
@@ -41,7 +58,7 @@ def lm_normal(normal_equations, x: np.ndarray, lower: np.ndarray | None = None, 
         trial = x + step
         if lower is not None:
             trial = np.clip(trial, lower, upper)
-        a_t, g_t, cost_t = normal_equations(trial)
+        a_t, g_t, cost_t = yield trial
         calls += 1
         if np.isfinite(cost_t) and cost_t < cost:
             done = (cost - cost_t <= max(tol * cost, atol)

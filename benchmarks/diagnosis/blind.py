@@ -182,30 +182,3 @@ def category(label: str) -> str:
     if label.startswith("outside:"):
         return "outside the library"
     return "pair" if "+" in label else "single"
-
-
-def blind_case(i: int) -> dict:
-    """Diagnose case i: its label, the verdict and outcome, and what the true noise (known only here) says
-    about the case ('beyond base': the RMS the base fit leaves above the generator's noise)."""
-    from . import diagnose
-
-    label, base, data = blind_dataset(i)
-    result = diagnose(data, base=base)
-    return {"case": i, "label": label, "category": category(label), "points": len(data),
-            "noise_nT": float(data.meta["noise_nT"]), "coverage": data.meta["coverage"],
-            "beyond_base_nT": float(np.sqrt(max(result["rms_base_nT"] ** 2 - data.meta["noise_nT"] ** 2, 0.0))),
-            "min_detectable_nT": float(result["power"]["min_detectable_effect_rms_nT"]),
-            "floor_nT": float(result["noise_floor_nT"]), "verdict": result["verdict"],
-            "outcome": classify(label, result["verdict"])}
-
-
-def run_blind(n: int, jobs: int = 1, progress=None) -> list[dict]:
-    """``blind_case`` for cases 0 .. n-1, on ``jobs`` worker processes (in case order; ``progress``: a
-    callable wrapping the iterator, e.g. a tqdm bar)."""
-    wrap = progress or (lambda it, **kw: it)
-    if jobs <= 1:
-        return [blind_case(i) for i in wrap(range(n), total=n)]
-    from concurrent.futures import ProcessPoolExecutor
-
-    with ProcessPoolExecutor(jobs) as pool:
-        return list(wrap(pool.map(blind_case, range(n), chunksize=4), total=n))

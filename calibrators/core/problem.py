@@ -1,4 +1,4 @@
-"""What a solver is handed: the ``Problem`` (the counted objective, start, box, rng, no readings), its
+"""What a solver is handed: the ``Problem`` (start, box, rng, termination; no objective, no readings), its
 closed-form variant ``ReadingsProblem``, the ``SolveOutput`` it returns, and the one bounds function."""
 from __future__ import annotations
 
@@ -11,23 +11,22 @@ from magbench.simulate.dataset import readonly_copy
 from magbench.simulate.sensor import FREE
 
 from .evaluator import Evaluator
+from .loop import Termination
 
 
 class Problem:
-    """What an iterative calibrator's ``_solve`` sees (pymoo's algorithm sees only its evaluator): the
-    counted objective (``values``, ``value``, ``residuals``, ``jacobian``, ``gradient``), the start point
-    ``x0``, the search box ``lower``/``upper`` (from ``search_bounds``, the one bounds function), the rng
-    and the seed.  It holds no readings: everything a solver learns about the data is counted.
-
-    ``algebraic_start()`` is the one service that reads the data for the solver: the closed-form
-    ellipsoid fit (the usual start of a local method), computed by the framework and counted as one
-    evaluation when the solver asks for it.
+    """What a calibrator's ``_solve`` (a strategy, ``core/loop.py``) is handed (pymoo's algorithm sees only
+    its problem): the model, the start point ``x0``, the search box ``lower``/``upper`` (from
+    ``search_bounds``, the one bounds function), the rng and seed, the ``termination`` the framework
+    enforces, and what the counter knows (read only).  It holds no readings and cannot evaluate anything:
+    a strategy asks (``loop.values``, ``loop.normal_equations``, ``loop.START``, ...) and the framework
+    evaluates, counts and tells.
     """
 
-    __slots__ = ("model", "x0", "lower", "upper", "rng", "seed", "_evaluator", "_start")
+    __slots__ = ("model", "x0", "lower", "upper", "rng", "seed", "termination", "_evaluator")
 
     def __init__(self, evaluator: Evaluator, model: str, x0: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                 rng: np.random.Generator, seed: int | None, start=None):
+                 rng: np.random.Generator, seed: int | None, termination: Termination | None = None):
         self._evaluator = evaluator
         self.model = model
         self.x0 = readonly_copy(x0)
@@ -35,29 +34,7 @@ class Problem:
         self.upper = readonly_copy(upper)
         self.rng = rng
         self.seed = seed
-        self._start = start
-
-    # the counted objective
-    def values(self, x: np.ndarray) -> np.ndarray:
-        """F of eq. 3 (seed 000) for a population (m, p): m counted evaluations."""
-        return self._evaluator.values(x)
-
-    def value(self, x: np.ndarray) -> float:
-        return self._evaluator.value(x)
-
-    def residuals(self, x: np.ndarray) -> np.ndarray:
-        """The per-point residuals |M (raw - o)| - F at one point: one counted evaluation."""
-        return self._evaluator.residuals(x)
-
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
-        return self._evaluator.jacobian(x)
-
-    def gradient(self, x: np.ndarray) -> np.ndarray:
-        return self._evaluator.gradient(x)
-
-    def normal_equations(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-        """``(J^T J, J^T r, r^T r)`` accumulated in bounded memory: one counted evaluation, one Jacobian."""
-        return self._evaluator.normal_equations(x)
+        self.termination = termination if termination is not None else Termination(budget=evaluator.budget)
 
     @property
     def n_points(self) -> int:
@@ -90,16 +67,8 @@ class Problem:
     @property
     def best_x(self) -> np.ndarray | None:
         """The best point evaluated so far (None before the first evaluation)."""
-        return self._evaluator.best_x
-
-    def algebraic_start(self) -> tuple[np.ndarray, float] | None:
-        """The closed-form fit as a start point and its F, or None where the readings do not fit that shape
-        (``nine``: the ellipsoid; ``diag``: the axis-aligned ellipsoid; ``offset``: the sphere; ``angles``:
-        none); counted as one evaluation (its objective value is computed)."""
-        x = self._start() if self._start is not None else None
-        if x is None:
-            return None
-        return x, float(self._evaluator.values(x[None, :])[0])
+        x = self._evaluator.best_x
+        return None if x is None else x.copy()
 
 
 class ReadingsProblem(Problem):
@@ -110,8 +79,8 @@ class ReadingsProblem(Problem):
 
     __slots__ = ("raw_nT", "f_ref_nT")
 
-    def __init__(self, evaluator, model, x0, lower, upper, rng, seed, raw_nT, f_ref_nT, start=None):
-        super().__init__(evaluator, model, x0, lower, upper, rng, seed, start)
+    def __init__(self, evaluator, model, x0, lower, upper, rng, seed, raw_nT, f_ref_nT, termination=None):
+        super().__init__(evaluator, model, x0, lower, upper, rng, seed, termination)
         self.raw_nT = readonly_copy(raw_nT)
         self.f_ref_nT = readonly_copy(f_ref_nT)
 

@@ -23,6 +23,7 @@ import numpy as np
 from magbench.errors import InputError
 
 from ..base import Calibrator
+from ..core import loop
 from ..core.problem import Problem, SolveOutput, population_box
 
 TOL = 1e-6
@@ -59,11 +60,15 @@ class AntColony(Calibrator):
     def search_box(self) -> dict:
         return population_box(self)
 
-    def _solve(self, problem: Problem) -> SolveOutput:
+    def termination_settings(self) -> dict:
+        return {"max_iterations": int(self.iterations), "tol": float(self.tol),
+                "tol_meaning": "(f_k - f_1) / |f_1| over the archive's values (converged when they agree)"}
+
+    def _solve(self, problem: Problem):
         k, m = self.archive_size, self.ants
         if k < 2 or m < 1 or self.q <= 0 or self.xi <= 0 or not self.tol >= 0:
             raise InputError("aco: archive_size >= 2, ants >= 1, q > 0, xi > 0 and tol >= 0 are required")
-        rng, obj = problem.rng, problem
+        rng = problem.rng
         lo, hi = problem.lower, problem.upper
         span, p = hi - lo, len(lo)
         rank = np.arange(k)
@@ -71,7 +76,7 @@ class AntColony(Calibrator):
         cum = np.cumsum(w / w.sum())  # eq. 8
 
         archive = rng.random((k, p))
-        f = obj.values(lo + archive * span)
+        f = yield loop.values(lo + archive * span)
         order = np.argsort(f)
         archive, f = archive[order], f[order]
         best = [float(f[0])]
@@ -79,21 +84,23 @@ class AntColony(Calibrator):
         f_pool = np.empty(k + m)
         tol = float(self.tol)
         done, status = 0, "max_iterations"
-        while done < self.iterations:
+        while True:
             chosen = np.searchsorted(cum, rng.random(m) * cum[-1], side="right")
             centres = archive[chosen]  # (m, p)
             sigma = self.xi * np.abs(archive[None, :, :] - centres[:, None, :]).sum(axis=1) / (k - 1)  # eq. 9
             ants = centres + sigma * rng.standard_normal((m, p))
             np.clip(ants, 0.0, 1.0, out=ants)
-            f_ants = obj.values(lo + ants * span)
+            f_ants = yield loop.values(lo + ants * span)
             pool[:k], pool[k:] = archive, ants
             f_pool[:k], f_pool[k:] = f, f_ants
             keep = np.argsort(f_pool, kind="stable")[:k]
             archive, f = pool[keep], f_pool[keep]
             best.append(float(f[0]))
             done += 1
-            if tol and f[-1] - f[0] <= tol * abs(f[0]):
-                status = "converged"
+            spread = (f[-1] - f[0]) / abs(f[0]) if f[0] != 0 else (0.0 if f[-1] == f[0] else np.inf)
+            stop = yield loop.iteration(spread)  # the framework compares it with tol, counts iterations
+            if stop:
+                status = "converged" if stop == "converged" else "max_iterations"
                 break
         message = f"{done} iterations" + (f" (the archive's values agree within {tol:g})" if status == "converged"
                                           else "")

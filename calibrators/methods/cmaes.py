@@ -24,6 +24,7 @@ import numpy as np
 from magbench.errors import InputError
 
 from ..base import Calibrator
+from ..core import loop
 from ..core.problem import Problem, SolveOutput, population_box
 
 TOLFUN_REL = 1e-6
@@ -62,36 +63,43 @@ class CMAES(Calibrator):
     def search_box(self) -> dict:
         return population_box(self)
 
-    def _solve(self, problem: Problem) -> SolveOutput:
-        import cma
-
+    def termination_settings(self) -> dict:
         if not (0 < self.sigma0 <= 1 and self.max_evaluations >= 1 and self.population >= 0 and self.tolfun_rel >= 0):
             raise InputError("cmaes: 0 < sigma0 <= 1, max_evaluations >= 1, population >= 0 and tolfun_rel >= 0 "
                              "are required")
+        return {"max_evaluations": int(self.max_evaluations), "tol": float(self.tolfun_rel),
+                "tol_meaning": "spread of the population's values and of the best values over pycma's tolfun window, "
+                               "relative to the best value"}
+
+    def _solve(self, problem: Problem):
+        import cma
+
         lo, hi = problem.lower, problem.upper
         span = hi - lo
         rng = problem.rng
-        options = {"bounds": [0.0, 1.0], "maxfevals": int(self.max_evaluations), "tolfun": self.tolfun,
-                   "tolx": self.tolx, "verbose": -9, "seed": np.nan, "signals_filename": "",
+        options = {"bounds": [0.0, 1.0], "maxfevals": int(problem.termination.max_evaluations or self.max_evaluations),
+                   "tolfun": self.tolfun, "tolx": self.tolx, "verbose": -9, "seed": np.nan, "signals_filename": "",
                    "randn": lambda lam, n: rng.standard_normal((lam, n))}
         if self.population:
             options["popsize"] = int(self.population)
         es = cma.CMAEvolutionStrategy(np.clip((problem.x0 - lo) / span, 0.0, 1.0), self.sigma0, options)
-        generations, bests, flat = 0, [], False
+        generations, bests, stop = 0, [], ""
         window = 10 + int(np.ceil(30 * len(lo) / es.popsize))  # pycma's tolfun history
         while not es.stop():
             u = np.asarray(es.ask())
-            f = problem.values(lo + u * span)
+            f = yield loop.values(lo + u * span)
             es.tell(list(u), f.tolist())
             generations += 1
             bests.append(f.min())
-            if self.tolfun_rel and generations > window:
-                tol = self.tolfun_rel * abs(min(bests))
+            flat = np.inf
+            if generations > window:  # the relative flatness; the framework compares it with tolfun_rel
                 recent = bests[-window:]
-                if f.max() - f.min() < tol and max(recent) - min(recent) < tol:
-                    flat = True
-                    break
-        stops = ["tolfun_rel"] if flat else list(es.stop())
+                spread, best = max(f.max() - f.min(), max(recent) - min(recent)), abs(min(bests))
+                flat = spread / best if best else (0.0 if spread == 0 else np.inf)
+            stop = yield loop.iteration(flat)
+            if stop:
+                break
+        stops = ["tolfun_rel"] if stop == "converged" else ["maxfevals"] if stop else list(es.stop())
         return SolveOutput(problem.best_x, status="max_evaluations" if "maxfevals" in stops else "converged",
                            message=f"{generations} generations of {es.popsize}; stop: {', '.join(stops)}",
                            nit=generations, extra={"generations": generations, "population": es.popsize})

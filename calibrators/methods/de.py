@@ -1,5 +1,6 @@
 """``de``: differential evolution (Storn & Price 1997) through SciPy's ``differential_evolution`` with
-``vectorized=True``: each generation is one call of the shared counted objective.  Pang et al. (2013,
+``vectorized=True``: each generation is one request to the framework (SciPy's loop runs under
+``core.loop.recast``, its objective callback asking the framework).  Pang et al. (2013,
 JMMM) found differential evolution the best of the evolutionary methods for fluxgate calibration.
 
 The population is seeded from the problem's generator (SciPy's ``rng``); SciPy's final L-BFGS-B polish
@@ -12,6 +13,7 @@ import numpy as np
 from magbench.errors import InputError
 
 from ..base import Calibrator
+from ..core import loop
 from ..core.problem import Problem, SolveOutput, population_box
 
 
@@ -48,22 +50,34 @@ class DifferentialEvolution(Calibrator):
     def search_box(self) -> dict:
         return population_box(self)
 
-    def _solve(self, problem: Problem) -> SolveOutput:
+    def termination_settings(self) -> dict:
+        return {"max_iterations": int(self.generations), "tol": None,
+                "tol_meaning": f"SciPy's own: std of the population's values <= {self.tol:g} x |their mean|"}
+
+    def _solve(self, problem: Problem):
         if self.popsize < 1 or self.generations < 1 or not 0 <= self.recombination <= 1:
             raise InputError("de: popsize >= 1, generations >= 1 and 0 <= recombination <= 1 are required")
         from scipy.optimize import differential_evolution  # imported on use: the registry stays light
 
         lo, hi = problem.lower, problem.upper
 
-        def population_values(x_t: np.ndarray) -> np.ndarray:  # SciPy passes (p, S) when vectorized
-            return problem.values(np.ascontiguousarray(np.atleast_2d(x_t.T) if x_t.ndim > 1 else x_t[None, :]))
+        def run(ask):  # SciPy's loop, asking the framework for every population (recast: core/loop.py)
+            def population_values(x_t: np.ndarray) -> np.ndarray:  # SciPy passes (p, S) when vectorized
+                x = np.ascontiguousarray(np.atleast_2d(x_t.T) if x_t.ndim > 1 else x_t[None, :])
+                return ask(loop.values(x))
+
+            def generation_done(intermediate_result) -> bool:  # the framework counts the generation
+                return ask(loop.iteration()) not in ("", "max_iterations")  # maxiter: SciPy's own stop, same place
+
+            return differential_evolution(population_values, list(zip(lo, hi)), strategy=self.strategy,
+                                          maxiter=int(self.generations), popsize=int(self.popsize), tol=self.tol,
+                                          atol=0.0, mutation=self.mutation, recombination=self.recombination,
+                                          rng=problem.rng, polish=self.polish, init="latinhypercube",
+                                          updating="deferred", vectorized=True, x0=problem.x0,
+                                          callback=generation_done)
 
         try:
-            sol = differential_evolution(population_values, list(zip(lo, hi)), strategy=self.strategy,
-                                         maxiter=int(self.generations), popsize=int(self.popsize), tol=self.tol,
-                                         atol=0.0, mutation=self.mutation, recombination=self.recombination,
-                                         rng=problem.rng, polish=self.polish, init="latinhypercube",
-                                         updating="deferred", vectorized=True, x0=problem.x0)
+            sol = yield from loop.recast(run)
         except ValueError as exc:  # SciPy's checks of strategy and the like
             raise InputError(f"de: {exc}") from None
         return SolveOutput(problem.best_x, status="converged" if sol.success else "max_generations",

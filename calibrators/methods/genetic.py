@@ -14,6 +14,7 @@ import numpy as np
 from magbench.errors import InputError
 
 from ..base import Calibrator
+from ..core import loop
 from ..core.problem import Problem, SolveOutput, population_box
 from . import _gakernel
 from ._gakernel import adaptive_probability  # noqa: F401  (seed 000's eq. 4-5, part of this module's API)
@@ -75,7 +76,11 @@ class AdaptiveGA(Calibrator):
     def search_box(self) -> dict:
         return population_box(self)
 
-    def _solve(self, problem: Problem) -> SolveOutput:
+    def termination_settings(self) -> dict:
+        return {"max_iterations": int(self.max_generations), "tol": float(self.delta_g),
+                "tol_meaning": "step 6: |mean G(k) - mean G(k-1)| at k >= k_max (the generation count doubles)"}
+
+    def _solve(self, problem: Problem):
         if self.population < 2 or self.population % 2:
             raise InputError("aga: population must be an even number >= 2")
         if self.mutation not in ("single_bit", "per_bit"):
@@ -98,9 +103,9 @@ class AdaptiveGA(Calibrator):
         nxt = np.empty_like(pop)
         k, k_max, g_prev = 1, self.k_max, None
         best_g, mean_g = [], []
-        stop = "max_generations"
+        stop = ""
         while True:
-            f = problem.values(x)  # F of eq. 3 for the population: the one counted evaluation
+            f = yield loop.values(x)  # F of eq. 3 for the population: the one counted evaluation
             # steps 2-5: fitness (eq. 8), roulette, adaptive crossover and mutation, decoding of the next
             # generation, from this generation's uniforms (drawn before the stop test: the last
             # generation's draw and offspring are unused)
@@ -108,12 +113,13 @@ class AdaptiveGA(Calibrator):
             g_avg, g_max = kernel(f, pop, rng.random(n_uniforms), lo, step, *settings, nxt, x)
             best_g.append(g_max)
             mean_g.append(g_avg)
-            if k >= k_max:  # step 6
-                if g_prev is not None and abs(g_avg - g_prev) < self.delta_g:
-                    stop = "mean fitness settled"
-                    break
-                if k >= self.max_generations:
-                    break
+            # step 6: at k = k_max the change of the mean fitness is the measure (the framework stops the
+            # search when it is below delta_g, or at max_generations), else k_max doubles
+            settled = abs(g_avg - g_prev) if k >= k_max and g_prev is not None else np.inf
+            stop = yield loop.iteration(settled)
+            if stop:
+                break
+            if k >= k_max:
                 k_max *= 2
             g_prev = g_avg
             pop, nxt = nxt, pop
@@ -121,8 +127,9 @@ class AdaptiveGA(Calibrator):
         # step 7: the best individual of all generations (kept by the shared counter)
         x_best = problem.best_x
         if self.polish:  # not in the paper: Levenberg-Marquardt from the GA's best individual
-            levenberg_marquardt(problem, np.asarray(x_best), bounded=False)
+            yield from levenberg_marquardt(problem, np.asarray(x_best), bounded=False)
             x_best = problem.best_x
+        stop = "mean fitness settled" if stop == "converged" else "max_generations"
         return SolveOutput(x_best, status="converged" if stop != "max_generations" else "max_generations",
                            message=f"{k} generations; stop: {stop}", nit=k,
                            extra={"generations": k, "best_fitness": best_g, "mean_fitness": mean_g,
@@ -224,11 +231,14 @@ class RealGA(Calibrator):
         s += pa
         return s
 
-    def _solve(self, problem: Problem) -> SolveOutput:
-        return real_ga(problem, self)
+    def termination_settings(self) -> dict:
+        return {"max_iterations": int(self.generations)}
+
+    def _solve(self, problem: Problem):
+        return (yield from real_ga(problem, self))
 
 
-def real_ga(problem: Problem, ga) -> SolveOutput:
+def real_ga(problem: Problem, ga):
     """The generational loop of ``RealGA`` and its variants, on any ``Problem``: ``ga`` (a ``RealGA``, or
     any object with its settings and operators, as seed 001's gradiometer ``RowGA``) supplies the
     settings (``population``, ``generations``, ``pc``, ``elitism``) and the operators (``_select``,
@@ -243,19 +253,19 @@ def real_ga(problem: Problem, ga) -> SolveOutput:
         raise InputError(f"{ga.name}: population must be at least 4")
     if not 0 <= ga.elitism < ga.population:
         raise InputError(f"{ga.name}: elitism must be between 0 and population - 1")
-    rng, obj = problem.rng, problem
+    rng = problem.rng
     lo, hi = problem.lower, problem.upper
     span = hi - lo
     u = rng.random((ga.population, len(lo)))
     x = lo + u * span
-    f = obj.values(x)
+    f = yield loop.values(x)
     operators = _kernel_operators(ga)
     if operators is None:
-        _operator_loop(obj, ga, u, x, f, lo, span)
+        done = yield from _operator_loop(rng, ga, u, x, f, lo, span)
     else:
-        _kernel_loop(obj, ga, operators, u, x, f, lo, span)
-    return SolveOutput(problem.best_x, status="max_generations", message=f"{ga.generations} generations",
-                       nit=ga.generations, extra={"generations": ga.generations})
+        done = yield from _kernel_loop(rng, ga, operators, u, x, f, lo, span)
+    return SolveOutput(problem.best_x, status="max_generations", message=f"{done} generations",
+                       nit=done, extra={"generations": done})
 
 
 def _kernel_operators(ga) -> tuple[int, int, int] | None:
@@ -272,11 +282,10 @@ def _kernel_operators(ga) -> tuple[int, int, int] | None:
     return codes[0], codes[1], codes[2]
 
 
-def _kernel_loop(obj, ga, operators, u, x, f, lo, span) -> None:
+def _kernel_loop(rng, ga, operators, u, x, f, lo, span):
     """Generations 1 .. T-1 bred by ``_gakernel``'s real-coded kernel: per generation one ``rng.random``
     draw (``real_uniform_layout``) and, for the Gaussian mutation, one ``rng.standard_normal`` draw for the
     rows that mutate; the mutation's shrink depends on t = generation / T."""
-    rng = obj.rng
     selection, crossover, mutation = operators
     m, p = u.shape
     tournament = int(ga.tournament) if selection == _gakernel.TOURNAMENT else 1
@@ -289,7 +298,8 @@ def _kernel_loop(obj, ga, operators, u, x, f, lo, span) -> None:
     settings = (selection, tournament, crossover, float(ga.blx_alpha), float(ga.pc), mutation, float(ga.pm))
     pm, elitism, no_normals = float(ga.pm), int(ga.elitism), np.empty(0)
     u, children = np.ascontiguousarray(u, dtype=float), np.empty((m, p))
-    for gen in range(1, ga.generations):
+    gen = 1
+    while not (yield loop.iteration()):  # the framework stops the search after ``generations``
         t = gen / ga.generations
         draw = rng.random(n_uniforms)
         if mutation == _gakernel.GAUSSIAN:
@@ -298,15 +308,17 @@ def _kernel_loop(obj, ga, operators, u, x, f, lo, span) -> None:
         else:
             z, shrink = no_normals, float((1.0 - t) ** ga.nonuniform_b)  # the non-uniform exponent
         kernel(np.ascontiguousarray(f, dtype=float), u, draw, z, *settings, shrink, elitism, lo, span, children, x)
-        f = obj.values(x)
+        f = yield loop.values(x)
         u, children = children, u
+        gen += 1
+    return gen
 
 
-def _operator_loop(obj, ga, u, x, f, lo, span) -> None:
+def _operator_loop(rng, ga, u, x, f, lo, span):
     """Generations 1 .. T-1 bred by ``ga``'s own ``_select``, ``_crossover`` and ``_mutate`` on arrays."""
-    rng = obj.rng
     m, p, half = ga.population, len(lo), (ga.population + 1) // 2
-    for gen in range(1, ga.generations):
+    gen = 1
+    while not (yield loop.iteration()):  # the framework stops the search after ``generations``
         t = gen / ga.generations
         pa, pb = u[ga._select(f, 2 * half, rng)].reshape(2, half, p)
         cross = rng.random(half) < ga.pc
@@ -320,8 +332,10 @@ def _operator_loop(obj, ga, u, x, f, lo, span) -> None:
             children[-ga.elitism:] = u[np.argpartition(f, ga.elitism - 1)[:ga.elitism]]
         np.multiply(children, span, out=x)
         x += lo
-        f = obj.values(x)
+        f = yield loop.values(x)
         u = children
+        gen += 1
+    return gen
 
 
 class ElitistRealGA(RealGA):

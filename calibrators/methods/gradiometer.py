@@ -43,6 +43,7 @@ from magbench.simulate.sensor import ul_factor
 
 from ..core.algebra import fit_ellipsoid
 from ..core.evaluator import Budget, BudgetExhausted, Evaluator
+from ..core.loop import Termination, drive
 from ..core.problem import Problem
 from .genetic import ElitistRealGA, RealGA, real_ga
 
@@ -311,9 +312,11 @@ def _solve_row(counter: Evaluator, settings: RowGA, x0: np.ndarray, neighbourhoo
     if share == 0:
         return _RowResult(x0, float("nan"), [], "not run: budget spent")
     row_counter = Evaluator(counter, Budget(max_evaluations=share) if share is not None else None)
-    problem = Problem(row_counter, ROW_MODEL, x0, x0 - neighbourhood, x0 + neighbourhood, rng, None)
+    termination = Termination(budget=row_counter.budget, max_iterations=int(settings.generations))
+    problem = Problem(row_counter, ROW_MODEL, x0, x0 - neighbourhood, x0 + neighbourhood, rng, None, termination)
     try:
-        x, status = real_ga(problem, settings).x, "max_generations"
+        out, _ = drive(real_ga(problem, settings), row_counter, termination)
+        x, status = out.x, "max_generations"
     except BudgetExhausted:
         x, status = row_counter.best_x, "budget"  # type: ignore[assignment]  # None only before any evaluation
         if row_counter.evaluations_left != 0:  # the calibration's budget (time) ran out, not the share

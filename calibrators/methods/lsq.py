@@ -1,10 +1,11 @@
 """``lsq``: nonlinear least squares on the scalar residual ``|M (raw - o)| - F`` (seed 000, eq. 3)
 with the analytic Jacobian of ``ScalarObjective``: Levenberg-Marquardt (Marquardt's scaling) on the
-normal equations, accumulated block by block so that memory stays bounded on long records, the search
-box enforced by projection.  Under Gaussian noise this is the maximum-likelihood estimator and reaches
-the Cramér-Rao bound (tests/test_lsq.py).  It gives the same optimum as MINPACK's Levenberg-Marquardt
-and SciPy's trust-region reflective method (checked to 1e-8 relative on every scenario) without
-importing SciPy's optimizer, which costs a third of a second at start-up."""
+normal equations (a strategy asking the framework for them, ``core/loop.py``), accumulated block by block
+so that memory stays bounded on long records, the search box enforced by projection.  Under Gaussian
+noise this is the maximum-likelihood estimator and reaches the Cramér-Rao bound (tests/test_lsq.py).
+It gives the same optimum as MINPACK's Levenberg-Marquardt and SciPy's trust-region reflective method
+(checked to 1e-8 relative on every scenario) without importing SciPy's optimizer, which costs a third
+of a second at start-up."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -12,15 +13,16 @@ from types import SimpleNamespace
 import numpy as np
 
 from magbench.errors import InputError
-from magbench.numerics import lm_normal
+from magbench.numerics import lm_iterations
 
 from ..base import Calibrator
+from ..core import loop
 from ..core.problem import Problem, SolveOutput
 
 
 def levenberg_marquardt(problem: Problem, x_start: np.ndarray, tol: float = 1e-12, max_nfev: int = 200,
-                        bounded: bool = True) -> SimpleNamespace:
-    """Least squares on the problem's counted normal equations from ``x_start`` (each call one counted
+                        bounded: bool = True):
+    """Least squares from ``x_start`` as a strategy: each step asks for the counted normal equations (one
     evaluation and one Jacobian), inside the problem's search box when ``bounded``.  Returns ``x``,
     ``nfev``, ``status`` (2: converged, 0: ``max_nfev`` spent) and ``message``."""
     left = problem.evaluations_left
@@ -29,7 +31,8 @@ def levenberg_marquardt(problem: Problem, x_start: np.ndarray, tol: float = 1e-1
     lo, hi = (problem.lower, problem.upper) if bounded else (None, None)
     if lo is not None and hi is not None:
         x_start = np.clip(x_start, lo + 1e-12, hi - 1e-12)
-    x, cost, calls = lm_normal(problem.normal_equations, x_start, lo, hi, tol=tol, max_iter=max(max_nfev - 1, 0))
+    x, cost, calls = yield from loop.asks("normal_equations", lm_iterations(x_start, lo, hi, tol=tol,
+                                                                              max_iter=max(max_nfev - 1, 0)))
     done = calls < max_nfev
     return SimpleNamespace(x=x, nfev=calls, status=2 if done else 0,
                            message="converged (the sum of squares or the step stopped changing)" if done else
@@ -56,12 +59,12 @@ class LeastSquares(Calibrator):
         self.max_nfev = max_nfev
         self.bounded = bounded
 
-    def _start(self, problem: Problem) -> np.ndarray:
+    def _start(self, problem: Problem):
         if self.init not in ("auto", "identity", "ellipsoid"):
             raise InputError(f"lsq: init must be auto, identity or ellipsoid, not {self.init!r}")
         if self.init == "identity" or problem.model == "angles":
             return problem.x0
-        start = problem.algebraic_start()  # the framework's ellipsoid fit, counted
+        start = yield loop.START  # the framework's ellipsoid fit, counted
         if start is None:
             if self.init == "ellipsoid":
                 raise InputError("lsq: init='ellipsoid', but the readings do not fit an ellipsoid")
@@ -69,10 +72,11 @@ class LeastSquares(Calibrator):
         x_e, f_e = start
         if self.init == "ellipsoid":
             return x_e
-        return x_e if f_e < problem.value(problem.x0) else problem.x0
+        return x_e if f_e < (yield loop.value(problem.x0)) else problem.x0
 
-    def _solve(self, problem: Problem) -> SolveOutput:
-        sol = levenberg_marquardt(problem, self._start(problem), self.tol, self.max_nfev, bounded=self.bounded)
+    def _solve(self, problem: Problem):
+        x_start = yield from self._start(problem)
+        sol = yield from levenberg_marquardt(problem, x_start, self.tol, self.max_nfev, bounded=self.bounded)
         status = "converged" if sol.status == 2 else "max_nfev"
         return SolveOutput(sol.x, status=status, message=sol.message, nit=int(sol.nfev),
                            success=bool(sol.status > 0))

@@ -14,6 +14,7 @@ import numpy as np
 from magbench.errors import InputError
 
 from ..base import Calibrator
+from ..core import loop
 from ..core.evaluator import BudgetExhausted
 from ..core.problem import Problem, SolveOutput, population_box
 
@@ -54,51 +55,65 @@ class NLoptCalibrator(Calibrator):
         """Only NLopt's randomized algorithms use the seed (``nlopt.srand``)."""
         return any(tag in str(self.algorithm) for tag in STOCHASTIC_NLOPT)
 
-    def _solve(self, problem: Problem) -> SolveOutput:
+    def termination_settings(self) -> dict:
+        return {"max_evaluations": int(self.max_evaluations), "tol": None,
+                "tol_meaning": f"NLopt's own: ftol_rel {self.ftol_rel:g}, xtol_rel {self.xtol_rel:g}, maxeval counted "
+                               "in NLopt's calls"}
+
+    def _solve(self, problem: Problem):
         code = getattr(nlopt, str(self.algorithm), None)
         if not isinstance(code, int) or str(self.algorithm)[:3] not in ("LN_", "LD_", "GN_", "GD_"):
             raise InputError(f"nlopt: unknown algorithm {self.algorithm!r} (e.g. LN_BOBYQA, LD_LBFGS, GN_CRS2_LM, "
                              "GN_ISRES, GN_ESCH)")
-        obj = problem
         lo, hi = problem.lower, problem.upper
         span = hi - lo
-        nlopt.srand(int(self.seed) if self.seed is not None else 0)
-        opt = nlopt.opt(code, len(lo))
         uses_gradient = str(self.algorithm)[1] == "D"
+        gradient, Ask = loop.gradient, loop.Ask
 
-        value, gradient = obj.value, obj.gradient
+        spent: list[bool] = []  # the framework said the budget is spent
 
-        def f(u, grad):  # NLopt's callback: the counted objective and nothing else
-            x = lo + u * span
-            if grad.size:
-                grad[:] = gradient(x) * span
-            return value(x)
+        def run(ask):  # NLopt's loop, asking the framework for every value (recast: core/loop.py)
+            nlopt.srand(int(self.seed) if self.seed is not None else 0)
+            opt = nlopt.opt(code, len(lo))
 
-        opt.set_min_objective(f)
-        opt.set_lower_bounds(np.zeros(len(lo)))
-        opt.set_upper_bounds(np.ones(len(lo)))
-        opt.set_maxeval(int(self.max_evaluations))
-        if problem.max_time_s is not None:
-            opt.set_maxtime(problem.max_time_s)
-        opt.set_ftol_rel(self.ftol_rel)
-        opt.set_xtol_rel(self.xtol_rel)
-        if self.population:
-            opt.set_population(int(self.population))
-        if str(self.algorithm).startswith("LN_"):
-            opt.set_initial_step(np.full(len(lo), 0.05))
-        u0 = np.clip((problem.x0 - lo) / span, 0.0, 1.0)
-        message = ""
-        try:
-            opt.optimize(u0)
-            result = opt.last_optimize_result()
-        except nlopt.RoundoffLimited:
-            result = -4
-        except BudgetExhausted:
-            raise
-        except Exception as exc:  # NLopt's generic failures (nlopt.runtime_error, a broken line search, ...)
-            if problem.best_x is None:
+            def f(u, grad):  # NLopt's callback: a request to the framework and nothing else
+                x = lo + u * span
+                try:
+                    if grad.size:
+                        grad[:] = ask(gradient(x)) * span
+                    return ask(Ask("value", x))
+                except BudgetExhausted:  # NLopt's gradient methods report it as a runtime_error
+                    spent.append(True)
+                    raise
+
+            opt.set_min_objective(f)
+            opt.set_lower_bounds(np.zeros(len(lo)))
+            opt.set_upper_bounds(np.ones(len(lo)))
+            opt.set_maxeval(int(problem.termination.max_evaluations or self.max_evaluations))
+            if problem.max_time_s is not None:
+                opt.set_maxtime(problem.max_time_s)
+            opt.set_ftol_rel(self.ftol_rel)
+            opt.set_xtol_rel(self.xtol_rel)
+            if self.population:
+                opt.set_population(int(self.population))
+            if str(self.algorithm).startswith("LN_"):
+                opt.set_initial_step(np.full(len(lo), 0.05))
+            u0 = np.clip((problem.x0 - lo) / span, 0.0, 1.0)
+            try:
+                opt.optimize(u0)
+                return opt.last_optimize_result(), ""
+            except nlopt.RoundoffLimited:
+                return -4, ""
+            except BudgetExhausted:
                 raise
-            result, message = -1, f" ({type(exc).__name__}: {exc})"
+            except Exception as exc:  # NLopt's generic failures (nlopt.runtime_error, a broken line search, ...)
+                if spent:
+                    raise BudgetExhausted("the evaluation budget was spent") from None
+                if problem.best_x is None:
+                    raise
+                return -1, f" ({type(exc).__name__}: {exc})"
+
+        result, message = yield from loop.recast(run)
         status = RESULT_NAMES.get(result, {-1: "failure", -4: "roundoff_limited"}.get(result, f"nlopt_{result}"))
         return SolveOutput(problem.best_x, status=status, message=f"NLopt {self.algorithm}: {status}{message}",
                            nit=problem.n_evaluations, success=result > 0 or result == -4,

@@ -23,6 +23,7 @@ import numpy as np
 from magbench.errors import InputError
 
 from ..base import Calibrator
+from ..core import loop
 from ..core.algebra import ellipsoid_params
 from ..core.problem import ReadingsProblem, SolveOutput
 
@@ -59,7 +60,7 @@ class RansacEllipsoid(Calibrator):
     def min_points(self, model: str) -> int:
         return 90  # q >= 9 and q <= n / 10
 
-    def _solve(self, problem: ReadingsProblem) -> SolveOutput:
+    def _solve(self, problem: ReadingsProblem):
         raw, f_ref = problem.raw_nT, problem.f_ref_nT
         n = len(raw)
         q = self.sample_size or max(9, min(12, n // 10))
@@ -69,7 +70,7 @@ class RansacEllipsoid(Calibrator):
             raise InputError("ransac: 0 < confidence < 1, 0 < inlier_fraction <= 1 and epsilon_sigma > 0 required")
         rng = problem.rng
         plain = ellipsoid_params(raw, f_ref)
-        r_plain = problem.residuals(plain.to_vector("nine"))  # every residual vector is counted
+        r_plain = yield loop.residuals(plain.to_vector("nine"))  # every residual vector is counted
         epsilon = self.epsilon_sigma * float(np.std(r_plain))
         k = min(ransac_iterations(self.confidence, self.inlier_fraction, q), self.max_iterations)
         best_count, best_mask, failed = -1, None, 0
@@ -80,7 +81,7 @@ class RansacEllipsoid(Calibrator):
             except (InputError, np.linalg.LinAlgError):
                 failed += 1
                 continue
-            mask = np.abs(problem.residuals(params.to_vector("nine"))) <= epsilon
+            mask = np.abs((yield loop.residuals(params.to_vector("nine")))) <= epsilon
             if mask.sum() > best_count:
                 best_count, best_mask = int(mask.sum()), mask
         if best_mask is None or best_count < 10:
@@ -88,7 +89,7 @@ class RansacEllipsoid(Calibrator):
         else:
             final, note = ellipsoid_params(raw[best_mask], f_ref[best_mask]), ""
         x = final.to_vector("nine")
-        problem.value(x)
+        yield loop.value(x)
         msg = (f"{k} iterations (q = {q}, epsilon = {epsilon:.3g} nT); {max(best_count, 0)} of {n} inliers; "
                f"{failed} subsets without an ellipsoid" + (f"; {note}" if note else ""))
         return SolveOutput(x, status="consensus" if not note else "plain_fit", message=msg, nit=k,

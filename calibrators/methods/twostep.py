@@ -18,10 +18,11 @@ from __future__ import annotations
 import numpy as np
 
 from magbench.errors import InputError
-from magbench.numerics import lm_normal
+from magbench.numerics import lm_iterations
 from magbench.simulate.sensor import ErrorParams
 
 from ..base import Calibrator
+from ..core import loop
 from ..core.evaluator import BudgetExhausted
 from ..core.problem import ReadingsProblem, SolveOutput
 
@@ -86,12 +87,16 @@ class TwoStep(Calibrator):
         self.max_iterations = max_iterations
         self.tol = tol
 
-    def _solve(self, problem: ReadingsProblem) -> SolveOutput:
+    def termination_settings(self) -> dict:
+        return {"tol": None, "tol_meaning": f"the Gauss-Newton step's own: the sum of squares or the step changes by "
+                                            f"less than {self.tol:g} relative, at most {self.max_iterations} steps"}
+
+    def _solve(self, problem: ReadingsProblem):
         x1 = centred_estimate(problem.raw_nT, problem.f_ref_nT, self.model)
         x1 = np.clip(x1, problem.lower, problem.upper)
         try:
-            x, _, calls = lm_normal(problem.normal_equations, x1, problem.lower, problem.upper, tol=self.tol,
-                                    max_iter=self.max_iterations)
+            x, _, calls = yield from loop.asks("normal_equations", lm_iterations(
+                x1, problem.lower, problem.upper, tol=self.tol, max_iter=self.max_iterations))
         except BudgetExhausted:  # no budget for the second step: the best point it evaluated, else the first step
             best = problem.best_x
             return SolveOutput(x1 if best is None else best, status="budget",
