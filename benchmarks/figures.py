@@ -32,6 +32,7 @@ from matplotlib import style as mpl_style
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+from matplotlib.markers import MarkerStyle
 from matplotlib.patches import Patch
 
 from magbench.benchmarks import comparison_figures
@@ -225,8 +226,9 @@ def fig_errors(runs: pd.DataFrame, scenario: str, styles: dict) -> Figure | None
         if data:
             _boxplot_h(ax, data, pos, cols)  # type: ignore[arg-type]
             for v, p, c in zip(data, pos, [configs[i] for i in pos]):
+                marker = styles[c]["marker"]  # a line marker (+, x, 1-4, |, _) is only its edge: it needs a width
                 ax.scatter(v, p + rng.uniform(-0.18, 0.18, v.size), s=8, color=styles[c]["color"],
-                           marker=styles[c]["marker"], alpha=0.75, lw=0, zorder=3)
+                           marker=marker, alpha=0.75, lw=0 if MarkerStyle(marker).is_filled() else 1.0, zorder=3)
         else:
             ax.text(0.5, 0.5, "no data", transform=ax.transAxes, ha="center", va="center", color="0.4")
         ax.set_xscale("log")

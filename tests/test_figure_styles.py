@@ -143,3 +143,28 @@ def test_direct_labels_never_overlap_even_where_points_coincide():
     offsets = {a.get_text(): a.xyann[1] for a in ax.texts}
     same_spot = sorted(offsets[f"method{i}"] for i in range(12))
     assert all(b - a >= 7.5 + 1.9 for a, b in zip(same_spot, same_spot[1:]))  # stacked, one line apart
+
+
+def test_line_markers_are_drawn_in_the_errors_figure(campaign):
+    """Styles 16 and on use line markers (+, x, 1-4, |, _), which are only an edge: the single-run points of
+    the angle-error figure were drawn with no line width, so ttls ('+') and twostep ('x') had no points in a
+    17-method campaign.  Every scatter of a line marker must have a width."""
+    from matplotlib.collections import PathCollection
+    from matplotlib.markers import MarkerStyle
+
+    configs = list(campaign_styles(campaign))
+    markers = ("+", "x", "o", "1")
+    styles = {c: {"color": PALETTE[i], "marker": markers[i], "ls": "-"} for i, c in enumerate(configs)}
+    seen = set()
+    for kind, scenario, data in figure_tasks(campaign, kinds=("errors",)):
+        fig = BUILDER_OF[kind](data, scenario, styles)
+        for ax in fig.axes:
+            for coll in ax.collections:
+                if not isinstance(coll, PathCollection) or not len(coll.get_offsets()):
+                    continue
+                colour = mcolors.to_hex(coll.get_facecolors()[0], keep_alpha=False)
+                conf = next(c for c in configs if mcolors.to_hex(styles[c]["color"]) == colour)
+                if not MarkerStyle(styles[conf]["marker"]).is_filled():
+                    assert max(coll.get_linewidths()) > 0, (scenario, conf, styles[conf]["marker"])
+                    seen.add(styles[conf]["marker"])
+    assert {"+", "x", "1"} <= seen
