@@ -21,6 +21,7 @@ from __future__ import annotations
 import io
 import re
 import textwrap
+import threading
 import warnings
 from functools import partial
 from pathlib import Path
@@ -36,7 +37,7 @@ from matplotlib.markers import MarkerStyle
 from matplotlib.patches import Patch
 
 from magbench.benchmarks import comparison_figures
-from magbench.benchmarks.progress import progress_bar
+from magbench.benchmarks.progress import BarSafeStream, progress_bar, slow_phase
 from magbench.benchmarks.styles import BOUND_GREY, RC, WARN_COLOUR, campaign_styles
 from magbench.benchmarks.tables import MIN_TRIALS_EFFICIENCY, efficiency_interval
 from magbench.paper import ARCSEC_PER_RAD
@@ -635,21 +636,35 @@ def make_figures(campaign_dir: str | Path, out_dir: str | Path | None = None, fo
 
     done: list[tuple[str, list[Path], bytes | None]] = []
     with progress_bar(len(tasks) + len(later), "figures", "fig", enabled=progress) as bar:
+        lock = threading.Lock()
+
+        def one_more(_future=None) -> None:  # a figure drawn: counted as it ends, not when collected
+            with lock:
+                bar.update(1)
+
+        def prepared() -> None:  # the comparison's tables can take a minute: said so, not silent
+            with slow_phase("the method comparison's tables (expected running times, ECDFs, paired tests)",
+                            enabled=progress, stream=BarSafeStream(bar)):
+                prepare()
+
         if jobs > 1:
             with _pool(jobs) as pool:
                 futures = [pool.submit(_draw_star, a) for a in args_of(tasks)]
+                for fut in futures:
+                    fut.add_done_callback(one_more)
                 if prepare is not None:
-                    prepare()
+                    prepared()
                 futures += [pool.submit(_draw_star, a) for a in args_of(figure_tasks(campaign_dir, later))]
+                for fut in futures[len(tasks):]:
+                    fut.add_done_callback(one_more)
                 for fut in futures:
                     done.append(fut.result())
-                    bar.update(1)
         else:
             if prepare is not None:
-                prepare()
+                prepared()
             for a in args_of(tasks + figure_tasks(campaign_dir, later)):
                 done.append(_draw_star(a))
-                bar.update(1)
+                one_more()
     written: list[Path] = []
     for stem, paths, png in done:
         written += paths
