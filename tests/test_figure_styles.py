@@ -105,12 +105,27 @@ def test_the_report_shows_each_calibrator_in_its_figure_colour(campaign):
     import re
 
     html = (campaign / "report.html").read_text()
-    shown = dict((name.strip(), colour) for colour, name in
-                 re.findall(r'class="swatch" style="background:(#[0-9A-Fa-f]{6})" aria-hidden="true"></span>([^<]+)<',
-                            html))
+    shown = {name.strip(): (colour, marker, ls) for colour, marker, ls, name in
+             re.findall(r'<svg class="swatch"[^>]* data-colour="(#[0-9A-Fa-f]{6})" data-marker="([^"]+)" '
+                        r'data-ls="([^"]+)">.*?</svg>([^<]+)<', html)}
     styles = campaign_styles(campaign)
-    assert shown and all(shown[c] == styles[c]["color"] for c in shown)
+    assert shown and all(shown[c] == (styles[c]["color"], styles[c]["marker"], styles[c]["ls"]) for c in shown)
     assert set(shown) == set(styles)
+
+
+def test_the_report_tells_apart_methods_that_share_a_colour():
+    """Beyond the palette's eight colours two configurations share a colour (aga and nlopt in the reproduced
+    campaign): the report's swatch shows the marker and line style too, each drawn as in the figures."""
+    import re
+
+    from magbench.benchmarks.styles import swatch_svg
+
+    styles = style_map([f"m{i}" for i in range(DISTINCT)])
+    svgs = {n: swatch_svg(st, n) for n, st in styles.items()}
+    assert len(set(svgs.values())) == DISTINCT
+    assert styles["m0"]["color"] == styles["m8"]["color"] and svgs["m0"] != svgs["m8"]
+    for n, svg in svgs.items():
+        assert re.fullmatch(r'<svg class="swatch" [^<]*><line [^<]*/><path d="M[^"]+"[^<]*/></svg>', svg), n
 
 
 def test_every_style_draws_as_a_format_string_too():
