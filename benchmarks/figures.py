@@ -450,7 +450,8 @@ def fig_field_heading(fields: pd.DataFrame, scenario: str, styles: dict) -> Figu
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 2])
     h = common.index.to_numpy()
     if np.isfinite(common["f_before_nT"]).any():
-        top.plot(h, common["f_before_nT"], color="0.25", lw=1.6, label="before (raw readings)")
+        # light grey and wide: no method has it (ga is black), and the corrected curves read on top of it
+        top.plot(h, common["f_before_nT"], color="0.7", lw=2.6, label="before (raw readings)")
     if np.isfinite(common["f_ref_nT"]).any():
         top.plot(h, common["f_ref_nT"], color=BOUND_GREY, ls="--", lw=1.2, label="reference")
     for c in _unique(df["configuration"]):

@@ -183,3 +183,17 @@ def test_line_markers_are_drawn_in_the_errors_figure(campaign):
                     assert max(coll.get_linewidths()) > 0, (scenario, conf, styles[conf]["marker"])
                     seen.add(styles[conf]["marker"])
     assert {"+", "x", "1"} <= seen
+
+
+def test_the_raw_readings_curve_is_no_method_s_colour(campaign):
+    """The heading figure's 'before' curve was near-black beside ga's black line: it is a grey no method
+    has."""
+    styles = campaign_styles(campaign)
+    tasks = [t for t in figure_tasks(campaign, kinds=("field_heading",))]
+    assert tasks
+    for kind, scenario, data in tasks:
+        fig = BUILDER_OF[kind](data, scenario, styles)
+        before = [ln for ln in fig.axes[0].get_lines() if ln.get_label() == "before (raw readings)"]
+        assert len(before) == 1
+        grey = mcolors.to_hex(before[0].get_color())
+        assert all(mcolors.to_hex(c) != grey for c in PALETTE) and grey not in ("#000000", "#404040")
