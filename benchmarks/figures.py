@@ -302,7 +302,8 @@ def _direct_labels(ax, points: list[tuple[str, float, float, str]], font_pt: flo
     (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
     w_in, h_in = ax.figure.get_size_inches() * np.array([0.62, 0.72])  # the axes' share of the figure, about
     placed: list[tuple[float, float, float]] = []  # (x, y, width) in points
-    for name, x, y, colour in sorted(points, key=lambda p: p[2]):
+    # rightmost first: a label pushed up past its right-hand neighbours keeps its leader clear of their names
+    for name, x, y, colour in sorted(points, key=lambda p: (-p[1], p[2])):
         px = (np.log10(x) - np.log10(x0)) / (np.log10(x1) - np.log10(x0)) * w_in * 72
         py = (np.log10(y) - np.log10(y0)) / (np.log10(y1) - np.log10(y0)) * h_in * 72
         width = 0.55 * font_pt * len(name)
@@ -313,7 +314,8 @@ def _direct_labels(ax, points: list[tuple[str, float, float, str]], font_pt: flo
                 if abs(px - qx) < max(width, qw) + 8 and abs(py + dy - qy) < font_pt + 1.99:  # 0.01: rounding
                     dy, moved = qy + font_pt + 2 - py, True
         placed.append((px, py + dy, width))
-        leader = {"arrowprops": {"arrowstyle": "-", "color": colour, "lw": 0.6, "shrinkA": 0, "shrinkB": 3}} \
+        leader = {"arrowprops": {"arrowstyle": "-", "color": colour, "lw": 0.6, "shrinkA": 0, "shrinkB": 0,
+                                 "relpos": (0.0, 0.0)}} \
             if dy > font_pt else {}  # a label pushed away from its point is joined to it by a thin line
         ax.annotate(name, (x, y), xytext=(7, dy + 3), textcoords="offset points", fontsize=font_pt, color=colour,
                     ha="left", va="bottom", annotation_clip=False, **leader)

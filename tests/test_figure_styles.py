@@ -197,3 +197,25 @@ def test_the_raw_readings_curve_is_no_method_s_colour(campaign):
         assert len(before) == 1
         grey = mcolors.to_hex(before[0].get_color())
         assert all(mcolors.to_hex(c) != grey for c in PALETTE) and grey not in ("#000000", "#404040")
+
+
+def test_leaders_of_stacked_labels_stay_clear_of_the_other_names():
+    """Where points crowd side by side, the label of a point further left sits higher and its leader ends at
+    the label's lower-left corner: it passes left of the names below it (leaders used to run to the middle
+    of their label, across the names stacked beneath)."""
+    from matplotlib.figure import Figure
+
+    from magbench.benchmarks.figures import _direct_labels
+
+    fig = Figure(figsize=(8.5, 4.8))
+    ax = fig.subplots()
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.plot([1e-4, 1e-1], [0.5, 1e3], alpha=0)
+    points = [(name, 3e-4 * (1 + 0.04 * i), 1.1 + 0.001 * (i % 2), "k")
+              for i, name in enumerate(["tls", "merayo", "ellipsoid", "sym", "ttls"])]
+    _direct_labels(ax, points)
+    rise = {a.get_text(): a.xyann[1] for a in ax.texts}
+    heights = [rise[name] for name, *_ in points]  # left to right
+    assert all(a > b for a, b in zip(heights, heights[1:]))
+    assert all(a.arrowprops["relpos"] == (0.0, 0.0) for a in ax.texts if a.arrowprops)
