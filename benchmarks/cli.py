@@ -396,12 +396,14 @@ def cmd_demo(args) -> int:
              "full-sphere 9-parameter sensor (sphere9), every registered calibrator.", ""]
     for name, part in frame.groupby("scenario", sort=False):
         lines.append(f"== {name}: {get_scenario(name).description}")
+        before = pd.to_numeric(part.get("rms_before_nT", pd.Series(dtype=float)), errors="coerce").dropna()
+        if len(before):  # the same readings for every method: said once, not in a column of equal numbers
+            lines.append(f"   total-field RMS before calibration: {before.median():.3g} nT")
         table = pd.DataFrame({
             "method": part["method"],
             "d_alpha\"": part.get("alpha_err_rad", np.nan) * ARCSEC_PER_RAD,
             "d_beta\"": part.get("beta_err_rad", np.nan) * ARCSEC_PER_RAD,
             "d_gamma\"": part.get("gamma_err_rad", np.nan) * ARCSEC_PER_RAD,
-            "rms_before_nT": part.get("rms_before_nT", np.nan),
             "rms_after_nT": part.get("rms_after_nT", np.nan),
             "evals": [evaluations_label(m, n) for m, n in zip(part.get("evaluation_mode", pd.Series("counted", index=part.index)),
                                                               part.get("n_evaluations", pd.Series(np.nan, index=part.index)))],
@@ -422,7 +424,7 @@ def cmd_demo(args) -> int:
             lines.append(f"  {r['method']} REJECTED: {cli_words(reasons[0]) if reasons else 'no reason recorded'}{more}")
         lines.append("")
     lines.append("d_*: estimate minus truth (angles in arc-seconds); max_d_scale, max_d_offset_nT: the largest over the "
-                 "three axes; rms: total-field residual against the reference before and after calibration; "
+                 "three axes; rms_after_nT: total-field residual against the reference after calibration; "
                  "accepted: whether the calibration passes its acceptance checks (a finished fit can be rejected; "
                  "the first reason is under the table).")
     _emit(args, {}, "\n".join(lines))

@@ -21,6 +21,7 @@ from __future__ import annotations
 import io
 import re
 import textwrap
+import threading
 import warnings
 from functools import partial
 from pathlib import Path
@@ -32,10 +33,11 @@ from matplotlib import style as mpl_style
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+from matplotlib.markers import MarkerStyle
 from matplotlib.patches import Patch
 
 from magbench.benchmarks import comparison_figures
-from magbench.benchmarks.progress import progress_bar
+from magbench.benchmarks.progress import BarSafeStream, progress_bar, slow_phase
 from magbench.benchmarks.styles import BOUND_GREY, RC, WARN_COLOUR, campaign_styles
 from magbench.benchmarks.tables import MIN_TRIALS_EFFICIENCY, efficiency_interval
 from magbench.paper import ARCSEC_PER_RAD
@@ -225,8 +227,9 @@ def fig_errors(runs: pd.DataFrame, scenario: str, styles: dict) -> Figure | None
         if data:
             _boxplot_h(ax, data, pos, cols)  # type: ignore[arg-type]
             for v, p, c in zip(data, pos, [configs[i] for i in pos]):
+                marker = styles[c]["marker"]  # a line marker (+, x, 1-4, |, _) is only its edge: it needs a width
                 ax.scatter(v, p + rng.uniform(-0.18, 0.18, v.size), s=8, color=styles[c]["color"],
-                           marker=styles[c]["marker"], alpha=0.75, lw=0, zorder=3)
+                           marker=marker, alpha=0.75, lw=0 if MarkerStyle(marker).is_filled() else 1.0, zorder=3)
         else:
             ax.text(0.5, 0.5, "no data", transform=ax.transAxes, ha="center", va="center", color="0.4")
         ax.set_xscale("log")
@@ -299,7 +302,8 @@ def _direct_labels(ax, points: list[tuple[str, float, float, str]], font_pt: flo
     (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
     w_in, h_in = ax.figure.get_size_inches() * np.array([0.62, 0.72])  # the axes' share of the figure, about
     placed: list[tuple[float, float, float]] = []  # (x, y, width) in points
-    for name, x, y, colour in sorted(points, key=lambda p: p[2]):
+    # rightmost first: a label pushed up past its right-hand neighbours keeps its leader clear of their names
+    for name, x, y, colour in sorted(points, key=lambda p: (-p[1], p[2])):
         px = (np.log10(x) - np.log10(x0)) / (np.log10(x1) - np.log10(x0)) * w_in * 72
         py = (np.log10(y) - np.log10(y0)) / (np.log10(y1) - np.log10(y0)) * h_in * 72
         width = 0.55 * font_pt * len(name)
@@ -310,7 +314,8 @@ def _direct_labels(ax, points: list[tuple[str, float, float, str]], font_pt: flo
                 if abs(px - qx) < max(width, qw) + 8 and abs(py + dy - qy) < font_pt + 1.99:  # 0.01: rounding
                     dy, moved = qy + font_pt + 2 - py, True
         placed.append((px, py + dy, width))
-        leader = {"arrowprops": {"arrowstyle": "-", "color": colour, "lw": 0.6, "shrinkA": 0, "shrinkB": 3}} \
+        leader = {"arrowprops": {"arrowstyle": "-", "color": colour, "lw": 0.6, "shrinkA": 0, "shrinkB": 0,
+                                 "relpos": (0.0, 0.0)}} \
             if dy > font_pt else {}  # a label pushed away from its point is joined to it by a thin line
         ax.annotate(name, (x, y), xytext=(7, dy + 3), textcoords="offset points", fontsize=font_pt, color=colour,
                     ha="left", va="bottom", annotation_clip=False, **leader)
@@ -447,7 +452,8 @@ def fig_field_heading(fields: pd.DataFrame, scenario: str, styles: dict) -> Figu
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=[3, 2])
     h = common.index.to_numpy()
     if np.isfinite(common["f_before_nT"]).any():
-        top.plot(h, common["f_before_nT"], color="0.25", lw=1.6, label="before (raw readings)")
+        # light grey and wide: no method has it (ga is black), and the corrected curves read on top of it
+        top.plot(h, common["f_before_nT"], color="0.7", lw=2.6, label="before (raw readings)")
     if np.isfinite(common["f_ref_nT"]).any():
         top.plot(h, common["f_ref_nT"], color=BOUND_GREY, ls="--", lw=1.2, label="reference")
     for c in _unique(df["configuration"]):
@@ -633,21 +639,35 @@ def make_figures(campaign_dir: str | Path, out_dir: str | Path | None = None, fo
 
     done: list[tuple[str, list[Path], bytes | None]] = []
     with progress_bar(len(tasks) + len(later), "figures", "fig", enabled=progress) as bar:
+        lock = threading.Lock()
+
+        def one_more(_future=None) -> None:  # a figure drawn: counted as it ends, not when collected
+            with lock:
+                bar.update(1)
+
+        def prepared() -> None:  # the comparison's tables can take a minute: said so, not silent
+            with slow_phase("the method comparison's tables (expected running times, ECDFs, paired tests)",
+                            enabled=progress, stream=BarSafeStream(bar)):
+                prepare()
+
         if jobs > 1:
             with _pool(jobs) as pool:
                 futures = [pool.submit(_draw_star, a) for a in args_of(tasks)]
+                for fut in futures:
+                    fut.add_done_callback(one_more)
                 if prepare is not None:
-                    prepare()
+                    prepared()
                 futures += [pool.submit(_draw_star, a) for a in args_of(figure_tasks(campaign_dir, later))]
+                for fut in futures[len(tasks):]:
+                    fut.add_done_callback(one_more)
                 for fut in futures:
                     done.append(fut.result())
-                    bar.update(1)
         else:
             if prepare is not None:
-                prepare()
+                prepared()
             for a in args_of(tasks + figure_tasks(campaign_dir, later)):
                 done.append(_draw_star(a))
-                bar.update(1)
+                one_more()
     written: list[Path] = []
     for stem, paths, png in done:
         written += paths

@@ -123,3 +123,23 @@ class slow_phase:
         if self.announced and exc[0] is None:
             self.stream.write(f"magbench: {self.desc}: done in {time.monotonic() - self.t0:.0f} s\n")
             self.stream.flush()
+
+
+class BarSafeStream:
+    """A stream for lines written while a progress display may be on the terminal: through tqdm's own
+    ``write`` (the bar is cleared, the line written, the bar redrawn) when ``bar`` is a tqdm bar, else
+    straight to stderr (plain lines need no care)."""
+
+    def __init__(self, bar=None):
+        self.bar = bar
+
+    def write(self, text: str) -> None:
+        if self.bar is not None and type(self.bar).__module__.startswith("tqdm"):
+            from tqdm import tqdm
+
+            tqdm.write(text.rstrip("\n"), file=sys.stderr)
+        else:
+            sys.stderr.write(text)
+
+    def flush(self) -> None:
+        sys.stderr.flush()

@@ -24,7 +24,7 @@ import pandas as pd
 from magbench.benchmarks.comparison import ert_cell
 from magbench.benchmarks.comparison_figures import COMPARISON_KINDS
 from magbench.benchmarks.figures import KINDS, failed_mask, make_figures, safe_name
-from magbench.benchmarks.styles import campaign_styles
+from magbench.benchmarks.styles import campaign_styles, swatch_svg
 from magbench.benchmarks.tables import (
     ANGLE_COLUMNS,
     COLUMNS,
@@ -93,7 +93,7 @@ table.summary th,table.summary td{border-width:0 1px 1px 0}
 table.summary td{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}
 table.summary td.text{text-align:left}
 td.fewtrials{background:var(--warn-bg)}
-.swatch{display:inline-block;width:.8em;height:.8em;border-radius:2px;margin-right:.35em;vertical-align:-.05em}
+.swatch{display:inline-block;width:2.2em;height:1em;margin-right:.3em;vertical-align:-.15em;flex:none}
 .scroll{overflow-x:auto;max-width:100%;margin:.6em 0}
 .scroll>table{margin:0}
 .scroll:focus-visible{outline:2px solid #3867b0;outline-offset:2px}
@@ -229,12 +229,18 @@ def _header(summary: pd.DataFrame, cols: list) -> list[dict]:
 
 
 def _rows(part: pd.DataFrame, cols: list, accept: bool, styles: dict | None = None) -> list[list[dict]]:
-    """The results table's cells; the calibrator's cell carries its colour in every figure (``swatch``)."""
+    """The results table's cells; the calibrator's cell starts with its style in every figure (colour, marker
+    and line style, as a small inline SVG: ``styles.swatch_svg``), so that two configurations sharing a colour
+    are told apart here as in the figures."""
+    from markupsafe import Markup, escape
+
     styles = styles or {}
     rows = []
     for _, r in part.iterrows():
-        swatch = styles.get(str(r["configuration"]), {}).get("color", "")
-        cells = [{"value": r["configuration"], "cls": "text", "swatch": swatch},
+        name = str(r["configuration"])
+        style = styles.get(name)
+        label = Markup(swatch_svg(style, f"{name}'s style in the figures")) + escape(name) if style else name
+        cells = [{"value": label, "cls": "text"},
                  {"value": _value(r, COLUMNS["runs"]), "cls": ""},
                  {"value": _value(r, COLUMNS["success"]), "cls": ""}]
         if accept:

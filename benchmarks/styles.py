@@ -72,3 +72,34 @@ def campaign_configurations(campaign_dir, *seen) -> list[str]:
 def campaign_styles(campaign_dir, *seen) -> dict[str, dict]:
     """The campaign's one style map (``style_map`` of ``campaign_configurations``)."""
     return style_map(campaign_configurations(campaign_dir, *seen))
+
+
+def swatch_svg(style: dict, title: str = "") -> str:
+    """A small inline SVG of a configuration's style for an HTML table: a stretch of its line (colour, line
+    style) with its marker in the middle, so that two configurations sharing a colour (beyond the eight of
+    the palette) are told apart in the report as in the figures.  ``data-colour`` and ``data-marker`` carry
+    the style for checks."""
+    from html import escape
+
+    from matplotlib.markers import MarkerStyle
+
+    colour, marker, ls = str(style.get("color", "#000000")), str(style.get("marker", "o")), str(style.get("ls", "-"))
+    m = MarkerStyle(marker)
+    path = m.get_path().transformed(m.get_transform())
+    codes = {1: "M", 2: "L", 3: "Q", 4: "C"}
+    d = []
+    scale = 9.0  # a marker of unit size fills three quarters of the line height
+    for vertices, code in path.iter_segments(simplify=False, curves=True):
+        if code == 79:  # CLOSEPOLY
+            d.append("Z")
+            continue
+        pts = " ".join(f"{scale * x:.2f} {-scale * y:.2f}" for x, y in vertices.reshape(-1, 2))
+        d.append(f"{codes.get(int(code), 'L')}{pts}")
+    filled = m.is_filled()
+    dash = {"--": ' stroke-dasharray="4 2"', ":": ' stroke-dasharray="1.2 1.8"', "-.": ' stroke-dasharray="4 1.5 1 1.5"'}
+    return (f'<svg class="swatch" width="2.2em" height="1em" viewBox="-13 -6 26 12" role="img" '
+            f'aria-label="{escape(title or "style")}" data-colour="{escape(colour)}" data-marker="{escape(marker)}" '
+            f'data-ls="{escape(ls)}"><line x1="-12" y1="0" x2="12" y2="0" stroke="{escape(colour)}" '
+            f'stroke-width="1.4"{dash.get(ls, "")}/><path d="{" ".join(d)}" '
+            f'fill="{escape(colour) if filled else "none"}" stroke="{escape(colour)}" '
+            f'stroke-width="{0.6 if filled else 1.3}"/></svg>')

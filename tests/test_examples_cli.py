@@ -36,6 +36,10 @@ def test_the_demo_gives_each_rejection_its_reason(capsys):
     assert all(": " in ln for ln in rejected)
     assert "Lu et al. 2014" in out and "seed 000" not in out
     assert "max_d_scale" in out and "largest over the" in out
+    # the RMS before calibration, equal for every method of a scenario, is said once above its table
+    assert out.count("total-field RMS before calibration: ") == 2 and "rms_before_nT" not in out
+    table = [ln for ln in out.splitlines() if ln.startswith(("   method ", "      lsq "))]
+    assert len(table) == 4 and max(len(ln) for ln in table) <= 110
 
 
 def test_summary_tables_define_finished_and_accepted(tmp_path, capsys):

@@ -105,12 +105,27 @@ def test_the_report_shows_each_calibrator_in_its_figure_colour(campaign):
     import re
 
     html = (campaign / "report.html").read_text()
-    shown = dict((name.strip(), colour) for colour, name in
-                 re.findall(r'class="swatch" style="background:(#[0-9A-Fa-f]{6})" aria-hidden="true"></span>([^<]+)<',
-                            html))
+    shown = {name.strip(): (colour, marker, ls) for colour, marker, ls, name in
+             re.findall(r'<svg class="swatch"[^>]* data-colour="(#[0-9A-Fa-f]{6})" data-marker="([^"]+)" '
+                        r'data-ls="([^"]+)">.*?</svg>([^<]+)<', html)}
     styles = campaign_styles(campaign)
-    assert shown and all(shown[c] == styles[c]["color"] for c in shown)
+    assert shown and all(shown[c] == (styles[c]["color"], styles[c]["marker"], styles[c]["ls"]) for c in shown)
     assert set(shown) == set(styles)
+
+
+def test_the_report_tells_apart_methods_that_share_a_colour():
+    """Beyond the palette's eight colours two configurations share a colour (aga and nlopt in the reproduced
+    campaign): the report's swatch shows the marker and line style too, each drawn as in the figures."""
+    import re
+
+    from magbench.benchmarks.styles import swatch_svg
+
+    styles = style_map([f"m{i}" for i in range(DISTINCT)])
+    svgs = {n: swatch_svg(st, n) for n, st in styles.items()}
+    assert len(set(svgs.values())) == DISTINCT
+    assert styles["m0"]["color"] == styles["m8"]["color"] and svgs["m0"] != svgs["m8"]
+    for n, svg in svgs.items():
+        assert re.fullmatch(r'<svg class="swatch" [^<]*><line [^<]*/><path d="M[^"]+"[^<]*/></svg>', svg), n
 
 
 def test_every_style_draws_as_a_format_string_too():
@@ -143,3 +158,64 @@ def test_direct_labels_never_overlap_even_where_points_coincide():
     offsets = {a.get_text(): a.xyann[1] for a in ax.texts}
     same_spot = sorted(offsets[f"method{i}"] for i in range(12))
     assert all(b - a >= 7.5 + 1.9 for a, b in zip(same_spot, same_spot[1:]))  # stacked, one line apart
+
+
+def test_line_markers_are_drawn_in_the_errors_figure(campaign):
+    """Styles 16 and on use line markers (+, x, 1-4, |, _), which are only an edge: the single-run points of
+    the angle-error figure were drawn with no line width, so ttls ('+') and twostep ('x') had no points in a
+    17-method campaign.  Every scatter of a line marker must have a width."""
+    from matplotlib.collections import PathCollection
+    from matplotlib.markers import MarkerStyle
+
+    configs = list(campaign_styles(campaign))
+    markers = ("+", "x", "o", "1")
+    styles = {c: {"color": PALETTE[i], "marker": markers[i], "ls": "-"} for i, c in enumerate(configs)}
+    seen = set()
+    for kind, scenario, data in figure_tasks(campaign, kinds=("errors",)):
+        fig = BUILDER_OF[kind](data, scenario, styles)
+        for ax in fig.axes:
+            for coll in ax.collections:
+                if not isinstance(coll, PathCollection) or not len(coll.get_offsets()):
+                    continue
+                colour = mcolors.to_hex(coll.get_facecolors()[0], keep_alpha=False)
+                conf = next(c for c in configs if mcolors.to_hex(styles[c]["color"]) == colour)
+                if not MarkerStyle(styles[conf]["marker"]).is_filled():
+                    assert max(coll.get_linewidths()) > 0, (scenario, conf, styles[conf]["marker"])
+                    seen.add(styles[conf]["marker"])
+    assert {"+", "x", "1"} <= seen
+
+
+def test_the_raw_readings_curve_is_no_method_s_colour(campaign):
+    """The heading figure's 'before' curve was near-black beside ga's black line: it is a grey no method
+    has."""
+    styles = campaign_styles(campaign)
+    tasks = [t for t in figure_tasks(campaign, kinds=("field_heading",))]
+    assert tasks
+    for kind, scenario, data in tasks:
+        fig = BUILDER_OF[kind](data, scenario, styles)
+        before = [ln for ln in fig.axes[0].get_lines() if ln.get_label() == "before (raw readings)"]
+        assert len(before) == 1
+        grey = mcolors.to_hex(before[0].get_color())
+        assert all(mcolors.to_hex(c) != grey for c in PALETTE) and grey not in ("#000000", "#404040")
+
+
+def test_leaders_of_stacked_labels_stay_clear_of_the_other_names():
+    """Where points crowd side by side, the label of a point further left sits higher and its leader ends at
+    the label's lower-left corner: it passes left of the names below it (leaders used to run to the middle
+    of their label, across the names stacked beneath)."""
+    from matplotlib.figure import Figure
+
+    from magbench.benchmarks.figures import _direct_labels
+
+    fig = Figure(figsize=(8.5, 4.8))
+    ax = fig.subplots()
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.plot([1e-4, 1e-1], [0.5, 1e3], alpha=0)
+    points = [(name, 3e-4 * (1 + 0.04 * i), 1.1 + 0.001 * (i % 2), "k")
+              for i, name in enumerate(["tls", "merayo", "ellipsoid", "sym", "ttls"])]
+    _direct_labels(ax, points)
+    rise = {a.get_text(): a.xyann[1] for a in ax.texts}
+    heights = [rise[name] for name, *_ in points]  # left to right
+    assert all(a > b for a, b in zip(heights, heights[1:]))
+    assert all(a.arrowprops["relpos"] == (0.0, 0.0) for a in ax.texts if a.arrowprops)

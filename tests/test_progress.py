@@ -61,3 +61,19 @@ def test_a_slow_phase_says_so_and_a_fast_one_does_not():
     with progress.slow_phase("slow work", enabled=False, stream=quiet, after_s=0.01):
         time.sleep(0.05)
     assert quiet.getvalue() == ""
+
+
+def test_the_comparison_tables_drawn_beside_the_figures_are_announced(tmp_path, capsys):
+    """A campaign's comparison tables (prepared while the figures are drawn) took 30-50 s of a 16-method
+    campaign with no line at all: the phase now says so, on one and on two processes."""
+    import time
+
+    from magbench.benchmarks.figures import make_figures
+
+    for jobs in (1, 2):
+        make_figures(tmp_path, formats=(), progress=True, jobs=jobs, prepare=lambda: time.sleep(2.3))
+        err = capsys.readouterr().err
+        assert "\r" not in err
+        lines = err.splitlines()
+        assert lines[0] == "magbench: the method comparison's tables (expected running times, ECDFs, paired tests) ..."
+        assert lines[1].startswith("magbench: the method comparison's tables") and " done in " in lines[1]
