@@ -49,6 +49,7 @@ from magbench.benchmarks.metrics import budget_violation, crb_row, run_metrics
 from magbench.benchmarks.progress import progress_bar
 from magbench.benchmarks.tables import write_tables
 from magbench.calibrators import available, make, prefer_compiled_kernels
+from magbench.calibrators.methods._gakernel import announce_compiles
 from magbench.errors import InputError
 from magbench.simulate.scenarios import get_scenario
 
@@ -330,6 +331,7 @@ def _stop_pool(pool) -> None:
 def _run_pool(tasks: list[dict], jobs: int, finish) -> None:
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
+    announce_compiles({t["method"] for t in tasks})  # once here, not once per worker
     pool = ProcessPoolExecutor(max_workers=jobs, initializer=_worker_init, initargs=(os.getpid(),))
     try:
         futures = {pool.submit(run_chunk, [tasks[i] for i in idx]): idx

@@ -169,15 +169,22 @@ def _table2_row(t2: dict) -> str:
                 "mismatch, zero drift, field variation, temperature (section 3)", ours, verdict, why)
 
 
+PAPERS = {"000": "Lu et al. 2014", "001": "Jin, Zhuang & Wang 2024",
+          "002": "the real-coded GA paper on three-component fluxgates (no author in our copy)",
+          "003": "Luo et al. (RANSAC ellipsoid fit)", "004": "Zhang et al. (TTLS, L-curve)"}
+"""The five source papers by author and year as far as our copies give them (``../shared/seeds`` 000-004)."""
+
+
 def _row(paper, claim, ours, verdict, why):
-    return f"| {paper} | {claim} | {ours} | **{verdict}** | {why} |"
+    number, _, note = paper.partition(" ")
+    return f"| {PAPERS.get(number, number)}{' ' + note if note else ''} | {claim} | {ours} | **{verdict}** | {why} |"
 
 
 def write_claims(out: Path) -> Path:
     """results/claims.md: one row per headline claim of every seed paper, each verdict computed from
     the numbers beside it (the reproduce outputs in ``out`` and the experiments below)."""
     rows = _seed000_rows(out) + _seed001_rows(out) + _seed002_rows(out) + _seed003_rows(out) + _seed004_rows(out)
-    text = ["# Headline claims of the seed papers and our reproduction", "",
+    text = ["# Headline claims of the reproduced papers and our reproduction", "",
             "Made by `magbench reproduce`. Verdicts: **reproduced** (the claim holds in our reproduction), **partly** "
             "(holds with a qualification), **not** (our reproduction contradicts it).", "",
             "| paper | claim | our reproduction | verdict | why |", "|---|---|---|---|---|", *rows]

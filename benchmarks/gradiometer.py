@@ -54,7 +54,7 @@ from magbench.simulate.gradiometer import (
 PAPER_GA_RMS_NT = (1.8482, 1.8453, 1.9150)
 """Seed 001, abstract and section 4: gradient (difference) error per axis after the GA calibration."""
 
-PAPER = ("seed 001: Jin, Zhuang, Wang, magnetic calibration based on magnetic gradient measurement, "
+PAPER = ("Jin, Zhuang & Wang 2024, magnetic calibration based on magnetic gradient measurement, "
          "Aero Weaponry 2024(1):117-121")
 
 GA_STREAM = 1
@@ -213,7 +213,7 @@ _SENSOR_ROWS = (("ellipsoid", "single-sensor ellipsoid fits"), ("ga", "GA gradie
 
 
 def _header(r: dict) -> list[str]:
-    return [f"gradiometer of Jin, Zhuang & Wang (seed 001): two fluxgates on one body, seed {r['seed']}, "
+    return [f"gradiometer of Jin, Zhuang & Wang (2024): two fluxgates on one body, seed {r['seed']}, "
             f"{r['n_points']} attitudes "
             f"({r['attitude']}) over {r['duration_s']:g} s",
             f"field {r['field_nT']:.0f} nT (I {r['inclination_deg']:.0f} deg, D {r['declination_deg']:.0f} deg), "

@@ -23,8 +23,8 @@ def add_gradiometer_command(subparsers) -> argparse.ArgumentParser:
     """Add ``gradiometer`` (seed 001's experiment) to an argparse subparsers object; ``func(args)`` prints
     the table (or one JSON object with ``--json``) and returns 0; bad values raise ``InputError``."""
     p = subparsers.add_parser(
-        "gradiometer", help="Jin, Zhuang & Wang (seed 001): calibrate a two-fluxgate gradiometer by GA under a fluctuating field",
-        description="Simulate the gradiometer of Jin, Zhuang & Wang (seed 001) (two tri-axial fluxgates on one "
+        "gradiometer", help="Jin, Zhuang & Wang (2024): calibrate a two-fluxgate gradiometer by GA under a fluctuating field",
+        description="Simulate the gradiometer of Jin, Zhuang & Wang (2024) (two tri-axial fluxgates on one "
                     "rigid body, 24 parameters) "
                     "in a field fluctuating in time, calibrate it by single-sensor ellipsoid fits and by the "
                     "paper's three 6-gene GAs, and report the per-axis gradient residual (paper: 1.85 nT).")

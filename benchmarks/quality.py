@@ -88,7 +88,7 @@ def write(out_dir: Path, n_lu: int, n_sphere: int, jobs: int = 1) -> str:
     lines = ["# Quality of the paper's calibrators and their peers", "",
              f"Made by `python -m magbench.benchmarks.quality --seeds-lu {n_lu} --seeds-sphere {n_sphere}`; every run is a "
              "row of results/quality.csv.", "",
-             f"## 1. lu2014 (seed 000's turntable, 36 points, 1 nT noise): angles within the 10-bit coding "
+             f"## 1. lu2014 (Lu et al. 2014's turntable, 36 points, 1 nT noise): angles within the 10-bit coding "
              f"resolution ({RESOLUTION_RAD:.6f} rad), {n_lu} seeds", "",
              "| method | all three within resolution | alpha | beta | gamma | median abs error (alpha, beta, gamma) rad "
              "| worst abs error rad | median rms after nT |", "|---|---|---|---|---|---|---|---|"]

@@ -56,7 +56,7 @@ def lu2014_tables(campaign_dir: Path, out: Path) -> Path:
 
     runs = pd.read_csv(campaign_dir / "runs.csv", keep_default_na=False, na_values=[""])
     lu = runs[(runs["scenario"] == "lu2014") & runs["error"].isna()]
-    lines = ["# Seed 000 (Lu et al. 2014) Tables 1 and 2, reproduced on the `lu2014` scenario", "",
+    lines = ["# Lu et al. 2014: Tables 1 and 2, reproduced on the `lu2014` scenario", "",
              "Made by `magbench reproduce`. `lu2014` simulates the paper's experiment: a level turntable, 36 steps "
              "of 10°, Xi'an 2013 (IGRF-14 inclination), reference 51978.74 nT, the Table 1 angles as the truth, "
              "1 nT noise and 0.1 nT resolution.", "",
@@ -138,7 +138,7 @@ def diagnosis_reports(out: Path, blind_n: int = 300, progress: bool = False, job
     h = t2["localization"]["heading_harmonics"]
     eff = {e["name"]: e for e in t2["effects"]}
     geo = t2.get("geometry", {})
-    finding = (f"Seed 000's Table 2 (the paper's own calibration of real FGM-2000 data) leaves "
+    finding = (f"Lu et al. 2014's Table 2 (the paper's own calibration of real FGM-2000 data) leaves "
                f"{t2['rms_fit_nT']:.1f} nT RMS: {h['2_per_rev_nT']:.1f} nT at two cycles per revolution, "
                f"{h['1_per_rev_nT']:.1f} nT at one, {h['3_per_rev_nT']:.1f} nT at three and {h['4_per_rev_nT']:.1f} nT at "
                f"four; {h['rms_beyond_nT']:.1f} nT lies beyond four harmonics (the noise floor from second differences "
@@ -333,7 +333,7 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
                      f"--jobs {jobs}", progress=progress)
         written.append(lsq_dir / "summary.md")
         (lsq_dir / CHECKPOINT).unlink(missing_ok=True)
-        clock.start("seed 000 tables")
+        clock.start("Lu et al. 2014 tables")
         written.append(lu2014_tables(camp_dir, out / "lu2014_tables.md"))
         phase("diagnosis of the real recordings and the blind check")
         written.append(diagnosis_reports(out, blind_n=14 if quick else 300, progress=progress, jobs=jobs))

@@ -604,7 +604,7 @@ class TemperatureEffect(Effect):
 @register_effect
 @dataclass(frozen=True)
 class FieldDriftEffect(Effect):
-    """The ambient field varies in time (seed 001: up to 200 nT) while the reference magnitude stays at its
+    """The ambient field varies in time (Jin, Zhuang & Wang 2024: up to 200 nT) while the reference magnitude stays at its
     initial value; fitted as Legendre polynomials of time added to the reference."""
 
     name: ClassVar[str] = "field_drift"
@@ -807,7 +807,7 @@ class LagEffect(Effect):
 @register_effect
 @dataclass(frozen=True)
 class OutlierEffect(Effect):
-    """Sparse spikes (seed 003: 10 % of the points with 500 nT noise): a fraction of the samples get large
+    """Sparse spikes (Luo et al.: 10 % of the points with 500 nT noise): a fraction of the samples get large
     Gaussian errors on every axis; fitted by explaining away the samples beyond 5 robust sigma."""
 
     name: ClassVar[str] = "outliers"

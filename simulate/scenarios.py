@@ -158,8 +158,8 @@ register_scenario(Scenario(
     sensor=SensorModel(SPHERE9_ERRORS, noise_nT=2.0), schedule_kw=dict(max_tilt_deg=90.0)))
 register_scenario(Scenario(
     "vehicle9",
-    "Zhang et al.'s regime (seed 004): land vehicle, one full turn of yaw with pitch and roll within 5 deg, 9-parameter "
-    "sensor, 360 points, 2 nT noise",
+    "Zhang et al.'s regime (TTLS with the L-curve): land vehicle, one full turn of yaw with pitch and roll within 5 deg, "
+    "9-parameter sensor, 360 points, 2 nT noise",
     model="nine", schedule="vehicle", n_points=360,
     sensor=SensorModel(SPHERE9_ERRORS, noise_nT=2.0), schedule_kw=dict(pitch_roll_deg=5.0)))
 register_scenario(Scenario(
@@ -170,7 +170,7 @@ register_scenario(Scenario(
     sensor=SensorModel(SPHERE9_ERRORS, noise_nT=2.0), drift_nT=200.0, schedule_kw=dict(duration_s=600.0)))
 register_scenario(Scenario(
     "vehicle9n",
-    "Zhang et al.'s regime (seed 004) with vehicle-level noise: one turn of yaw, pitch and roll within 3 deg, 9-parameter "
+    "Zhang et al.'s regime (TTLS, L-curve) with vehicle-level noise: one turn of yaw, pitch and roll within 3 deg, 9-parameter "
     "sensor, 200 points, 20 nT noise",
     model="nine", schedule="vehicle", n_points=200,
     sensor=SensorModel(SPHERE9_ERRORS, noise_nT=20.0), schedule_kw=dict(pitch_roll_deg=3.0)))

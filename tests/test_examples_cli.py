@@ -59,3 +59,22 @@ def test_the_terminal_gets_a_compact_table(tmp_path, capsys):
     table = text.split("fin: ")[0].splitlines()
     assert max(len(ln) for ln in table) <= 100 and "|" not in text
     assert "fin%" in text and "acc%" in text and "summary.md" in text
+
+
+def test_user_facing_text_names_papers_by_author_not_by_seed_number(capsys):
+    """`list`, every command's help and the README name the source papers by author (and year where our
+    copy gives it), never by the project's internal "seed 00N" numbering."""
+    import contextlib
+    import re
+    from pathlib import Path
+
+    seen = []
+    for argv in (["list"], ["--help"], ["gradiometer", "--help"], ["compare", "--help"], ["diagnose", "--help"],
+                 ["calibrate", "--help"], ["reproduce", "--help"]):
+        with contextlib.suppress(SystemExit):
+            main(argv)
+        seen.append(capsys.readouterr().out)
+    seen.append(Path(__file__).resolve().parents[1].joinpath("README.md").read_text())
+    text = "\n".join(seen)
+    assert "Lu et al. 2014" in text and "Jin, Zhuang & Wang" in text
+    assert not re.search(r"seeds? 00\d", text, re.IGNORECASE), re.findall(r".{40}seeds? 00\d.{20}", text, re.I)

@@ -66,3 +66,17 @@ def test_the_index_of_numbas_cache_is_found():
     pytest.importorskip("numba")
     assert K._cached_on_disk(K._real_generation_loops)
     assert not K._cached_on_disk(_tiny)
+
+
+def test_a_campaign_announces_the_compiles_once_for_all_its_workers(capsys, monkeypatch):
+    pytest.importorskip("numba")
+    monkeypatch.delenv(K.NOTICE_ENV, raising=False)
+    monkeypatch.setattr(K, "_cached_on_disk", lambda loops: False)
+    K.announce_compiles({"lsq", "ga"})  # the parent, before starting its workers: the real-coded kernel only
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "real_generation_loops" in err
+    K._compiled(_tiny, lambda k: k(1.0), None)  # a worker compiling: it stays quiet
+    assert capsys.readouterr().err == ""
+    monkeypatch.delenv(K.NOTICE_ENV)
+    K.announce_compiles({"lsq", "ellipsoid"})  # no GA: nothing said, workers not silenced
+    assert capsys.readouterr().err == "" and K.NOTICE_ENV not in __import__("os").environ

@@ -26,7 +26,7 @@ def _box(data):
     return search_bounds("nine", data.f_ref_nT, **population_box(make("ga", model="nine")))
 
 
-@pytest.mark.benchmark(group="aga: seed 000 configuration, 80 x 1000 generations, 36 points, angles")
+@pytest.mark.benchmark(group="aga: Lu et al. 2014's configuration, 80 x 1000 generations, 36 points, angles")
 def test_aga_paper_configuration(benchmark, lu2014):
     cal = make("aga", model="angles", max_generations=GENERATIONS)
     res = benchmark.pedantic(cal.fit, args=(lu2014,), rounds=20, iterations=1, warmup_rounds=1)
@@ -34,7 +34,7 @@ def test_aga_paper_configuration(benchmark, lu2014):
     benchmark.extra_info.update(evaluations=res.n_evaluations, rms_after_nT=res.rms_after_nT)
 
 
-@pytest.mark.benchmark(group="aga: seed 000 configuration, 80 x 1000 generations, 36 points, angles")
+@pytest.mark.benchmark(group="aga: Lu et al. 2014's configuration, 80 x 1000 generations, 36 points, angles")
 def test_aga_objective_only(benchmark, lu2014):
     """The objective alone, as the AGA calls it: 1000 populations of 80 on the same data; the AGA's own
     bookkeeping is the AGA's time minus this."""

@@ -293,11 +293,7 @@ def _compiled(loops, smoke, fallback):
     except ImportError:
         return fallback
     if not _cached_on_disk(loops):
-        import sys
-
-        sys.stderr.write(f"magbench: compiling the GA kernel ({loops.__name__.strip('_')}) with numba, once per "
-                         f"machine (about {COMPILE_S:.0f} s)\n")
-        sys.stderr.flush()
+        _compile_notice(loops)
     _LOADED[loops.__name__] = True
     try:
         try:
@@ -308,6 +304,43 @@ def _compiled(loops, smoke, fallback):
     except Exception:  # noqa: BLE001  (a numba that cannot compile here: the numpy version runs)
         return fallback
     return kernel
+
+
+NOTICE_ENV = "MAGBENCH_COMPILE_NOTICE"
+"""Set to ``given`` by a process that announced the compiles for the workers it starts (they stay quiet)."""
+
+
+def _compile_notice(loops) -> None:
+    """One line on stderr before numba compiles ``loops`` (unless the parent process said it already)."""
+    import os
+    import sys
+
+    if os.environ.get(NOTICE_ENV) == "given":
+        return
+    sys.stderr.write(f"magbench: compiling the GA kernel ({loops.__name__.strip('_')}) with numba, once per "
+                     f"machine (a few seconds to a minute)\n")
+    sys.stderr.flush()
+
+
+KERNEL_USERS = {"aga": "binary", "aga-lm": "binary", "ga": "real", "rga": "real"}
+"""The built-in methods that run a GA kernel, and which."""
+
+
+def announce_compiles(methods) -> None:
+    """For a process about to start workers that will run ``methods``: the compile notice of each GA kernel
+    they use (``KERNEL_USERS``) that is not in numba's disk cache, said once here, and the workers told not
+    to repeat it (``NOTICE_ENV``).  Other methods use no GA kernel; a plug-in GA's workers speak for
+    themselves."""
+    import importlib.util
+    import os
+
+    kinds = {KERNEL_USERS[m] for m in methods if m in KERNEL_USERS}
+    if not kinds or importlib.util.find_spec("numba") is None:
+        return
+    for kind, loops in (("binary", _generation_loops), ("real", _real_generation_loops)):
+        if kind in kinds and not _cached_on_disk(loops):
+            _compile_notice(loops)
+    os.environ[NOTICE_ENV] = "given"
 
 
 @functools.cache

@@ -348,7 +348,8 @@ class ElitistRealGA(RealGA):
     ours (MATLAB's shrink of 1 with a scale of 0.5 left the residual 10x above the optimum on sphere9)."""
 
     name = "rga"
-    summary = "the real-coded elitist GA of seed 002 (rank/SUS selection, scattered crossover, shrinking Gaussian)"
+    summary = ("the real-coded elitist GA of the real-coded GA paper on three-component fluxgates (rank/SUS selection, "
+               "scattered crossover, shrinking Gaussian)")
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, population: int = 80,
                  generations: int = 1000, pc: float = 0.8, pm: float = 0.2, blx_alpha: float = 0.0,

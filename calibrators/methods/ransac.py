@@ -40,7 +40,7 @@ class RansacEllipsoid(Calibrator):
     """RANSAC with the ellipsoid fit as the model (seed 003)."""
 
     name = "ransac"
-    summary = "RANSAC around the ellipsoid fit (Luo et al., seed 003): epsilon from the plain fit, K from the confidence"
+    summary = "RANSAC around the ellipsoid fit (Luo et al.): epsilon from the plain fit, K from the confidence"
     supported_models = ("nine",)
     stochastic = True
     closed_form = True  # fits ellipsoids to subsets of the readings; scores each through the counter

@@ -116,7 +116,7 @@ class TotalLeastSquares(_LinearizedFit):
     """Total least squares of the linearized calibration equations (seed 004, eq. 8-10)."""
 
     name = "tls"
-    summary = "total least squares of the linearized ellipsoid equations (Zhang et al., seed 004)"
+    summary = "total least squares of the linearized ellipsoid equations (Zhang et al.)"
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, normalize: bool = False):
         super().__init__(model=model, seed=seed, budget=budget)
@@ -127,7 +127,7 @@ class TruncatedTLS(_LinearizedFit):
     """Truncated TLS, the truncation level from the L-curve corner (seed 004); ``truncation`` > 0 fixes it."""
 
     name = "ttls"
-    summary = "truncated TLS with the L-curve truncation level (Zhang et al., seed 004)"
+    summary = "truncated TLS with the L-curve truncation level (Zhang et al.)"
     truncate = True
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, truncation: int = 0,
