@@ -248,8 +248,10 @@ def paired_tests(runs: pd.DataFrame, metric: str = "rms_after_nT") -> tuple[pd.D
                               "p_equivalent": _tost(diff, margin, wilcoxon)})
         if pairs:
             adjusted = holm(np.array([q["p"] for q in pairs]))
-            for q, adj in zip(pairs, adjusted):
+            equivalence = holm(np.array([q["p_equivalent"] for q in pairs]))  # the same family-wise control
+            for q, adj, eq in zip(pairs, adjusted, equivalence):
                 q["p_holm"] = float(adj)
+                q["p_equivalent"] = float(eq)
                 q["significant"] = bool(adj < ALPHA)
                 practical = q["significant"] and abs(q["median_diff"]) > q["margin_nT"]
                 q["better"] = (q["a"] if q["median_diff"] < 0 else q["b"]) if practical else ""
@@ -259,6 +261,12 @@ def paired_tests(runs: pd.DataFrame, metric: str = "rms_after_nT") -> tuple[pd.D
                                 else "")
             tests += pairs
     return pd.DataFrame(tests), pd.DataFrame(wins)
+
+
+def _smallest_holm_p(n: int, pairs: int) -> float:
+    """The smallest Holm-adjusted p-value a two-sided exact Wilcoxon signed-rank test of n paired trials can
+    give among ``pairs`` comparisons: ``pairs * 2 / 2**n`` (every difference of one sign), at most 1."""
+    return min(1.0, pairs * 2.0 / 2.0 ** max(n, 0)) if n > 0 else 1.0
 
 
 def _tost(diff: np.ndarray, margin: float, wilcoxon) -> float:
@@ -349,8 +357,11 @@ def _write_markdown(path: Path, runs: pd.DataFrame, ert: pd.DataFrame, tests: pd
             lines += ["### Paired Wilcoxon signed-rank tests on the final RMS (Holm-corrected)", "",
                       f"A configuration is *better* only when the difference is significant (Holm, {ALPHA:g}) and "
                       f"larger than the practical margin of {margin:.3g} nT ({100 * PRACTICAL_MARGIN:g} % of this "
-                      "scenario's optimum RMS); *equivalent* when two one-sided tests show it within the margin; "
-                      "else *inconclusive*.", "",
+                      "scenario's optimum RMS); *equivalent* when two one-sided tests show it within the margin "
+                      f"(Holm-corrected too); else *inconclusive*. With {len(t)} pairs and {int(t['n'].min())} "
+                      "trials the smallest possible Holm p-value is about "
+                      f"{_smallest_holm_p(int(t['n'].min()), len(t)):.2g}, so with few trials even a large "
+                      "difference reads *inconclusive*.", "",
                       _md_table(t, [("a", "A", "{}"), ("b", "B", "{}"), ("n", "trials", "{:d}"),
                                     ("median_diff", "median A−B nT", "{:.3g}"), ("p_holm", "p (Holm)", "{:.3g}"),
                                     ("margin_nT", "margin nT", "{:.3g}"), ("p_equivalent", "p (equivalence)", "{:.3g}"),

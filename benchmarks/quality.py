@@ -55,17 +55,20 @@ def _one_seed(task: tuple[str, int]) -> list[dict]:
         return (_lu2014_seed if study == "lu2014" else _sphere_seed)(seed)
 
 
-def _studies(n_lu: int, n_sphere: int, jobs: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+def _studies(n_lu: int, n_sphere: int, jobs: int, progress=None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Both studies, seed by seed, in ``jobs`` worker processes (the rows and their order do not depend on
-    ``jobs``; only the runtimes measured do, as in a campaign)."""
+    ``jobs``; only the runtimes measured do, as in a campaign); ``progress``: a callable wrapping the
+    iterator of finished seeds (``progress(iterator, total=n)``), e.g. reproduce's progress lines."""
     tasks = [("sphere9", s) for s in range(n_sphere)] + [("lu2014", s) for s in range(n_lu)]  # longest first
+    wrap = progress or (lambda it, total: it)
     if jobs > 1:
         from concurrent.futures import ProcessPoolExecutor
 
         with ProcessPoolExecutor(max_workers=jobs) as pool:
-            results = list(pool.map(_one_seed, tasks))
+            results = list(wrap(pool.map(_one_seed, tasks), total=len(tasks)))
     else:
-        results = [(_lu2014_seed if study == "lu2014" else _sphere_seed)(seed) for study, seed in tasks]
+        results = [(_lu2014_seed if study == "lu2014" else _sphere_seed)(seed)
+                   for study, seed in wrap(tasks, total=len(tasks))]
     lu = [r for (study, _), rows in zip(tasks, results) if study == "lu2014" for r in rows]
     sp = [r for (study, _), rows in zip(tasks, results) if study == "sphere9" for r in rows]
     return pd.DataFrame(lu), pd.DataFrame(sp)
@@ -79,8 +82,8 @@ def sphere_study(n_seeds: int, jobs: int = 1) -> pd.DataFrame:
     return _studies(0, n_seeds, jobs)[1]
 
 
-def write(out_dir: Path, n_lu: int, n_sphere: int, jobs: int = 1) -> str:
-    lu, sp = _studies(n_lu, n_sphere, jobs)
+def write(out_dir: Path, n_lu: int, n_sphere: int, jobs: int = 1, progress=None) -> str:
+    lu, sp = _studies(n_lu, n_sphere, jobs, progress)
     out_dir.mkdir(parents=True, exist_ok=True)
     pd.concat([lu.assign(study="lu2014_angles"), sp.assign(study="sphere9_optimum")]).to_csv(
         out_dir / "quality.csv", index=False, float_format="%.9g")

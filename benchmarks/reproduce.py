@@ -340,7 +340,8 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
         if not quick:
 
             phase("quality study")
-            quality.write(out, 50, 10, jobs=jobs)
+            quality.write(out, 50, 10, jobs=jobs,
+                          progress=lambda it, total: _bar(it, "quality study", progress, total=total))
             written.append(out / "quality.md")
             phase("claims")
             written.append(write_claims(out))
