@@ -5,6 +5,9 @@ close in time (a smooth structured residual cancels in them), with its own inter
   linear interpolation between the time neighbours, r_i - (w r_(i-1) + (1 - w) r_(i+1)), scaled to white
   noise (the second differences / sqrt(6) on even sampling, exact for a line at any spacing); the errors
   of cubic interpolation from four neighbours check that structure does not leak into them;
+* with the attitude changing fast between samples, the same from the residual of the fit with every effect
+  free (``model_floor``): time neighbours are then not attitude neighbours and the base residual's
+  interpolation errors carry the effects themselves;
 * without any order the samples can be trusted in: the k-NN scatter in attitude, an upper bound (flagged).
 
 The interval is +-1.96 standard errors of the MAD-based scale (1.166 sigma / sqrt(m), m the number of
@@ -13,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.stats import spearmanr
 
 from magbench.simulate.effects import SPIKE_SIGMA, Columns, robust_sigma
 
@@ -21,7 +25,7 @@ MAD_SE = 1.166  # standard error of the MAD scale: 1.166 sigma / sqrt(m) for Gau
 INDEPENDENT_SHARE = 1.0 / 3.0  # overlapping second differences: about a third of them independent
 LEAK_Z = 3.0
 
-__all__ = ["KNN_NEIGHBOURS", "knn_floor", "robust_sigma", "second_difference_floor", "unit_span", "vector_floor",
+__all__ = ["KNN_NEIGHBOURS", "knn_floor", "model_floor", "robust_sigma", "second_difference_floor", "unit_span", "vector_floor",
            "time_difference_floor"]
 
 
@@ -145,3 +149,47 @@ def second_difference_floor(r_in_order: np.ndarray) -> float:
     """The floor of a series from its second differences r_i - (r_{i-1} + r_{i+1}) / 2, robustly."""
     d2 = r_in_order[1:-1] - 0.5 * (r_in_order[:-2] + r_in_order[2:])
     return robust_sigma(d2) / np.sqrt(1.5)
+
+
+MOTION_Z = LEAK_Z
+"""The residual of the fit with every effect free is taken as noise only when the size of its samples does not
+follow how far the readings moved from their time neighbours (Spearman, |z| at most this): a reading mixed with a
+neighbouring sample (a lag at random attitudes) leaves a residual that does, and no fit of the library removes it."""
+
+
+def model_floor(fl: dict, r_model: np.ndarray, t_s: np.ndarray, raw_nT: np.ndarray, n_free: int,
+                spikes: np.ndarray) -> dict:
+    """The floor ``fl`` (``vector_floor``, from the base residual) again from the residual ``r_model`` of the fit
+    with every testable effect free (``n_free`` parameters), spikes and held samples left out, scaled by
+    sqrt(n / (n - n_free)) for the parameters fitted.  When the attitude changes between samples as much as it
+    does over the record (random attitudes), the time neighbours of a sample are not its neighbours in attitude and
+    every effect tied to the attitude (temperature through the offsets, a nonlinearity) stays in the base
+    residual's interpolation errors: the floor is then many times the noise and hides every effect.  The model's
+    floor replaces it when it is lower by more than LEAK_Z standard errors and its samples' size does not follow
+    the motion between samples (MOTION_Z); outside-library structure the model cannot fit stays in both."""
+    order = np.argsort(t_s, kind="stable")
+    held = held_samples(raw_nT, order)
+    drop = spikes | held if held.mean() > HELD_MIN_FRACTION else spikes
+    keep = order[~drop[order]]
+    n = len(keep)
+    if n - n_free < 10:
+        return fl
+    rk = r_model[keep]
+    step = np.linalg.norm(np.diff(raw_nT[keep], axis=0), axis=1)
+    jump = np.zeros(n)
+    jump[1:] += step
+    jump[:-1] += step
+    rho = spearmanr(np.abs(rk - np.median(rk)), jump).statistic
+    out = dict(fl)
+    out["floor_motion_z"] = float(rho * np.sqrt(n - 1)) if np.isfinite(rho) else 0.0
+    alt = time_difference_floor(rk, t_s[keep])
+    scale = float(np.sqrt(n / (n - n_free)))
+    sigma, se = alt["noise_floor_nT"] * scale, alt["floor_se_nT"] * scale
+    out["floor_model_nT"] = float(sigma)
+    if abs(out["floor_motion_z"]) > MOTION_Z or fl["noise_floor_nT"] - sigma <= LEAK_Z * np.hypot(fl["floor_se_nT"], se):
+        return out
+    out.update({"noise_floor_nT": float(sigma), "floor_se_nT": float(se),
+                "floor_interval_nT": [float(max(sigma - 1.96 * se, 0.0)), float(sigma + 1.96 * se)],
+                "floor_method": "interpolation between time neighbours of the residual of the fit with every effect free "
+                                f"(the base residual's, {fl['noise_floor_nT']:.3g} nT, carries attitude structure)"})
+    return out
