@@ -189,15 +189,3 @@ def test_temperature_is_told_from_a_drift_only_by_its_own_changes(monkeypatch):
     smooth = diagnose(get_scenario("tumble9q").with_effects(TemperatureEffect()).build(3), base="nine")
     assert smooth["verdict"] == "temperature|offset_drift", smooth["naming"]["temperature_beyond_time_z"]
     assert smooth["naming"]["temperature_beyond_time_z"] <= 3
-
-
-def test_a_nonlinearity_is_held_against_what_is_left_beside_every_selected_effect():
-    # beside a heading-fixed platform field (outside the library) a nonlinearity is named with +unexplained: what
-    # is left beside the nonlinearity alone is the field drift the blocked folds could not attribute
-    result, case = run_case(318)
-    assert case.present == ("nonlinearity",) and result["verdict"] == "nonlinearity+unexplained", result["verdict"]
-    # negative control: the platform field alone, the nonlinearity fits part of it and less than what is left
-    for index in (71, 160):
-        result, case = run_case(index)
-        assert case.present == () and result["verdict"] == "unexplained", result["verdict"]
-        assert evidence_row(result, "nonlinearity")["why"].startswith("it removes")

@@ -36,10 +36,7 @@ An effect is therefore *named* only when all of these hold:
 5. **Not a by-product of a larger unexplained structure.**  When a significant remainder is left, every
    named effect must remove at least as much as is left (its own held-out contribution at least the
    remainder's RMS above the floor): a flexible basis fits part of any structure it is offered, and a
-   name that explains less than what stays unexplained is more likely that part than a cause.  A nonlinearity
-   (an attitude-shaped form, which must already predict unseen directions) is held against what is left beside
-   every selected effect: structure that a library form explains, though the blocked folds could not attribute
-   it, is not unmodelled structure.
+   name that explains less than what stays unexplained is more likely that part than a cause.
 
 Spikes (``outliers``) keep their own count test (their evidence is their number).
 
@@ -446,34 +443,24 @@ def own_rms(row: dict) -> float:
     return min(v["own_rms_nT"] for v in row["families"].values())
 
 
-def undominated(evidence: list[dict], named: list[str], remainder_of, attitude_shaped: tuple = ()) -> list[str]:
+def undominated(evidence: list[dict], named: list[str], remainder_of) -> list[str]:
     """Rule 5 of the module docstring: while a significant remainder is left (``remainder_of(names)``, the
     dict of ``scoring.remainder``), the named effect that removes least is dropped when it removes less than
-    DOMINANCE times the remainder; its evidence row says why.  Spikes keep their count test.  An effect in
-    ``attitude_shaped`` (a nonlinearity) is held against the remainder beside every *selected* effect: its own
-    contribution was measured beside them, and what they explain (a drift the blocked folds could not confirm, a
-    clipping taken for spikes) is structure of a library form, not one that the nonlinearity's form fits in part."""
+    DOMINANCE times the remainder; its evidence row says why.  Spikes keep their count test."""
     rows = {row["name"]: row for row in evidence}
     named = list(named)
-    selected = [row["name"] for row in evidence]
-    beside_selected = remainder_of(selected) if selected and set(named) <= set(selected) else None
     while True:
         rem = remainder_of(named)
         if not rem["remainder_significant"]:
             return named
-        weak = []
-        for nm in named:
-            if EFFECTS[nm].robust or nm not in rows:
-                continue
-            left = beside_selected if nm in attitude_shaped and beside_selected is not None else rem
-            if left["remainder_significant"] and own_rms(rows[nm]) < DOMINANCE * left["remainder_nT"]:
-                weak.append((own_rms(rows[nm]), nm, left["remainder_nT"]))
+        weak = [(own_rms(rows[nm]), nm) for nm in named if not EFFECTS[nm].robust and nm in rows
+                and own_rms(rows[nm]) < DOMINANCE * rem["remainder_nT"]]
         if not weak:
             return named
-        own, name, left_nT = min(weak)
+        own, name = min(weak)
         named.remove(name)
         rows[name]["named"] = False
-        rows[name]["why"] = (f"it removes {own:.3g} nT, less than the {left_nT:.3g} nT left unexplained beside it: "
+        rows[name]["why"] = (f"it removes {own:.3g} nT, less than the {rem['remainder_nT']:.3g} nT left unexplained beside it: "
                              "more likely the part of an unmodelled structure that its form can fit than a cause")
 
 

@@ -300,7 +300,7 @@ class Diagnosis:
             return remainder(heldout["random"](names), floor, floor_se, len(self.model.free_indices(names)), n_train,
                              robust=robust)
 
-        named = undominated(evidence, named, remainder_of, ATTITUDE_SHAPED)
+        named = undominated(evidence, named, remainder_of)
         if named != selected:
             current = heldout["random"](named)
         follows = temp_r2 is not None and temp_r2 >= TEMPERATURE_FOLLOWS_TIME_R2
