@@ -11,7 +11,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from independent_forward import make_case  # noqa: E402
 
 from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
-from magbench.benchmarks.diagnosis.floor import model_floor, time_difference_floor  # noqa: E402
+from magbench.benchmarks.diagnosis.floor import model_floor, neighbour_z, time_difference_floor  # noqa: E402
 from magbench.benchmarks.diagnosis.naming import ROUGHNESS_MAX, roughness  # noqa: E402
 from magbench.simulate.dataset import Dataset  # noqa: E402
 
@@ -79,3 +79,16 @@ def test_lag_terms_at_random_attitudes_are_not_named_but_a_lag_on_a_tumble_is():
     mixed = _run(919)  # sphere, lag + field drift + temperature: no nonlinearity for the square of the mixed reading
     assert "nonlinearity" not in mixed["verdict"] and "lag" not in mixed["verdict"], mixed["verdict"]
     assert _run(62)["verdict"] == "lag"  # tumble: continuous motion
+
+
+def test_model_floor_is_refused_when_the_residual_depends_on_the_neighbouring_readings():
+    rng = np.random.default_rng(4)
+    raw, t, fl = _floor_inputs(rng)
+    white = rng.normal(0, 2.0, len(t))
+    assert abs(neighbour_z(white, raw)) < 3  # noise: no dependence
+    # a product of the reading with the previous one (the second-order term of a reading mixed with its neighbour)
+    prev = np.r_[raw[:1], raw[:-1]]
+    mixed = white + 12.0 * raw[:, 0] * prev[:, 1] / 50_000.0 ** 2  # a few nT, below the 20 nT of the base floor
+    assert neighbour_z(mixed, raw) > 3
+    out = model_floor(fl, mixed, t, raw, 40, np.zeros(len(t), bool))
+    assert out["noise_floor_nT"] == fl["noise_floor_nT"]

@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.spatial import cKDTree
-from scipy.stats import spearmanr
+from scipy.stats import f as f_dist
+from scipy.stats import norm, spearmanr
 
 from magbench.simulate.effects import SPIKE_SIGMA, Columns, robust_sigma
 
@@ -25,7 +26,8 @@ MAD_SE = 1.166  # standard error of the MAD scale: 1.166 sigma / sqrt(m) for Gau
 INDEPENDENT_SHARE = 1.0 / 3.0  # overlapping second differences: about a third of them independent
 LEAK_Z = 3.0
 
-__all__ = ["KNN_NEIGHBOURS", "knn_floor", "model_floor", "robust_sigma", "second_difference_floor", "unit_span", "vector_floor",
+__all__ = ["KNN_NEIGHBOURS", "knn_floor", "model_floor", "neighbour_z", "robust_sigma",
+           "second_difference_floor", "unit_span", "vector_floor",
            "time_difference_floor"]
 
 
@@ -153,8 +155,38 @@ def second_difference_floor(r_in_order: np.ndarray) -> float:
 
 MOTION_Z = LEAK_Z
 """The residual of the fit with every effect free is taken as noise only when the size of its samples does not
-follow how far the readings moved from their time neighbours (Spearman, |z| at most this): a reading mixed with a
+follow how far the readings moved from their time neighbours (Spearman, |z| at most this) and it does not depend
+on the neighbouring readings (``neighbour_z``): a reading mixed with a
 neighbouring sample (a lag at random attitudes) leaves a residual that does, and no fit of the library removes it."""
+
+
+def neighbour_z(r: np.ndarray, raw_nT: np.ndarray) -> float:
+    """How far the residual ``r`` (in time order) depends on the neighbouring readings: the F test of ``r`` on the
+    products of the reading with the previous and the next reading and of each neighbour with itself (the
+    second-order terms of a mix of a reading with its neighbours; 48 columns), as a one-sided z.  A
+    reading mixed with its neighbours (a lag, an induced field that lags, at random attitudes) leaves such a
+    dependence; noise does not."""
+    n = len(r)
+    if n < 60:
+        return 0.0
+    u = raw_nT / np.maximum(np.linalg.norm(raw_nT, axis=1), 1e-12)[:, None]
+    scale = float(np.median(np.linalg.norm(raw_nT, axis=1))) or 1.0
+    prev, nxt = raw_nT[:-2] / scale, raw_nT[2:] / scale
+    cur = u[1:-1]
+    here = raw_nT[1:-1] / scale
+    cols = [np.ones(n - 2)] + [cur[:, a] * nb[:, b] for nb in (prev, nxt) for a in range(3) for b in range(3)]
+    cols += [nb[:, a] * nb[:, b] for nb in (prev, nxt) for a in range(3) for b in range(a, 3)]
+    cols += [here[:, a] * nb[:, b] for nb in (prev, nxt) for a in range(3) for b in range(3)]
+    design = np.column_stack(cols)
+    y = r[1:-1]
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    rss1 = float(np.sum((y - design @ coef) ** 2))
+    rss0 = float(np.sum((y - y.mean()) ** 2))
+    q, dof = design.shape[1] - 1, len(y) - design.shape[1]
+    if rss1 <= 0 or dof <= 0:
+        return 0.0
+    p = float(f_dist.sf((rss0 - rss1) / q / (rss1 / dof), q, dof))
+    return float(norm.isf(max(p, 1e-300)))
 
 
 def model_floor(fl: dict, r_model: np.ndarray, t_s: np.ndarray, raw_nT: np.ndarray, n_free: int,
@@ -166,7 +198,9 @@ def model_floor(fl: dict, r_model: np.ndarray, t_s: np.ndarray, raw_nT: np.ndarr
     every effect tied to the attitude (temperature through the offsets, a nonlinearity) stays in the base
     residual's interpolation errors: the floor is then many times the noise and hides every effect.  The model's
     floor replaces it when it is lower by more than LEAK_Z standard errors and its samples' size does not follow
-    the motion between samples (MOTION_Z); outside-library structure the model cannot fit stays in both."""
+    the motion between samples nor depends on the neighbouring readings (``neighbour_z``, both at most MOTION_Z):
+    a reading mixed with its neighbours leaves structure no library fit removes and no time difference cancels at
+    random attitudes; outside-library structure the model cannot fit otherwise stays in both floors."""
     order = np.argsort(t_s, kind="stable")
     held = held_samples(raw_nT, order)
     drop = spikes | held if held.mean() > HELD_MIN_FRACTION else spikes
@@ -182,11 +216,13 @@ def model_floor(fl: dict, r_model: np.ndarray, t_s: np.ndarray, raw_nT: np.ndarr
     rho = spearmanr(np.abs(rk - np.median(rk)), jump).statistic
     out = dict(fl)
     out["floor_motion_z"] = float(rho * np.sqrt(n - 1)) if np.isfinite(rho) else 0.0
+    out["floor_neighbour_z"] = neighbour_z(rk, raw_nT[keep])
     alt = time_difference_floor(rk, t_s[keep])
     scale = float(np.sqrt(n / (n - n_free)))
     sigma, se = alt["noise_floor_nT"] * scale, alt["floor_se_nT"] * scale
     out["floor_model_nT"] = float(sigma)
-    if abs(out["floor_motion_z"]) > MOTION_Z or fl["noise_floor_nT"] - sigma <= LEAK_Z * np.hypot(fl["floor_se_nT"], se):
+    follows = abs(out["floor_motion_z"]) > MOTION_Z or out["floor_neighbour_z"] > MOTION_Z
+    if follows or fl["noise_floor_nT"] - sigma <= LEAK_Z * np.hypot(fl["floor_se_nT"], se):
         return out
     out.update({"noise_floor_nT": float(sigma), "floor_se_nT": float(se),
                 "floor_interval_nT": [float(max(sigma - 1.96 * se, 0.0)), float(sigma + 1.96 * se)],
