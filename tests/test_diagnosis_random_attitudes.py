@@ -92,3 +92,16 @@ def test_model_floor_is_refused_when_the_residual_depends_on_the_neighbouring_re
     assert neighbour_z(mixed, raw) > 3
     out = model_floor(fl, mixed, t, raw, 40, np.zeros(len(t), bool))
     assert out["noise_floor_nT"] == fl["noise_floor_nT"]
+
+
+def test_model_floor_is_refused_when_the_residual_remembers_where_the_sensor_pointed():
+    rng = np.random.default_rng(5)
+    raw, t, fl = _floor_inputs(rng)
+    white = rng.normal(0, 2.0, len(t))
+    u = raw / np.linalg.norm(raw, axis=1)[:, None]
+    induced = np.zeros_like(raw)  # a field induced with a lag of ten samples, at random attitudes
+    for i in range(1, len(t)):
+        induced[i] = 0.9 * induced[i - 1] + 0.1 * raw[i - 1]
+    lagged = white + 2e-4 * np.einsum("ij,ij->i", u, induced)  # a few nT, below the 20 nT of the base floor
+    assert abs(neighbour_z(white, raw)) < 3 and neighbour_z(lagged, raw) > 3
+    assert model_floor(fl, lagged, t, raw, 40, np.zeros(len(t), bool))["noise_floor_nT"] == fl["noise_floor_nT"]

@@ -15,10 +15,12 @@ independent differences, about n / 3 for overlapping second differences)."""
 from __future__ import annotations
 
 import numpy as np
+from scipy.signal import lfilter
 from scipy.spatial import cKDTree
 from scipy.stats import f as f_dist
 from scipy.stats import norm, spearmanr
 
+from magbench.numerics import systematic_rows
 from magbench.simulate.effects import SPIKE_SIGMA, Columns, robust_sigma
 
 KNN_NEIGHBOURS = 6
@@ -160,25 +162,37 @@ on the neighbouring readings (``neighbour_z``): a reading mixed with a
 neighbouring sample (a lag at random attitudes) leaves a residual that does, and no fit of the library removes it."""
 
 
+MEMORY_SAMPLES = (4.0, 16.0)
+"""Time constants (in samples) of the running means of the past readings ``neighbour_z`` also tests."""
+
+
+NEIGHBOUR_ROWS = 50_000
+"""``neighbour_z`` fits on a systematic sample of at most this many rows (in time order)."""
+
+
 def neighbour_z(r: np.ndarray, raw_nT: np.ndarray) -> float:
     """How far the residual ``r`` (in time order) depends on the neighbouring readings: the F test of ``r`` on the
     products of the reading with the previous and the next reading and of each neighbour with itself (the
-    second-order terms of a mix of a reading with its neighbours; 48 columns), as a one-sided z.  A
+    second-order terms of a mix of a reading with its neighbours) and of the reading's direction with running
+    means of the past readings (MEMORY_SAMPLES: a field induced with a lag; 66 columns), as a one-sided z.  A
     reading mixed with its neighbours (a lag, an induced field that lags, at random attitudes) leaves such a
     dependence; noise does not."""
     n = len(r)
     if n < 60:
         return 0.0
-    u = raw_nT / np.maximum(np.linalg.norm(raw_nT, axis=1), 1e-12)[:, None]
     scale = float(np.median(np.linalg.norm(raw_nT, axis=1))) or 1.0
-    prev, nxt = raw_nT[:-2] / scale, raw_nT[2:] / scale
-    cur = u[1:-1]
-    here = raw_nT[1:-1] / scale
-    cols = [np.ones(n - 2)] + [cur[:, a] * nb[:, b] for nb in (prev, nxt) for a in range(3) for b in range(3)]
+    idx = np.arange(1, n - 1)[systematic_rows(n - 2, NEIGHBOUR_ROWS)]
+    here, prev, nxt = raw_nT[idx] / scale, raw_nT[idx - 1] / scale, raw_nT[idx + 1] / scale
+    cur = here / np.maximum(np.linalg.norm(here, axis=1), 1e-12)[:, None]
+    cols = [np.ones(len(idx))] + [cur[:, a] * nb[:, b] for nb in (prev, nxt) for a in range(3) for b in range(3)]
     cols += [nb[:, a] * nb[:, b] for nb in (prev, nxt) for a in range(3) for b in range(a, 3)]
     cols += [here[:, a] * nb[:, b] for nb in (prev, nxt) for a in range(3) for b in range(3)]
+    for tau in MEMORY_SAMPLES:  # where the sensor pointed over the last samples (a field induced with a lag)
+        w = np.exp(-1.0 / tau)
+        past = lfilter([0.0, 1.0 - w], [1.0, -w], raw_nT, axis=0)[idx] / scale  # w past[i-1] + (1 - w) x[i-1]
+        cols += [cur[:, a] * past[:, b] for a in range(3) for b in range(3)]
     design = np.column_stack(cols)
-    y = r[1:-1]
+    y = r[idx]
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     rss1 = float(np.sum((y - design @ coef) ** 2))
     rss0 = float(np.sum((y - y.mean()) ** 2))
