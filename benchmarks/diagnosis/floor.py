@@ -5,6 +5,9 @@ close in time (a smooth structured residual cancels in them), with its own inter
   linear interpolation between the time neighbours, r_i - (w r_(i-1) + (1 - w) r_(i+1)), scaled to white
   noise (the second differences / sqrt(6) on even sampling, exact for a line at any spacing); the errors
   of cubic interpolation from four neighbours check that structure does not leak into them;
+* with the attitude changing fast between samples, the same from the residual of the fit with every effect
+  free (``model_floor``): time neighbours are then not attitude neighbours and the base residual's
+  interpolation errors carry the effects themselves;
 * without any order the samples can be trusted in: the k-NN scatter in attitude, an upper bound (flagged).
 
 The interval is +-1.96 standard errors of the MAD-based scale (1.166 sigma / sqrt(m), m the number of
@@ -12,8 +15,12 @@ independent differences, about n / 3 for overlapping second differences)."""
 from __future__ import annotations
 
 import numpy as np
+from scipy.signal import lfilter
 from scipy.spatial import cKDTree
+from scipy.stats import f as f_dist
+from scipy.stats import norm, spearmanr
 
+from magbench.numerics import systematic_rows
 from magbench.simulate.effects import SPIKE_SIGMA, Columns, robust_sigma
 
 KNN_NEIGHBOURS = 6
@@ -21,7 +28,8 @@ MAD_SE = 1.166  # standard error of the MAD scale: 1.166 sigma / sqrt(m) for Gau
 INDEPENDENT_SHARE = 1.0 / 3.0  # overlapping second differences: about a third of them independent
 LEAK_Z = 3.0
 
-__all__ = ["KNN_NEIGHBOURS", "knn_floor", "robust_sigma", "second_difference_floor", "unit_span", "vector_floor",
+__all__ = ["KNN_NEIGHBOURS", "knn_floor", "model_floor", "neighbour_z", "robust_sigma",
+           "second_difference_floor", "unit_span", "vector_floor",
            "time_difference_floor"]
 
 
@@ -145,3 +153,93 @@ def second_difference_floor(r_in_order: np.ndarray) -> float:
     """The floor of a series from its second differences r_i - (r_{i-1} + r_{i+1}) / 2, robustly."""
     d2 = r_in_order[1:-1] - 0.5 * (r_in_order[:-2] + r_in_order[2:])
     return robust_sigma(d2) / np.sqrt(1.5)
+
+
+MOTION_Z = LEAK_Z
+"""The residual of the fit with every effect free is taken as noise only when the size of its samples does not
+follow how far the readings moved from their time neighbours (Spearman, |z| at most this) and it does not depend
+on the neighbouring readings (``neighbour_z``): a reading mixed with a
+neighbouring sample (a lag at random attitudes) leaves a residual that does, and no fit of the library removes it."""
+
+
+MEMORY_SAMPLES = (4.0, 16.0)
+"""Time constants (in samples) of the running means of the past readings ``neighbour_z`` also tests."""
+
+
+NEIGHBOUR_ROWS = 50_000
+"""``neighbour_z`` fits on a systematic sample of at most this many rows (in time order)."""
+
+
+def neighbour_z(r: np.ndarray, raw_nT: np.ndarray) -> float:
+    """How far the residual ``r`` (in time order) depends on the neighbouring readings: the F test of ``r`` on the
+    products of the reading with the previous and the next reading and of each neighbour with itself (the
+    second-order terms of a mix of a reading with its neighbours) and of the reading's direction with running
+    means of the past readings (MEMORY_SAMPLES: a field induced with a lag; 66 columns), as a one-sided z.  A
+    reading mixed with its neighbours (a lag, an induced field that lags, at random attitudes) leaves such a
+    dependence; noise does not."""
+    n = len(r)
+    if n < 60:
+        return 0.0
+    scale = float(np.median(np.linalg.norm(raw_nT, axis=1))) or 1.0
+    idx = np.arange(1, n - 1)[systematic_rows(n - 2, NEIGHBOUR_ROWS)]
+    here, prev, nxt = raw_nT[idx] / scale, raw_nT[idx - 1] / scale, raw_nT[idx + 1] / scale
+    cur = here / np.maximum(np.linalg.norm(here, axis=1), 1e-12)[:, None]
+    cols = [np.ones(len(idx))] + [cur[:, a] * nb[:, b] for nb in (prev, nxt) for a in range(3) for b in range(3)]
+    cols += [nb[:, a] * nb[:, b] for nb in (prev, nxt) for a in range(3) for b in range(a, 3)]
+    cols += [here[:, a] * nb[:, b] for nb in (prev, nxt) for a in range(3) for b in range(3)]
+    for tau in MEMORY_SAMPLES:  # where the sensor pointed over the last samples (a field induced with a lag)
+        w = np.exp(-1.0 / tau)
+        past = lfilter([0.0, 1.0 - w], [1.0, -w], raw_nT, axis=0)[idx] / scale  # w past[i-1] + (1 - w) x[i-1]
+        cols += [cur[:, a] * past[:, b] for a in range(3) for b in range(3)]
+    design = np.column_stack(cols)
+    y = r[idx]
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    rss1 = float(np.sum((y - design @ coef) ** 2))
+    rss0 = float(np.sum((y - y.mean()) ** 2))
+    q, dof = design.shape[1] - 1, len(y) - design.shape[1]
+    if rss1 <= 0 or dof <= 0:
+        return 0.0
+    p = float(f_dist.sf((rss0 - rss1) / q / (rss1 / dof), q, dof))
+    return float(norm.isf(max(p, 1e-300)))
+
+
+def model_floor(fl: dict, r_model: np.ndarray, t_s: np.ndarray, raw_nT: np.ndarray, n_free: int,
+                spikes: np.ndarray) -> dict:
+    """The floor ``fl`` (``vector_floor``, from the base residual) again from the residual ``r_model`` of the fit
+    with every testable effect free (``n_free`` parameters), spikes and held samples left out, scaled by
+    sqrt(n / (n - n_free)) for the parameters fitted.  When the attitude changes between samples as much as it
+    does over the record (random attitudes), the time neighbours of a sample are not its neighbours in attitude and
+    every effect tied to the attitude (temperature through the offsets, a nonlinearity) stays in the base
+    residual's interpolation errors: the floor is then many times the noise and hides every effect.  The model's
+    floor replaces it when it is lower by more than LEAK_Z standard errors and its samples' size does not follow
+    the motion between samples nor depends on the neighbouring readings (``neighbour_z``, both at most MOTION_Z):
+    a reading mixed with its neighbours leaves structure no library fit removes and no time difference cancels at
+    random attitudes; outside-library structure the model cannot fit otherwise stays in both floors."""
+    order = np.argsort(t_s, kind="stable")
+    held = held_samples(raw_nT, order)
+    drop = spikes | held if held.mean() > HELD_MIN_FRACTION else spikes
+    keep = order[~drop[order]]
+    n = len(keep)
+    if n - n_free < 10:
+        return fl
+    rk = r_model[keep]
+    step = np.linalg.norm(np.diff(raw_nT[keep], axis=0), axis=1)
+    jump = np.zeros(n)
+    jump[1:] += step
+    jump[:-1] += step
+    rho = spearmanr(np.abs(rk - np.median(rk)), jump).statistic
+    out = dict(fl)
+    out["floor_motion_z"] = float(rho * np.sqrt(n - 1)) if np.isfinite(rho) else 0.0
+    out["floor_neighbour_z"] = neighbour_z(rk, raw_nT[keep])
+    alt = time_difference_floor(rk, t_s[keep])
+    scale = float(np.sqrt(n / (n - n_free)))
+    sigma, se = alt["noise_floor_nT"] * scale, alt["floor_se_nT"] * scale
+    out["floor_model_nT"] = float(sigma)
+    follows = abs(out["floor_motion_z"]) > MOTION_Z or out["floor_neighbour_z"] > MOTION_Z
+    if follows or fl["noise_floor_nT"] - sigma <= LEAK_Z * np.hypot(fl["floor_se_nT"], se):
+        return out
+    out.update({"noise_floor_nT": float(sigma), "floor_se_nT": float(se),
+                "floor_interval_nT": [float(max(sigma - 1.96 * se, 0.0)), float(sigma + 1.96 * se)],
+                "floor_method": "interpolation between time neighbours of the residual of the fit with every effect free "
+                                f"(the base residual's, {fl['noise_floor_nT']:.3g} nT, carries attitude structure)"})
+    return out

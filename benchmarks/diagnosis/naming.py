@@ -22,7 +22,11 @@ An effect is therefore *named* only when all of these hold:
 4. **Its own signature.**  A time shift (``lag``) is carried by its first-order terms (at least
    LAG_SHIFT_SHARE of its gain): when the second-order terms do most of the work, the structure is a loss of
    magnitude where the attitude changes fastest (a low-pass response of something else: an induced field
-   that lags, eddy currents), not a shifted reading.  Spikes (``outliers``) are glitches at random times
+   that lags, eddy currents), not a shifted reading.  And a time shift is told only where the readings change
+   continuously between samples (``roughness`` at most ROUGHNESS_MAX): at random attitudes its derivative terms
+   are differences of unrelated readings, which fit any structure tied to the neighbouring samples (eddy
+   currents, hysteresis, a reading mixed with the previous one); a nonlinearity named beside such lag terms is
+   dropped with it (the square of a mixed reading depends on the attitude).  Spikes (``outliers``) are glitches at random times
    on top of the noise: isolated, not where the readings change fastest, spread over the record like the
    samples, not readings clipped at a range limit, and the rest of the residual noise-like
    (BULK_RATIO_MAX).
@@ -407,6 +411,25 @@ def within_holds_z(without: np.ndarray, with_effect: np.ndarray, label: np.ndarr
         means = np.bincount(label, weights=r) / np.maximum(np.bincount(label), 1)
         return r - means[label]
     return paired_z(demeaned(without), demeaned(with_effect))
+
+
+ROUGHNESS_MAX = 1.25
+"""A time shift is told only where the readings change continuously: the RMS of the second differences of the
+field direction (in time order) over that of its central differences is sqrt(3) for unrelated samples (random
+attitudes) and at most about 1 for a random walk or noise about held attitudes."""
+
+
+def roughness(t_s: np.ndarray | None, raw_nT: np.ndarray) -> float | None:
+    """RMS of the second differences of the reading's direction over that of its central differences, in time
+    order (None without time or with fewer than 5 samples)."""
+    if t_s is None or len(t_s) < 5:
+        return None
+    x = raw_nT[np.argsort(t_s, kind="stable")]
+    u = x / np.maximum(np.linalg.norm(x, axis=1), 1e-12)[:, None]
+    d1 = u[2:] - u[:-2]
+    d2 = u[2:] - 2 * u[1:-1] + u[:-2]
+    den = float(np.sum(d1 ** 2))
+    return float(np.sqrt(np.sum(d2 ** 2) / den)) if den > 0 else None
 
 
 def shift_share(sse_without: float, sse_first_order: float, sse_with: float) -> float:

@@ -3,7 +3,8 @@
 1. calibrate with the base model (``angles`` or ``nine``) by ``lsq`` (or ``ransac`` when spikes pull the
    least-squares fit); localize its residual, spikes left out (``localize``: held-out explained fractions);
 2. estimate the noise floor from the errors of interpolating each sample from its time neighbours, with
-   an interval (``floor``);
+   an interval (``floor``); again from the residual of the fit with every effect free (``floor.model_floor``)
+   when that is significantly lower (random attitudes);
 3. find the spikes against the model with every testable effect free (trimmed Levenberg-Marquardt fit,
    ``model.ExtendedModel``), fit base + effects and build the per-fold tangent-space Gram matrices
    (``model.Tangent``);
@@ -33,7 +34,7 @@ from magbench.simulate.dataset import Dataset
 from magbench.simulate.effects import EFFECTS, SPIKE_SIGMA, Columns, Normalization, OutlierEffect, robust_sigma
 from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
-from .floor import vector_floor
+from .floor import model_floor, vector_floor
 from .localize import folds, localize, tails
 from .model import BASE_FREE, ExtendedModel, Tangent
 from .naming import (
@@ -41,6 +42,7 @@ from .naming import (
     FAMILY_ALPHA,
     HOLD_Z,
     LAG_SHIFT_SHARE,
+    ROUGHNESS_MAX,
     TEMPERATURE_FOLLOWS_TIME_R2,
     TEMPERATURE_SMOOTH_DEGREE,
     TIME_EFFECTS,
@@ -51,6 +53,7 @@ from .naming import (
     confounded_pairs,
     fold_drift_into_temperature,
     holds,
+    roughness,
     shift_share,
     spike_signature,
     step_explains,
@@ -62,6 +65,7 @@ from .naming import (
 )
 from .resimulate import resimulate
 from .scoring import (
+    ATTITUDE_SHAPED,
     MIN_SIGNIFICANT_SHRINK_PCT,
     POWER_MAX_OF_FLOOR,
     REMAINDER_Z,
@@ -169,8 +173,6 @@ class Diagnosis:
         self.unit = unit
         self.progress.step("base calibration")
         fl = vector_floor(unit, d, r_all, self.rows_in_time_order)
-        floor, floor_se = fl["noise_floor_nT"], fl["floor_se_nT"]
-        self.floor_se = floor_se
         n_base = len(BASE_FREE[self.base])
         effects_ok, untested, not_applicable = testable(self.base, d, unit, n_base, k)
         self.effect_info = {cls.name: cls.prepare(d, self.norm, r_all, unit) for cls in effects_ok}
@@ -179,7 +181,10 @@ class Diagnosis:
         x_lin = np.concatenate([x9, np.zeros(model.p - 9)])
         every = [cls.name for cls in effects_ok]
         n_train = n * (k - 1) // k
-        spikes = self._spikes(model, x_lin, every)
+        spikes, x_every, n_every = self._spikes(model, x_lin, every)
+        fl = self._model_floor(fl, model, x_every, n_every, spikes)
+        floor, floor_se = fl["noise_floor_nT"], fl["floor_se_nT"]
+        self.floor_se = floor_se
         if spikes.any():  # derived inputs (thermal time constant, derivatives) again, the spikes left out
             self.effect_info = {cls.name: cls.prepare(d, self.norm, r_all, unit, spikes) for cls in effects_ok}
             model.info = self.effect_info
@@ -317,9 +322,24 @@ class Diagnosis:
         named only when those terms alone give at least LAG_SHIFT_SHARE of the effect's in-sample gain."""
         model, tangent = self.model, self.tangent
         robust = "outliers" in named
+        rough = roughness(self.columns.t_s, self.columns.raw_nT)
         for name in list(named):
             terms = getattr(EFFECTS[name], "shift_terms", None)
             if not terms:
+                continue
+            if rough is not None and rough > ROUGHNESS_MAX:
+                named.remove(name)
+                row = next(r for r in evidence if r["name"] == name)
+                row["named"], row["roughness"] = False, rough
+                row["why"] = (f"consecutive readings are as unrelated as random attitudes (roughness {rough:.2f}): a time "
+                              "shift needs readings that change continuously between samples")
+                for other in [nm for nm in named if nm in ATTITUDE_SHAPED]:  # the square of a mixed reading
+                    named.remove(other)
+                    orow = next(r for r in evidence if r["name"] == other)
+                    orow["named"] = False
+                    orow["why"] = (f"the readings are mixed with their neighbours in time (the {name} terms explain structure "
+                                   "on a record whose consecutive attitudes are unrelated): the square of such a mix depends "
+                                   "on the attitude like a nonlinearity, so the two cannot be told apart")
                 continue
             own = model.groups[name]
             free = model.free_indices(named)
@@ -416,8 +436,16 @@ class Diagnosis:
         out["spikes_left_out"] = int(spikes.sum())
         return out
 
+    def _model_floor(self, fl: dict, model: ExtendedModel, x: np.ndarray | None, n_free: int,
+                     spikes: np.ndarray) -> dict:
+        """The floor again from the residual of the fit with every testable effect free (``floor.model_floor``)."""
+        d = self.columns
+        if x is None or d.t_s is None or np.ptp(d.t_s) <= 0:
+            return fl
+        return model_floor(fl, model.residuals(x), d.t_s, d.raw_nT, n_free, spikes)
+
     @staticmethod
-    def _spikes(model: ExtendedModel, x_lin: np.ndarray, every: list[str]) -> np.ndarray:
+    def _spikes(model: ExtendedModel, x_lin: np.ndarray, every: list[str]) -> tuple[np.ndarray, np.ndarray | None, int]:
         """The spike mask, judged against the model with every testable effect free (trimmed fit): a
         structured residual (temperature, lag, drift) would inflate the robust sigma of the base fit's
         residual and hide spikes of tens of noise sigmas.  The base model alone when the record is too short
@@ -425,8 +453,9 @@ class Diagnosis:
         for names in (every, []):
             free = model.free_indices(names)
             if len(model.d) >= 3 * len(free):
-                return model.fit_robust(x_lin, free)[1]  # type: ignore[return-value]
-        return np.zeros(len(model.d), bool)
+                x, spikes = model.fit_robust(x_lin, free)
+                return spikes, x, len(free)  # type: ignore[return-value]
+        return np.zeros(len(model.d), bool), None, 0
 
     def _select(self, every, base_res, rms_base, floor, n):
         """Forward selection (module docstring, step 4): (selected, its held-out residual, the trail)."""

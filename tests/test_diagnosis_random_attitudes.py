@@ -1,0 +1,107 @@
+"""Records at random attitudes (consecutive samples unrelated in attitude): the noise floor from the residual of
+the fit with every effect free (``floor.model_floor``), and the time-shift signature that needs readings changing
+continuously (``naming.roughness``).  Each rule with a record it must name and one it must reject."""
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+from independent_forward import make_case  # noqa: E402
+
+from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
+from magbench.benchmarks.diagnosis.floor import model_floor, neighbour_z, time_difference_floor  # noqa: E402
+from magbench.benchmarks.diagnosis.naming import ROUGHNESS_MAX, roughness  # noqa: E402
+from magbench.simulate.dataset import Dataset  # noqa: E402
+
+
+def _run(i: int) -> dict:
+    c = make_case(i, 2026)
+    return diagnose(Dataset(c.raw_nT, f_ref_nT=c.f_ref_nT, t_s=c.t_s, temp_C=c.temp_C), gravity=c.gravity)
+
+
+def _sphere(n: int, rng: np.random.Generator) -> np.ndarray:
+    u = rng.normal(size=(n, 3))
+    return 50_000.0 * u / np.linalg.norm(u, axis=1)[:, None]
+
+
+def test_roughness_tells_random_attitudes_from_continuous_motion():
+    rng = np.random.default_rng(1)
+    t = np.arange(600.0)
+    assert roughness(t, _sphere(600, rng)) > ROUGHNESS_MAX  # sqrt(3) for unrelated samples
+    a = 2 * np.pi * t / 200.0
+    smooth = 50_000.0 * np.column_stack([np.cos(a), np.sin(a), 0.3 + 0 * a]) + rng.normal(0, 1.0, (600, 3))
+    assert roughness(t, smooth) < ROUGHNESS_MAX
+
+
+def _floor_inputs(rng, n=900):
+    raw = _sphere(n, rng)
+    t = np.arange(float(n))
+    r_base = rng.normal(0, 20.0, n)  # the base residual's time differences carry attitude structure: 20 nT
+    fl = time_difference_floor(r_base, t)
+    return raw, t, fl
+
+
+def test_model_floor_replaces_a_floor_inflated_by_attitude_structure():
+    rng = np.random.default_rng(2)
+    raw, t, fl = _floor_inputs(rng)
+    out = model_floor(fl, rng.normal(0, 2.0, len(t)), t, raw, 40, np.zeros(len(t), bool))
+    assert out["noise_floor_nT"] == pytest.approx(2.0, rel=0.15)
+    # negative control: a model residual as large as the base one leaves the floor alone
+    same = model_floor(fl, rng.normal(0, 20.0, len(t)), t, raw, 40, np.zeros(len(t), bool))
+    assert same["noise_floor_nT"] == fl["noise_floor_nT"]
+
+
+def test_model_floor_is_refused_when_the_residual_follows_the_motion_between_samples():
+    rng = np.random.default_rng(3)
+    raw, t, fl = _floor_inputs(rng)
+    step = np.r_[0.0, np.linalg.norm(np.diff(raw, axis=0), axis=1)]
+    r_model = rng.normal(0, 1.0, len(t)) * (0.5 + step / step.mean()) * 2.0  # a reading mixed with the previous one
+    out = model_floor(fl, r_model, t, raw, 40, np.zeros(len(t), bool))
+    assert abs(out["floor_motion_z"]) > 3
+    assert out["noise_floor_nT"] == fl["noise_floor_nT"]
+
+
+def test_a_nonlinearity_at_random_attitudes_is_named_and_a_clean_record_stays_none():
+    out = _run(178)  # sphere, nonlinearity: the base floor was 4.7 times the noise and the verdict none
+    assert out["verdict"] == "nonlinearity", out["verdict"]
+    assert "effect free" in out["floor_method"]
+    clean = _run(120)  # sphere, clean
+    assert clean["verdict"] == "none", clean["verdict"]
+
+
+def test_lag_terms_at_random_attitudes_are_not_named_but_a_lag_on_a_tumble_is():
+    eddy = _run(617)  # sphere, eddy currents (outside the library): the lag terms fit them
+    assert eddy["verdict"] == "unexplained", eddy["verdict"]
+    row = next(e for e in eddy["naming"]["evidence"] if e["name"] == "lag")
+    assert not row["named"] and row["roughness"] > ROUGHNESS_MAX
+    mixed = _run(919)  # sphere, lag + field drift + temperature: no nonlinearity for the square of the mixed reading
+    assert "nonlinearity" not in mixed["verdict"] and "lag" not in mixed["verdict"], mixed["verdict"]
+    assert _run(62)["verdict"] == "lag"  # tumble: continuous motion
+
+
+def test_model_floor_is_refused_when_the_residual_depends_on_the_neighbouring_readings():
+    rng = np.random.default_rng(4)
+    raw, t, fl = _floor_inputs(rng)
+    white = rng.normal(0, 2.0, len(t))
+    assert abs(neighbour_z(white, raw)) < 3  # noise: no dependence
+    # a product of the reading with the previous one (the second-order term of a reading mixed with its neighbour)
+    prev = np.r_[raw[:1], raw[:-1]]
+    mixed = white + 12.0 * raw[:, 0] * prev[:, 1] / 50_000.0 ** 2  # a few nT, below the 20 nT of the base floor
+    assert neighbour_z(mixed, raw) > 3
+    out = model_floor(fl, mixed, t, raw, 40, np.zeros(len(t), bool))
+    assert out["noise_floor_nT"] == fl["noise_floor_nT"]
+
+
+def test_model_floor_is_refused_when_the_residual_remembers_where_the_sensor_pointed():
+    rng = np.random.default_rng(5)
+    raw, t, fl = _floor_inputs(rng)
+    white = rng.normal(0, 2.0, len(t))
+    u = raw / np.linalg.norm(raw, axis=1)[:, None]
+    induced = np.zeros_like(raw)  # a field induced with a lag of ten samples, at random attitudes
+    for i in range(1, len(t)):
+        induced[i] = 0.9 * induced[i - 1] + 0.1 * raw[i - 1]
+    lagged = white + 2e-4 * np.einsum("ij,ij->i", u, induced)  # a few nT, below the 20 nT of the base floor
+    assert abs(neighbour_z(white, raw)) < 3 and neighbour_z(lagged, raw) > 3
+    assert model_floor(fl, lagged, t, raw, 40, np.zeros(len(t), bool))["noise_floor_nT"] == fl["noise_floor_nT"]
