@@ -49,7 +49,7 @@ from magbench.benchmarks.metrics import budget_violation, crb_row, run_metrics
 from magbench.benchmarks.progress import progress_bar
 from magbench.benchmarks.tables import write_tables
 from magbench.calibrators import available, make, prefer_compiled_kernels
-from magbench.calibrators.methods._gakernel import announce_compiles
+from magbench.calibrators.methods._gakernel import NOTICE_ENV, announce_compiles
 from magbench.errors import InputError
 from magbench.simulate.scenarios import get_scenario
 
@@ -261,9 +261,12 @@ def _chunks(items: list, n: int) -> list[list]:
     return [items[i:i + size] for i in range(0, len(items), size)]
 
 
-def _worker_init(parent_pid: int) -> None:
+def _worker_init(parent_pid: int, quiet_compiles: bool = False) -> None:
     """In a local worker: Ctrl-C is the campaign process's business (it terminates us), SIGTERM kills,
-    and a daemon thread ends the worker as soon as the campaign process is gone (even by SIGKILL)."""
+    and a daemon thread ends the worker as soon as the campaign process is gone (even by SIGKILL);
+    ``quiet_compiles``: the campaign process announced the GA kernels' compiles already."""
+    if quiet_compiles:
+        os.environ[NOTICE_ENV] = "given"
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     ppid = os.getppid()  # the campaign process, or the fork server that exits with it
@@ -331,8 +334,8 @@ def _stop_pool(pool) -> None:
 def _run_pool(tasks: list[dict], jobs: int, finish) -> None:
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    announce_compiles({t["method"] for t in tasks})  # once here, not once per worker
-    pool = ProcessPoolExecutor(max_workers=jobs, initializer=_worker_init, initargs=(os.getpid(),))
+    quiet = announce_compiles({t["method"] for t in tasks})  # once here, not once per worker
+    pool = ProcessPoolExecutor(max_workers=jobs, initializer=_worker_init, initargs=(os.getpid(), quiet))
     try:
         futures = {pool.submit(run_chunk, [tasks[i] for i in idx]): idx
                    for idx in _chunks(list(range(len(tasks))), jobs)}

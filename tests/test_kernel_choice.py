@@ -72,11 +72,13 @@ def test_a_campaign_announces_the_compiles_once_for_all_its_workers(capsys, monk
     pytest.importorskip("numba")
     monkeypatch.delenv(K.NOTICE_ENV, raising=False)
     monkeypatch.setattr(K, "_cached_on_disk", lambda loops: False)
-    K.announce_compiles({"lsq", "ga"})  # the parent, before starting its workers: the real-coded kernel only
+    assert K.announce_compiles({"lsq", "ga"})  # the parent, before its workers: the real-coded kernel only
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "real_generation_loops" in err
+    assert K.NOTICE_ENV not in __import__("os").environ  # the parent's environment is left alone
+    monkeypatch.setenv(K.NOTICE_ENV, "given")  # what the campaign's worker initializer sets
     K._compiled(_tiny, lambda k: k(1.0), None)  # a worker compiling: it stays quiet
     assert capsys.readouterr().err == ""
     monkeypatch.delenv(K.NOTICE_ENV)
-    K.announce_compiles({"lsq", "ellipsoid"})  # no GA: nothing said, workers not silenced
-    assert capsys.readouterr().err == "" and K.NOTICE_ENV not in __import__("os").environ
+    assert not K.announce_compiles({"lsq", "ellipsoid"})  # no GA: nothing said, workers not silenced
+    assert capsys.readouterr().err == ""

@@ -326,21 +326,20 @@ KERNEL_USERS = {"aga": "binary", "aga-lm": "binary", "ga": "real", "rga": "real"
 """The built-in methods that run a GA kernel, and which."""
 
 
-def announce_compiles(methods) -> None:
+def announce_compiles(methods) -> bool:
     """For a process about to start workers that will run ``methods``: the compile notice of each GA kernel
-    they use (``KERNEL_USERS``) that is not in numba's disk cache, said once here, and the workers told not
-    to repeat it (``NOTICE_ENV``).  Other methods use no GA kernel; a plug-in GA's workers speak for
-    themselves."""
+    they use (``KERNEL_USERS``) that is not in numba's disk cache, said once here.  Returns whether the
+    workers should keep quiet (set ``NOTICE_ENV`` to ``given`` in them); this process's own environment is
+    not changed.  Other methods use no GA kernel; a plug-in GA's workers speak for themselves."""
     import importlib.util
-    import os
 
     kinds = {KERNEL_USERS[m] for m in methods if m in KERNEL_USERS}
     if not kinds or importlib.util.find_spec("numba") is None:
-        return
+        return False
     for kind, loops in (("binary", _generation_loops), ("real", _real_generation_loops)):
         if kind in kinds and not _cached_on_disk(loops):
             _compile_notice(loops)
-    os.environ[NOTICE_ENV] = "given"
+    return True
 
 
 @functools.cache
