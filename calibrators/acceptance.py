@@ -29,11 +29,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from magbench.numerics import lm_normal, robust_sigma, systematic_rows
+from magbench.numerics import lm_normal, median, median_and_sigma, systematic_rows
 from magbench.simulate.sensor import PARAM_NAMES
 
 from .core.objective import ScalarObjective
-from .fisher import crb_std
+from .fisher import PassAt, crb_std, one_pass, std_from_information
 
 PROFILE_ATOL = 0.02
 """The profile refit stops once an iteration lowers the sum of squares by less than this many noise
@@ -84,8 +84,9 @@ def outlier_mask(residuals_nT: np.ndarray, field_nT: float,
     (the robust sigma floored at 1e-9 of the field, so that exact data have no outliers), and that
     threshold in nT."""
     r = np.asarray(residuals_nT, dtype=float)
-    threshold = limits.outlier_sigmas * max(robust_sigma(r), 1e-9 * field_nT)
-    return np.abs(r - np.median(r)) > threshold, threshold
+    centre, sigma = median_and_sigma(r)
+    threshold = limits.outlier_sigmas * max(sigma, 1e-9 * field_nT)
+    return np.abs(r - centre) > threshold, threshold
 
 
 def identifiability(objective: ScalarObjective, x: np.ndarray, noise_nT: float, field_nT: float,
@@ -120,17 +121,20 @@ def physical_range(x: np.ndarray, model: str, physical_lower: np.ndarray, physic
 
 
 def reference_fit(objective: ScalarObjective, x: np.ndarray, physical_box: tuple[np.ndarray, np.ndarray],
-                  rms_start: float | None = None, max_iter: int = REFERENCE_MAX_ITER) -> tuple[np.ndarray, float]:
+                  rms_start: float | None = None, max_iter: int = REFERENCE_MAX_ITER,
+                  at: PassAt | None = None) -> tuple[np.ndarray, float]:
     """The judge's own optimum: Levenberg-Marquardt inside the physical box on the normal equations
     (analytic Jacobian, bounded memory), polished from the calibrator's answer, and its residual RMS.
     Outside the counter: it measures the answer, it is not part of the contest.  From an answer already
     at the optimum it stops after one or two passes over the data.  ``rms_start``: the residual RMS at
-    ``x`` on this objective when the caller has it (else it is computed)."""
+    ``x`` on this objective when the caller has it (else it is computed); ``at``: the pass at ``x`` on this
+    objective, when the caller has it (its normal equations are then not computed again)."""
     lo, hi = physical_box
     start = np.clip(x, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
     n = objective.raw_nT.shape[0]
     with np.errstate(all="ignore"):
-        x_ref, cost, _ = lm_normal(objective.normal_equations, start, lo, hi, tol=1e-10, max_iter=max_iter)
+        equations = objective.normal_equations if at is None else at.normal_equations(objective.normal_equations)
+        x_ref, cost, _ = lm_normal(equations, start, lo, hi, tol=1e-10, max_iter=max_iter)
     if rms_start is None:
         rms_start = float(np.sqrt(np.mean(objective.residuals(x) ** 2)))
     rms_ref = float(np.sqrt(cost / n))
@@ -159,6 +163,15 @@ built-in scenario)."""
 PROFILE_PLANAR = 0.25
 """Out-of-plane spread (relative to the in-plane spread) below which a record counts as near planar and
 the profile test always refits."""
+
+
+def _pinv_form(a: np.ndarray, e: np.ndarray) -> float:
+    """``e^T pinv(a) e`` for a symmetric ``a``, from its eigendecomposition (pinv's cut: eigenvalues within
+    size x machine epsilon of the largest count as zero)."""
+    ev, vec = np.linalg.eigh(a)
+    proj = vec.T @ e
+    keep = np.abs(ev) > a.shape[0] * np.finfo(float).eps * np.max(np.abs(ev), initial=0.0)
+    return float(np.sum(proj[keep] ** 2 / ev[keep]))
 
 
 def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, field_nT: float,
@@ -191,7 +204,7 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
         e = np.zeros(p)
         e[io:io + 3] = normal
         with np.errstate(all="ignore"):
-            linear = step ** 2 / float(e @ np.linalg.pinv(a, hermitian=True) @ e) / noise_nT ** 2
+            linear = step ** 2 / _pinv_form(a, e) / noise_nT ** 2
         if np.isfinite(linear) and linear >= PROFILE_LINEAR_MARGIN * limits.profile_chi2:
             return []
     basis = np.linalg.qr(np.column_stack([normal, np.eye(3)]))[0][:, :3]  # normal first, then two more
@@ -273,7 +286,7 @@ def independent_noise(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray | None,
     close = dist[:, 1] < REPEAT_FRACTION * field_nT
     if close.sum() >= MIN_REPEATS:
         i = np.flatnonzero(close)
-        return robust_sigma(r[i] - r[idx[i, 1]]) / np.sqrt(2.0), "repeats", None
+        return median_and_sigma(r[i] - r[idx[i, 1]])[1] / np.sqrt(2.0), "repeats", None
     return _interpolation_sigma(r, np.arange(n, dtype=float)), "rows", np.arange(n)
 
 
@@ -281,7 +294,7 @@ def _interpolation_sigma(r: np.ndarray, t: np.ndarray) -> float:
     t = t + np.arange(len(t)) * 1e-9 * max(float(np.ptp(t)), 1.0)  # ties broken
     w = (t[2:] - t[1:-1]) / (t[2:] - t[:-2])  # weight of the earlier neighbour
     e = (r[1:-1] - (w * r[:-2] + (1 - w) * r[2:])) / np.sqrt(1.0 + w * w + (1 - w) ** 2)
-    return robust_sigma(e)
+    return median_and_sigma(e)[1]
 
 
 @dataclass(frozen=True)
@@ -299,84 +312,114 @@ class StepFit:
     offsets: bool
 
 
-def _block_sums(full: np.ndarray, ro: np.ndarray, tail: list[int], bounds: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """Per block of rows ``bounds[j]:bounds[j+1]``: ``full^T full[:, tail]`` (blocks, p, q) and
-    ``full[:, tail]^T ro`` (blocks, q).  Short records in one vectorized pass (per-row products summed by
-    ``np.add.reduceat``); long ones block by block (at most ``STEP_CANDIDATES`` blocks), so that memory
-    stays a fraction of the record's."""
-    n, p = full.shape
-    q = len(tail)
-    t = full[:, tail]
-    if n * p * q <= 4_000_000:
-        starts = bounds[:-1]
-        return (np.add.reduceat(full[:, :, None] * t[:, None, :], starts, axis=0),
-                np.add.reduceat(t * ro[:, None], starts, axis=0))
-    sp = np.empty((len(bounds) - 1, p, q))
-    sb = np.empty((len(bounds) - 1, q))
-    for j in range(len(bounds) - 1):
+def _sums_after(t: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """For each split row ``edges[k]`` (>= 1) the sum over the rows from it on of ``t_i w_i^T`` (m, q, w).
+    Short records from the per-row products summed in one vectorized pass; long ones block by block between
+    the split rows (at most ``STEP_CANDIDATES`` blocks), so that memory stays a fraction of the record's."""
+    n, q = t.shape
+    width = w.shape[1]
+    if n * q * width <= 4_000_000:
+        prod = t[:, :, None] * w[:, None, :]
+        np.cumsum(prod, axis=0, out=prod)
+        before = prod[edges[0] - 1:edges[-1]] if edges[-1] - edges[0] == len(edges) - 1 else prod[edges - 1]
+        return prod[-1] - before
+    bounds = np.concatenate([edges, [n]])
+    sums = np.empty((len(edges), q, width))
+    for j in range(len(edges)):
         rows = slice(bounds[j], bounds[j + 1])
-        sp[j], sb[j] = full[rows].T @ t[rows], t[rows].T @ ro[rows]
-    return sp, sb
+        sums[j] = t[rows].T @ w[rows]
+    return np.cumsum(sums[::-1], axis=0)[::-1]
 
 
-def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: np.ndarray) -> StepFit | None:
+def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: np.ndarray,
+              jacobian: np.ndarray | None = None) -> StepFit | None:
     """The best single step in time order: a jump of the offsets (of the mean, for a model without
     offsets) after row k, ``[i >= k] (c + J_o d)``, on top of every parameter's direction ``J`` over the
     whole record, at ``STEP_CANDIDATES`` split points.  By the Frisch-Waugh-Lovell theorem the step's gain
     over the whole-record fit is ``c_k^T S_k^+ c_k`` with the Schur complement ``S_k = D_k - B_k^T A^+ B_k``
     and ``c_k = T_k^T r - B_k^T A^+ J^T r`` (A = J^T J, B_k = J^T T_k, D_k = T_k^T T_k for the step columns
-    T_k), so the split points cost q x q systems from block sums, not one (p + q) system each.  None when
-    the record is too short to split.  On more than ``STEP_ROWS`` rows the search runs on every k-th row in
-    time order (the sums scaled to all rows; the step located to within k rows)."""
+    T_k), so the split points cost q x q systems from sums over the rows after each split, not one (p + q)
+    system each.  With ``A^+ = V V^T`` (one eigendecomposition) and the whitened directions ``Z = J V``,
+    ``B_k^T A^+ B_k = E_k^T E_k`` for ``E_k = Z^T T_k`` and ``c_k = T_k^T (r - Z Z^T r)``: one pass of
+    per-row products summed from the end.  None when the record is too short to split.  On more than
+    ``STEP_ROWS`` rows the search runs on every k-th row in time order (the sums scaled to all rows; the step
+    located to within k rows).  ``jacobian``: J at ``x`` (n, p) when the caller has it."""
     n_all = len(r)
     k = max(1, -(-n_all // STEP_ROWS))
     if k > 1:
         keep = order[::k]
         sub = ScalarObjective(objective.raw_nT[keep], objective.f_ref_nT[keep], objective.model)
-        fit = best_step(sub, x, r[keep], np.arange(len(keep)))
+        fit = best_step(sub, x, r[keep], np.arange(len(keep)), None if jacobian is None else jacobian[keep])
         if fit is None:
             return None
         scale = n_all / len(keep)
         return replace(fit, index=fit.index * k, gain=fit.gain * scale, base=fit.base * scale,
                        total=fit.total * scale)
     names = PARAM_NAMES[objective.model]
-    offsets = [1 + i for i, nm in enumerate(names) if nm.endswith("_nT")]
+    offsets = [i for i, nm in enumerate(names) if nm.endswith("_nT")]
     # a step of the offsets where there are offsets, else of the mean; the mean is never a column of the
     # whole record (with scales the residual |c| - F lies in the span of the scales' columns and a constant)
-    full = np.column_stack([np.ones(len(r)), objective.jacobian(x)])[order]
+    jac = objective.jacobian(x) if jacobian is None else jacobian
     if offsets:
-        full[:, 0] = 0.0
-    scale = np.sqrt(np.mean(full * full, axis=0))
+        full, tail = jac[order], offsets
+    else:
+        full, tail = np.column_stack([np.ones(len(r)), jac[order]]), [0]
+    n, q = full.shape[0], len(tail)
+    scale = np.sqrt(np.einsum("ij,ij->j", full, full) / n)
     scale[scale == 0] = 1.0
     full = full / scale  # columns of one size: the systems below are then well conditioned
     ro = r[order]
-    n, p = full.shape
-    tail = offsets or [0]
-    edges = np.unique(np.linspace(max(1, n // 50), n - max(1, n // 50), min(STEP_CANDIDATES, n)).astype(int))
+    margin = max(1, n // 50)
+    if n <= STEP_CANDIDATES:  # every row between the margins (what the spaced grid below gives then)
+        edges = np.arange(margin, n - margin + 1)
+    else:
+        edges = np.unique(np.linspace(margin, n - margin, STEP_CANDIDATES).astype(int))
     if len(edges) < 2:
         return None
-    bounds = np.concatenate([[0], edges, [n]])
-    sp, sb = _block_sums(full, ro, tail, bounds)
-    b_after = np.cumsum(sp[::-1], axis=0)[::-1][1:]  # J^T T_k: sums over rows >= edges[k]  (m, p, q)
-    c_after = np.cumsum(sb[::-1], axis=0)[::-1][1:]  # T_k^T r  (m, q)
-    a_all, b_all = full.T @ full, full.T @ ro
     with np.errstate(all="ignore"):
-        a_pinv = np.linalg.pinv(a_all, rcond=1e-9, hermitian=True)
-        coef_all = a_pinv @ b_all
-        base = float(coef_all @ b_all)
-        b_t = np.swapaxes(b_after, 1, 2)  # (m, q, p)
-        schur = b_after[:, tail, :] - b_t @ (a_pinv @ b_after)  # T_k^T T_k is the tail rows of J^T T_k
-        c = c_after - b_t @ coef_all
+        ev, vec = np.linalg.eigh(full.T @ full)  # A^+ = V V^T over the eigenvalues above 1e-9 of the largest
+        kept = ev > 1e-9 * np.max(np.abs(ev))
+        z = full @ (vec[:, kept] / np.sqrt(ev[kept]))
+        g = z.T @ ro
+        base = float(g @ g)
+        t = full[:, tail]
+        pz = z.shape[1]
+        after = _sums_after(t, np.column_stack([z, t, ro - z @ g]), edges)  # (m, q, p' + q + 1)
+        e_t = np.ascontiguousarray(after[:, :, :pz])  # E_k^T
+        schur = after[:, :, pz:pz + q] - e_t @ np.ascontiguousarray(e_t.transpose(0, 2, 1))
+        c = after[:, :, -1]
         # each q x q system with a relative ridge of 1e-10 (a split whose step columns lie in the record's
-        # span has S ~ 0 and c ~ 0 there, so that direction adds nothing): LU solves, 5x faster than eigh
-        ridge = 1e-10 * np.trace(schur, axis1=1, axis2=2)[:, None, None] / len(tail) + 1e-300
-        coef = np.linalg.solve(schur + ridge * np.eye(len(tail)), c[:, :, None])[:, :, 0]
-        gain = np.einsum("mi,mi->m", coef, c)
+        # span has S ~ 0 and c ~ 0 there, so that direction adds nothing)
+        diagonal = schur.reshape(len(edges), q * q)[:, ::q + 1]
+        diagonal += (1e-10 * diagonal.sum(axis=1) / q + 1e-300)[:, None]
+        gain = _quadratic_forms(schur, c)
     gain = np.where(np.isfinite(gain), gain, -np.inf)
     best = int(np.argmax(gain))
+    with np.errstate(all="ignore"):
+        coef = np.linalg.solve(schur[best], c[best])
     return StepFit(index=int(edges[best]), gain=float(gain[best]), base=base, total=float(ro @ ro),
-                   jump=coef[best] / scale[tail], offsets=bool(offsets))
+                   jump=coef / scale[tail], offsets=bool(offsets))
+
+
+def _quadratic_forms(s: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """``c_k^T s_k^-1 c_k`` for a stack of symmetric positive definite systems (m, q, q): for q = 3 by
+    Cholesky factors written out (a third of a batched LU solve's time on short stacks), else, and where a
+    pivot is not positive, by LU."""
+    if s.shape[1] != 3:
+        return np.einsum("mi,mi->m", np.linalg.solve(s, c[:, :, None])[:, :, 0], c)
+    l11 = np.sqrt(s[:, 0, 0])
+    l21, l31 = s[:, 1, 0] / l11, s[:, 2, 0] / l11
+    l22 = np.sqrt(s[:, 1, 1] - l21 * l21)
+    l32 = (s[:, 2, 1] - l31 * l21) / l22
+    l33 = np.sqrt(s[:, 2, 2] - l31 * l31 - l32 * l32)
+    y1 = c[:, 0] / l11
+    y2 = (c[:, 1] - l21 * y1) / l22
+    y3 = (c[:, 2] - l31 * y1 - l32 * y2) / l33
+    out = y1 * y1 + y2 * y2 + y3 * y3
+    bad = ~np.isfinite(out)
+    if bad.any():
+        out[bad] = np.einsum("mi,mi->m", np.linalg.solve(s[bad], c[bad][:, :, None])[:, :, 0], c[bad])
+    return out
 
 
 def step_dominates(step: StepFit | None) -> bool:
@@ -409,11 +452,13 @@ def describe_structure(step: StepFit | None, order: np.ndarray | None, noise_nT:
 
 
 def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, field_nT: float,
-                    rows: np.ndarray, t_s: np.ndarray | None, info: dict) -> tuple[list[str], list[str]]:
+                    rows: np.ndarray, t_s: np.ndarray | None, info: dict,
+                    at: PassAt | None = None) -> tuple[list[str], list[str]]:
     """The residual at ``x`` (the judge's optimum) against ``independent_noise``: a rejection naming the
     structure when it is more than ``STRUCTURE_RATIO`` times that noise; a warning when the noise could not
-    be estimated independently of the fit."""
-    r = objective.residuals(x)
+    be estimated independently of the fit.  ``at``: the pass at ``x`` (its residuals and Jacobian are used)."""
+    r = objective.residuals(x) if at is None else at.r
+    jacobian = None if at is None else at.jacobian
     if len(r) < MIN_NOISE_POINTS:
         return [], [f"only {len(r)} points: the noise could not be estimated independently of the fit"]
     t_in = None if t_s is None else np.asarray(t_s, dtype=float)[rows]
@@ -429,14 +474,14 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
         # follows the attitude, such as offsets that jump: a single step that explains most of what the fit
         # leaves is structure however the noise was estimated
         if how == "time" and rms_nT > STRUCTURE_FLOOR_FRACTION * field_nT and order is not None:
-            step = best_step(objective, x, r, order)
+            step = best_step(objective, x, r, order, jacobian)
             if step_dominates(step):
                 shape = describe_structure(step, order, 1e-300, rows, t_s, len(r))
                 return [f"the residual {rms_nT:.3g} nT is structured: {shape}"], warnings
         return [], warnings
     source = {"time": "neighbouring samples in time", "repeats": "repeated attitudes",
               "rows": "neighbouring rows"}[how]
-    step = best_step(objective, x, r, order) if order is not None else None
+    step = best_step(objective, x, r, order, jacobian) if order is not None else None
     shape = describe_structure(step, order, sigma, rows, t_s, len(r))
     return [f"the residual {rms_nT:.3g} nT is {rms_nT / max(sigma, 1e-12):.3g} times the noise estimated independently "
             f"of the fit ({sigma:.3g} nT, from {source}): {shape}"], warnings
@@ -457,20 +502,29 @@ def scale_warning(x: np.ndarray, model: str) -> list[str]:
 
 def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust: bool, closed_form: bool,
            physical_box: tuple[np.ndarray, np.ndarray], limits: AcceptanceLimits = DEFAULT_LIMITS,
-           info: dict | None = None, t_s: np.ndarray | None = None) -> tuple[list[str], list[str]]:
+           info: dict | None = None, t_s: np.ndarray | None = None,
+           at: PassAt | None = None) -> tuple[list[str], list[str]]:
     """Rejections and warnings for the estimate ``x`` on the data of ``objective``: improvement, physical
     range, outliers (robust screening), fitness against the data's own optimum, structure against the
     noise estimated independently of the fit (``t_s``: the sample times, when there are), the mean scale,
     and identifiability at the noise the optimum leaves.  ``info``, when given, receives ``noise_nT``
     (that noise), ``noise_independent_nT``, ``inliers`` (the objective on the points kept) and
-    ``n_outliers``."""
+    ``n_outliers``.
+
+    One pass over the data where possible: ``at``, the pass at ``x`` (``fisher.one_pass``; computed here when
+    not given) holds the residuals, the normal equations, the Fisher information and a short record's
+    Jacobian, which every check reads, and again when the judge's optimum is ``x`` itself (an answer at the
+    optimum); a second pass only when outliers are screened or the judge moves the answer."""
     info = {} if info is None else info
     rejections: list[str] = []
     warnings: list[str] = []
-    field_nT = float(np.median(objective.f_ref_nT))
+    field_nT = median(objective.f_ref_nT)
     if not improved:
         rejections.append("the calibration is no better than none (the solver's answer was worse than the start)")
-    r = objective.residuals(x)
+    if at is None or not np.array_equal(at.x, x):
+        with np.errstate(all="ignore"):
+            at = one_pass(objective, x)
+    r = at.r
     mask, threshold = outlier_mask(r, field_nT, limits)
     n_out = int(mask.sum())
     if n_out:  # first: outliers are a cause, an estimate out of range is often their symptom
@@ -488,8 +542,9 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
         return rejections + [f"only {n} points are left after the outlier screening for {p} parameters"], warnings
     inliers = objective if not n_out else ScalarObjective(objective.raw_nT[~mask], objective.f_ref_nT[~mask],
                                                           objective.model)
-    rms_x = float(np.sqrt(np.mean(r[~mask] ** 2)))
-    x_ref, rms_ref = reference_fit(inliers, x, physical_box, rms_start=rms_x)
+    rms_x = float(np.sqrt(np.mean(r[~mask] ** 2))) if n_out else float(np.sqrt(at.ss / n))
+    on_inliers = at if not n_out else None
+    x_ref, rms_ref = reference_fit(inliers, x, physical_box, rms_start=rms_x, at=on_inliers)
     floor = limits.fitness_floor_fraction * field_nT
     if rms_x > limits.fitness_ratio * rms_ref + floor:
         why = ("a closed-form fit does not minimize the total-field error (it assumes one constant field "
@@ -499,14 +554,17 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
                           f"data allow ({rms_ref:.3g} nT): {why}")
     noise = rms_ref * np.sqrt(n / (n - p))
     info["noise_nT"], info["inliers"] = float(noise), inliers
-    structure, notes = structure_check(inliers, x_ref, rms_ref, field_nT, np.flatnonzero(~mask), t_s, info)
+    with np.errstate(all="ignore"):
+        ref = on_inliers if on_inliers is not None and np.array_equal(x_ref, on_inliers.x) else one_pass(inliers, x_ref)
+    rows = np.arange(n) if not n_out else np.flatnonzero(~mask)
+    structure, notes = structure_check(inliers, x_ref, rms_ref, field_nT, rows, t_s, info, at=ref)
     rejections += structure
     warnings += notes + scale_warning(x, objective.model)
     with np.errstate(all="ignore"):
-        std = crb_std(inliers, x_ref, max(noise, 1e-9 * field_nT))
+        std = std_from_information(ref.fisher, max(noise, 1e-9 * field_nT))
     info["crb_std_at"] = (x_ref, std)  # the uncertainty of an answer at (or next to) x_ref is this
     rejections += identifiability(inliers, x_ref, noise, field_nT, limits, std=std)
-    rejections += profile_offset(inliers, x_ref, noise, field_nT, limits, base_ss=n * rms_ref ** 2)
+    rejections += profile_offset(inliers, x_ref, noise, field_nT, limits, base_ss=n * rms_ref ** 2, gram=ref.gram)
     return rejections, warnings
 
 

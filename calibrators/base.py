@@ -36,7 +36,7 @@ from .core.problem import (  # noqa: F401
     population_box,
     search_bounds,
 )
-from .fisher import coverage, crb_std
+from .fisher import coverage, crb_std, one_pass
 from .inputs import algebraic_vector, as_dataset
 from .params import BUDGET, SEED, Options, as_budget, validate_params
 
@@ -384,18 +384,24 @@ class Calibrator(metaclass=_Sealed):
         runtime = time.perf_counter() - t0
 
         solver_x, bad_shape = _solver_point(out.x, len(x0))
-        f_start, f_solver = objective.values(np.vstack([x0, solver_x]), exact=True)
+        f_start = float(np.mean(objective.residuals(x0) ** 2))
+        with np.errstate(all="ignore"):  # one pass at the answer serves F and every acceptance check
+            at = one_pass(objective, solver_x)
+        f_solver = float(np.mean(at.r ** 2))
         x, f_x, success, status = solver_x, f_solver, out.success, out.status
         if bad_shape or not np.isfinite(f_x) or f_x > f_start:
             what = bad_shape or f"ended worse than no calibration (F {f_x:.6g} > {f_start:.6g})"
             warnings.append(f"{self.name} {what}; the identity is returned")
             x, f_x, success, status = x0.copy(), f_start, False, "worse_than_start"
+            with np.errstate(all="ignore"):
+                at = one_pass(objective, x)
         warnings += self._solution_warnings(objective, x)
-        physical = search_bounds(model, dataset.f_ref_nT, **PHYSICAL_BOX)
+        box = self.search_box()
+        physical = (lower, upper) if box == PHYSICAL_BOX else search_bounds(model, dataset.f_ref_nT, **PHYSICAL_BOX)
         info: dict = {}
         rejections, notes = assess(objective, x, improved=status != "worse_than_start", robust=self.robust,
                                    closed_form=self.closed_form, physical_box=physical, limits=self.acceptance,
-                                   info=info, t_s=dataset.t_s)
+                                   info=info, t_s=dataset.t_s, at=at)
         uncertainty, noise = _uncertainty(info.get("inliers", objective), x, info.get("noise_nT"),
                                           info.get("crb_std_at"))
         if not self.closed_form:
