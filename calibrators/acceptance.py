@@ -25,6 +25,7 @@ checked before the fit (``reference_problems``): it is bad input, refused with e
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -154,7 +155,11 @@ PROFILE_ROWS = 20_000
 """The profile test refits on at most this many rows: a systematic sample (every k-th row in file order,
 so stratified in time and attitude), its increase of the sum of squares scaled by n / rows.  For the
 smooth increase a sample of 20,000 rows estimates it to well under 1 % (tested against all rows), far
-inside the factor the test's threshold leaves."""
+inside the factor the test's threshold leaves.  Its power is stated with each sampled test: the relative
+standard error of the scaled increase, ``sqrt(1 - m/n) sqrt(m) std(d_i) / |sum d_i|`` over the m sampled
+rows' increases d_i (a systematic sample in time order is at least as precise as a random one when the
+increase varies smoothly along the record); a record whose all-rows increase lies z standard errors below
+the threshold is rejected with probability Phi(z) (99.9 % at z = 3.1), one above it accepted alike."""
 PROFILE_LINEAR_MARGIN = 100.0
 """The refits are skipped when the quadratic (Gauss-Newton) prediction of the increase is this many times
 the threshold and the record is far from planar (``PROFILE_PLANAR``): there the far-centre family the
@@ -176,7 +181,8 @@ def _pinv_form(a: np.ndarray, e: np.ndarray) -> float:
 
 def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, field_nT: float,
                    limits: AcceptanceLimits = DEFAULT_LIMITS, base_ss: float | None = None,
-                   gram: np.ndarray | None = None) -> list[str]:
+                   gram: np.ndarray | None = None, covered: tuple[np.ndarray, float] | None = None,
+                   info: dict | None = None) -> list[str]:
     """Profile-likelihood check of the offset along the least-covered direction, where near-planar data
     admit the 'far-centre' family of solutions that a local (Cramér-Rao) bound does not see: the offset
     is moved by the tolerance along that direction (both ways), every other parameter refitted, and the
@@ -186,8 +192,10 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
     Lean where that changes nothing: when the record is far from planar and the quadratic prediction of the
     increase, ``step² / (e^T (J^T J)^+ e)`` (``gram``: J^T J at ``x``, when the caller has it), is
     ``PROFILE_LINEAR_MARGIN`` times the threshold, the refits are skipped; on more than ``PROFILE_ROWS`` rows
-    they run on a systematic sample and the increase is scaled to all rows.  ``base_ss``: the sum of squares
-    at ``x`` over all rows when the caller has it."""
+    they run on a systematic sample and the increase is scaled to all rows (``PROFILE_ROWS``: its power),
+    the sample and the relative standard error of the increase put in ``info["profile_sample"]`` and said in
+    a rejection.  ``base_ss``: the sum of squares at ``x`` over all rows, ``covered``: the least-covered
+    direction of the (sampled) readings, when the caller has them."""
     names = PARAM_NAMES[objective.model]
     if "ox_nT" not in names:
         return []
@@ -197,7 +205,7 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
     rows = systematic_rows(n, PROFILE_ROWS)
     sample = objective if rows.step == 1 else ScalarObjective(objective.raw_nT[rows], objective.f_ref_nT[rows],
                                                               objective.model)
-    normal, ratio = least_covered_direction(sample.raw_nT)
+    normal, ratio = least_covered_direction(sample.raw_nT) if covered is None else covered
     step = limits.tolerance("o_nT", field_nT)
     if ratio >= PROFILE_PLANAR:
         a = sample.normal_equations(x)[0] * (n / sample.raw_nT.shape[0]) if gram is None else gram
@@ -219,7 +227,7 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
                                         atol=PROFILE_ATOL * noise_nT ** 2 / scale)
     else:
         base = float(np.sum(sample.residuals(x) ** 2)) if base_ss is None else base_ss
-    increases = []
+    increases, ends = [], []
     for sign in (1.0, -1.0):
         fixed = np.array(centre, dtype=float)
         fixed[io:io + 3] += sign * step * basis[:, 0]
@@ -229,15 +237,26 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
             return transform.T @ a @ transform, transform.T @ g, cost
 
         with np.errstate(all="ignore"):  # the increase is needed to a small fraction of one noise variance
-            _, cost, _ = lm_normal(reduced, np.zeros(p - 1), tol=1e-10, max_iter=REFERENCE_MAX_ITER,
-                                   atol=PROFILE_ATOL * noise_nT ** 2 / scale)
+            z_end, cost, _ = lm_normal(reduced, np.zeros(p - 1), tol=1e-10, max_iter=REFERENCE_MAX_ITER,
+                                       atol=PROFILE_ATOL * noise_nT ** 2 / scale)
         increases.append((cost - base) * scale / noise_nT ** 2)
+        ends.append(fixed + transform @ z_end)
     worst = min(increases)
+    sampled = ""
+    if sample is not objective:
+        m = sample.raw_nT.shape[0]
+        with np.errstate(all="ignore"):
+            d = sample.residuals(ends[int(np.argmin(increases))]) ** 2 - sample.residuals(centre) ** 2
+            se = float(np.sqrt(1.0 - m / n) * np.sqrt(m) * np.std(d) / abs(np.sum(d)))
+        if info is not None:
+            info["profile_sample"] = {"rows": m, "of_rows": n, "increase_relative_se": se}
+        sampled = (f" (refitted on a systematic sample of {m:,} of {n:,} rows, the increase scaled to all rows to "
+                   f"+-{100 * se:.2g} %)")
     if worst >= limits.profile_chi2:
         return []
     return [f"the offset along the least-covered direction is not determined: moving it by {step:.3g} nT (and "
-            f"refitting the rest) raises the squared error by only {max(worst, 0.0):.3g} noise variances (a "
-            f"determined offset needs {limits.profile_chi2:g}); the readings lie close to a plane (out-of-plane "
+            f"refitting the rest) raises the squared error by only {max(worst, 0.0):.3g} noise variances{sampled} "
+            f"(a determined offset needs {limits.profile_chi2:g}); the readings lie close to a plane (out-of-plane "
             f"spread {100 * ratio:.2g} % of the in-plane spread): tilt the sensor more or use model='angles'"]
 
 
@@ -251,6 +270,8 @@ REPEAT_FRACTION = 1e-3
 MIN_REPEATS = 10
 """Pairs of repeated attitudes needed to estimate the noise from them."""
 MIN_NOISE_POINTS = 10
+GEOMETRY_CACHE_ROWS = 100_000
+"""``assess`` keeps a record's ``noise_geometry`` with its data (``memo``) up to this many rows (2.4 MB)."""
 STEP_CANDIDATES = 2000
 """Split points tried when locating a step (evenly spaced in time order)."""
 STEP_ROWS = 200_000
@@ -265,8 +286,37 @@ SCALE_WARNING = 0.05
 """A mean scale factor further than this from 1 gets a warning (a fluxgate's scales are near unity)."""
 
 
-def independent_noise(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray | None,
-                      field_nT: float) -> tuple[float, str, np.ndarray | None]:
+@dataclass(frozen=True)
+class NoiseGeometry:
+    """What ``independent_noise`` needs of a record besides the residual (``noise_geometry``): how the noise
+    is estimated, the time order, the interpolation weights in that order (``w`` and the scale ``1 / sqrt(1 +
+    w^2 + (1 - w)^2)``), or the pairs of repeated attitudes."""
+
+    how: str
+    order: np.ndarray | None = None
+    weights: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    pairs: tuple[np.ndarray, np.ndarray] | None = None
+
+
+def noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float) -> NoiseGeometry:
+    """The part of ``independent_noise`` that depends on the readings and times only (a dataset's quantity:
+    computed once for every fit of the same record)."""
+    n = raw_nT.shape[0]
+    if t_s is not None and np.ptp(t_s) > 0:
+        order = np.argsort(t_s, kind="stable")
+        return NoiseGeometry("time", order, _interpolation_weights(t_s[order]))
+    from scipy.spatial import cKDTree
+
+    dist, idx = cKDTree(raw_nT).query(raw_nT, k=2)
+    close = dist[:, 1] < REPEAT_FRACTION * field_nT
+    if close.sum() >= MIN_REPEATS:
+        i = np.flatnonzero(close)
+        return NoiseGeometry("repeats", pairs=(i, idx[i, 1]))
+    return NoiseGeometry("rows", np.arange(n), _interpolation_weights(np.arange(n, dtype=float)))
+
+
+def independent_noise(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float,
+                      geometry: NoiseGeometry | None = None) -> tuple[float, str, np.ndarray | None]:
     """The noise of the residual ``r`` estimated independently of the fit, how, and the time order used.
 
     With times: the robust scatter of the errors of linear interpolation between time neighbours,
@@ -275,25 +325,28 @@ def independent_noise(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray | None,
     drift, a slowly changing attitude's misfit) cancels in and a step touches only twice.  Without times:
     pairs of repeated attitudes (readings within ``REPEAT_FRACTION`` of the field), ``(r_i - r_j) /
     sqrt(2)``.  With neither, the rows in file order taken as time order ("rows"; an upper bound of the
-    noise when they are not)."""
-    n = len(r)
-    if t_s is not None and np.ptp(t_s) > 0:
-        order = np.argsort(t_s, kind="stable")
-        return _interpolation_sigma(r[order], t_s[order]), "time", order
-    from scipy.spatial import cKDTree
-
-    dist, idx = cKDTree(raw_nT).query(raw_nT, k=2)
-    close = dist[:, 1] < REPEAT_FRACTION * field_nT
-    if close.sum() >= MIN_REPEATS:
-        i = np.flatnonzero(close)
-        return median_and_sigma(r[i] - r[idx[i, 1]])[1] / np.sqrt(2.0), "repeats", None
-    return _interpolation_sigma(r, np.arange(n, dtype=float)), "rows", np.arange(n)
+    noise when they are not).  ``geometry``: ``noise_geometry`` of these readings and times, when the caller
+    has it."""
+    g = noise_geometry(raw_nT, t_s, field_nT) if geometry is None else geometry
+    if g.how == "repeats":
+        assert g.pairs is not None
+        i, j = g.pairs
+        return median_and_sigma(r[i] - r[j])[1] / np.sqrt(2.0), "repeats", None
+    assert g.order is not None and g.weights is not None
+    ro = r if g.how == "rows" else r[g.order]
+    return _interpolation_sigma(ro, g.weights), g.how, g.order
 
 
-def _interpolation_sigma(r: np.ndarray, t: np.ndarray) -> float:
+def _interpolation_weights(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The weight of the earlier neighbour ``w``, ``1 - w`` and the scale to white noise of times ``t``."""
     t = t + np.arange(len(t)) * 1e-9 * max(float(np.ptp(t)), 1.0)  # ties broken
     w = (t[2:] - t[1:-1]) / (t[2:] - t[:-2])  # weight of the earlier neighbour
-    e = (r[1:-1] - (w * r[:-2] + (1 - w) * r[2:])) / np.sqrt(1.0 + w * w + (1 - w) ** 2)
+    return w, 1 - w, np.sqrt(1.0 + w * w + (1 - w) ** 2)
+
+
+def _interpolation_sigma(r: np.ndarray, weights: tuple[np.ndarray, np.ndarray, np.ndarray]) -> float:
+    w, u, scale = weights
+    e = (r[1:-1] - (w * r[:-2] + u * r[2:])) / scale
     return median_and_sigma(e)[1]
 
 
@@ -313,16 +366,16 @@ class StepFit:
 
 
 def _sums_after(t: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """For each split row ``edges[k]`` (>= 1) the sum over the rows from it on of ``t_i w_i^T`` (m, q, w).
-    Short records from the per-row products summed in one vectorized pass; long ones block by block between
-    the split rows (at most ``STEP_CANDIDATES`` blocks), so that memory stays a fraction of the record's."""
+    """For each split row ``edges[k]`` (sorted, >= 1) the sum over the rows from it on of ``t_i w_i^T``
+    (m, q, w).  Short records from the per-row products summed in one vectorized pass; long ones block by
+    block between the split rows (at most ``STEP_CANDIDATES`` blocks), so that memory stays a fraction of the
+    record's."""
     n, q = t.shape
     width = w.shape[1]
     if n * q * width <= 4_000_000:
         prod = t[:, :, None] * w[:, None, :]
         np.cumsum(prod, axis=0, out=prod)
-        before = prod[edges[0] - 1:edges[-1]] if edges[-1] - edges[0] == len(edges) - 1 else prod[edges - 1]
-        return prod[-1] - before
+        return prod[-1] - prod[edges - 1]
     bounds = np.concatenate([edges, [n]])
     sums = np.empty((len(edges), q, width))
     for j in range(len(edges)):
@@ -452,17 +505,18 @@ def describe_structure(step: StepFit | None, order: np.ndarray | None, noise_nT:
 
 
 def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, field_nT: float,
-                    rows: np.ndarray, t_s: np.ndarray | None, info: dict,
-                    at: PassAt | None = None) -> tuple[list[str], list[str]]:
+                    rows: np.ndarray, t_s: np.ndarray | None, info: dict, at: PassAt | None = None,
+                    geometry: NoiseGeometry | None = None) -> tuple[list[str], list[str]]:
     """The residual at ``x`` (the judge's optimum) against ``independent_noise``: a rejection naming the
     structure when it is more than ``STRUCTURE_RATIO`` times that noise; a warning when the noise could not
-    be estimated independently of the fit.  ``at``: the pass at ``x`` (its residuals and Jacobian are used)."""
+    be estimated independently of the fit.  ``at``: the pass at ``x`` (its residuals and Jacobian are used);
+    ``geometry``: ``noise_geometry`` of the rows judged, when the caller has it."""
     r = objective.residuals(x) if at is None else at.r
     jacobian = None if at is None else at.jacobian
     if len(r) < MIN_NOISE_POINTS:
         return [], [f"only {len(r)} points: the noise could not be estimated independently of the fit"]
     t_in = None if t_s is None else np.asarray(t_s, dtype=float)[rows]
-    sigma, how, order = independent_noise(r, objective.raw_nT, t_in, field_nT)
+    sigma, how, order = independent_noise(r, objective.raw_nT, t_in, field_nT, geometry)
     info["noise_independent_nT"], info["noise_independent_from"] = float(sigma), how
     warnings = []
     if how == "rows":
@@ -502,8 +556,8 @@ def scale_warning(x: np.ndarray, model: str) -> list[str]:
 
 def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust: bool, closed_form: bool,
            physical_box: tuple[np.ndarray, np.ndarray], limits: AcceptanceLimits = DEFAULT_LIMITS,
-           info: dict | None = None, t_s: np.ndarray | None = None,
-           at: PassAt | None = None) -> tuple[list[str], list[str]]:
+           info: dict | None = None, t_s: np.ndarray | None = None, at: PassAt | None = None,
+           memo=None) -> tuple[list[str], list[str]]:
     """Rejections and warnings for the estimate ``x`` on the data of ``objective``: improvement, physical
     range, outliers (robust screening), fitness against the data's own optimum, structure against the
     noise estimated independently of the fit (``t_s``: the sample times, when there are), the mean scale,
@@ -514,7 +568,10 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     One pass over the data where possible: ``at``, the pass at ``x`` (``fisher.one_pass``; computed here when
     not given) holds the residuals, the normal equations, the Fisher information and a short record's
     Jacobian, which every check reads, and again when the judge's optimum is ``x`` itself (an answer at the
-    optimum); a second pass only when outliers are screened or the judge moves the answer."""
+    optimum); a second pass only when outliers are screened or the judge moves the answer.  ``memo``:
+    ``memo(key, compute)``, the dataset's cache of quantities that do not depend on the answer (the readings'
+    least-covered direction, the noise estimate's time order and weights on records of at most
+    ``GEOMETRY_CACHE_ROWS`` rows), used when no point is screened out."""
     info = {} if info is None else info
     rejections: list[str] = []
     warnings: list[str] = []
@@ -557,14 +614,25 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     with np.errstate(all="ignore"):
         ref = on_inliers if on_inliers is not None and np.array_equal(x_ref, on_inliers.x) else one_pass(inliers, x_ref)
     rows = np.arange(n) if not n_out else np.flatnonzero(~mask)
-    structure, notes = structure_check(inliers, x_ref, rms_ref, field_nT, rows, t_s, info, at=ref)
+    geometry = None
+    if memo is not None and not n_out and n <= GEOMETRY_CACHE_ROWS:  # the record's own, kept with its data
+        t_key = None if t_s is None else hashlib.sha256(np.ascontiguousarray(t_s, dtype="<f8").data).hexdigest()
+        geometry = memo(("noise_geometry", t_key), lambda: noise_geometry(
+            objective.raw_nT, None if t_s is None else np.asarray(t_s, dtype=float), field_nT))
+    structure, notes = structure_check(inliers, x_ref, rms_ref, field_nT, rows, t_s, info, at=ref,
+                                       geometry=geometry)
     rejections += structure
     warnings += notes + scale_warning(x, objective.model)
     with np.errstate(all="ignore"):
         std = std_from_information(ref.fisher, max(noise, 1e-9 * field_nT))
     info["crb_std_at"] = (x_ref, std)  # the uncertainty of an answer at (or next to) x_ref is this
     rejections += identifiability(inliers, x_ref, noise, field_nT, limits, std=std)
-    rejections += profile_offset(inliers, x_ref, noise, field_nT, limits, base_ss=n * rms_ref ** 2, gram=ref.gram)
+    covered = None
+    if memo is not None and not n_out:
+        covered = memo("least_covered", lambda: least_covered_direction(
+            objective.raw_nT[systematic_rows(n, PROFILE_ROWS)]))
+    rejections += profile_offset(inliers, x_ref, noise, field_nT, limits, base_ss=n * rms_ref ** 2, gram=ref.gram,
+                                 covered=covered, info=info)
     return rejections, warnings
 
 
