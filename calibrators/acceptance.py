@@ -155,11 +155,16 @@ PROFILE_ROWS = 20_000
 """The profile test refits on at most this many rows: a systematic sample (every k-th row in file order,
 so stratified in time and attitude), its increase of the sum of squares scaled by n / rows.  For the
 smooth increase a sample of 20,000 rows estimates it to well under 1 % (tested against all rows), far
-inside the factor the test's threshold leaves.  Its power is stated with each sampled test: the relative
-standard error of the scaled increase, ``sqrt(1 - m/n) sqrt(m) std(d_i) / |sum d_i|`` over the m sampled
-rows' increases d_i (a systematic sample in time order is at least as precise as a random one when the
-increase varies smoothly along the record); a record whose all-rows increase lies z standard errors below
-the threshold is rejected with probability Phi(z) (99.9 % at z = 3.1), one above it accepted alike."""
+inside the factor the test's threshold leaves.  Its power is stated with each sampled test: the standard
+error of the scaled increase in noise variances, ``n / sqrt(m) s sqrt(1 - m/n) / sigma^2`` with ``s^2`` half
+the mean squared successive difference of the m sampled rows' increases d_i in time order (Yates' estimator
+for a systematic sample: a smooth trend along the record cancels in it, independent rows give the random
+sample's variance).  It treats the sampled rows' increases as fixed numbers, so it is conservative: the
+sample's own refit follows the sample (on a near-planar record of 54,000 rows its increase was within one
+noise variance of all rows', tests/test_acceptance_lean.py, where this error says about 3).  A record whose
+all-rows increase lies z standard errors below the threshold ``profile_chi2`` is rejected with probability
+Phi(z) (99.9 % at z = 3.1), one above it accepted alike: where the threshold is more than 3 standard errors
+away, the sample decides as all rows."""
 PROFILE_LINEAR_MARGIN = 100.0
 """The refits are skipped when the quadratic (Gauss-Newton) prediction of the increase is this many times
 the threshold and the record is far from planar (``PROFILE_PLANAR``): there the far-centre family the
@@ -171,11 +176,11 @@ the profile test always refits."""
 
 
 def _pinv_form(a: np.ndarray, e: np.ndarray) -> float:
-    """``e^T pinv(a) e`` for a symmetric ``a``, from its eigendecomposition (pinv's cut: eigenvalues within
-    size x machine epsilon of the largest count as zero)."""
+    """``e^T pinv(a, hermitian=True) e`` for a symmetric ``a``, from its eigendecomposition (pinv's default cut:
+    eigenvalues below 1e-15 of the largest in magnitude count as zero)."""
     ev, vec = np.linalg.eigh(a)
     proj = vec.T @ e
-    keep = np.abs(ev) > a.shape[0] * np.finfo(float).eps * np.max(np.abs(ev), initial=0.0)
+    keep = np.abs(ev) > 1e-15 * np.max(np.abs(ev), initial=0.0)
     return float(np.sum(proj[keep] ** 2 / ev[keep]))
 
 
@@ -193,8 +198,8 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
     increase, ``step² / (e^T (J^T J)^+ e)`` (``gram``: J^T J at ``x``, when the caller has it), is
     ``PROFILE_LINEAR_MARGIN`` times the threshold, the refits are skipped; on more than ``PROFILE_ROWS`` rows
     they run on a systematic sample and the increase is scaled to all rows (``PROFILE_ROWS``: its power),
-    the sample and the relative standard error of the increase put in ``info["profile_sample"]`` and said in
-    a rejection.  ``base_ss``: the sum of squares at ``x`` over all rows, ``covered``: the least-covered
+    the sample and the standard error of the increase put in ``info["profile_sample"]`` and said in a
+    rejection.  ``base_ss``: the sum of squares at ``x`` over all rows, ``covered``: the least-covered
     direction of the (sampled) readings, when the caller has them."""
     names = PARAM_NAMES[objective.model]
     if "ox_nT" not in names:
@@ -247,11 +252,12 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
         m = sample.raw_nT.shape[0]
         with np.errstate(all="ignore"):
             d = sample.residuals(ends[int(np.argmin(increases))]) ** 2 - sample.residuals(centre) ** 2
-            se = float(np.sqrt(1.0 - m / n) * np.sqrt(m) * np.std(d) / abs(np.sum(d)))
+            spread = np.sqrt(np.mean(np.diff(d) ** 2) / 2.0)  # successive differences (Yates): a trend cancels
+            se = float(n / np.sqrt(m) * spread * np.sqrt(1.0 - m / n) / noise_nT ** 2)
         if info is not None:
-            info["profile_sample"] = {"rows": m, "of_rows": n, "increase_relative_se": se}
+            info["profile_sample"] = {"rows": m, "of_rows": n, "increase_se_noise_variances": se}
         sampled = (f" (refitted on a systematic sample of {m:,} of {n:,} rows, the increase scaled to all rows to "
-                   f"+-{100 * se:.2g} %)")
+                   f"+-{se:.2g})")
     if worst >= limits.profile_chi2:
         return []
     return [f"the offset along the least-covered direction is not determined: moving it by {step:.3g} nT (and "
@@ -385,7 +391,7 @@ def _sums_after(t: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
 
 
 def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: np.ndarray,
-              jacobian: np.ndarray | None = None) -> StepFit | None:
+              jacobian: np.ndarray | None = None, gram: np.ndarray | None = None) -> StepFit | None:
     """The best single step in time order: a jump of the offsets (of the mean, for a model without
     offsets) after row k, ``[i >= k] (c + J_o d)``, on top of every parameter's direction ``J`` over the
     whole record, at ``STEP_CANDIDATES`` split points.  By the Frisch-Waugh-Lovell theorem the step's gain
@@ -396,13 +402,13 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
     ``B_k^T A^+ B_k = E_k^T E_k`` for ``E_k = Z^T T_k`` and ``c_k = T_k^T (r - Z Z^T r)``: one pass of
     per-row products summed from the end.  None when the record is too short to split.  On more than
     ``STEP_ROWS`` rows the search runs on every k-th row in time order (the sums scaled to all rows; the step
-    located to within k rows).  ``jacobian``: J at ``x`` (n, p) when the caller has it."""
+    located to within k rows).  ``jacobian``, ``gram``: J at ``x`` (n, p) and J^T J, when the caller has them."""
     n_all = len(r)
     k = max(1, -(-n_all // STEP_ROWS))
     if k > 1:
         keep = order[::k]
         sub = ScalarObjective(objective.raw_nT[keep], objective.f_ref_nT[keep], objective.model)
-        fit = best_step(sub, x, r[keep], np.arange(len(keep)), None if jacobian is None else jacobian[keep])
+        fit = best_step(sub, x, r[keep], np.arange(len(keep)), None if jacobian is None else jacobian[keep])  # no gram
         if fit is None:
             return None
         scale = n_all / len(keep)
@@ -418,9 +424,10 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
     else:
         full, tail = np.column_stack([np.ones(len(r)), jac[order]]), [0]
     n, q = full.shape[0], len(tail)
-    scale = np.sqrt(np.einsum("ij,ij->j", full, full) / n)
-    scale[scale == 0] = 1.0
-    full = full / scale  # columns of one size: the systems below are then well conditioned
+    whole = gram if gram is not None and offsets else full.T @ full  # the pass's J^T J: a sum in any row order
+    scale = np.sqrt(np.diag(whole) / n)
+    scale[scale == 0] = 1.0  # columns of one size: the systems below are then well conditioned
+    a_all = whole / np.outer(scale, scale)
     ro = r[order]
     margin = max(1, n // 50)
     if n <= STEP_CANDIDATES:  # every row between the margins (what the spaced grid below gives then)
@@ -430,12 +437,12 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
     if len(edges) < 2:
         return None
     with np.errstate(all="ignore"):
-        ev, vec = np.linalg.eigh(full.T @ full)  # A^+ = V V^T over the eigenvalues above 1e-9 of the largest
+        ev, vec = np.linalg.eigh(a_all)  # A^+ = V V^T over the eigenvalues above 1e-9 of the largest
         kept = ev > 1e-9 * np.max(np.abs(ev))
-        z = full @ (vec[:, kept] / np.sqrt(ev[kept]))
+        z = full @ (vec[:, kept] / np.sqrt(ev[kept]) / scale[:, None])  # the scaled columns, whitened
         g = z.T @ ro
         base = float(g @ g)
-        t = full[:, tail]
+        t = full[:, tail] / scale[tail]
         pz = z.shape[1]
         after = _sums_after(t, np.column_stack([z, t, ro - z @ g]), edges)  # (m, q, p' + q + 1)
         e_t = np.ascontiguousarray(after[:, :, :pz])  # E_k^T
@@ -443,35 +450,36 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
         c = after[:, :, -1]
         # each q x q system with a relative ridge of 1e-10 (a split whose step columns lie in the record's
         # span has S ~ 0 and c ~ 0 there, so that direction adds nothing)
-        diagonal = schur.reshape(len(edges), q * q)[:, ::q + 1]
-        diagonal += (1e-10 * diagonal.sum(axis=1) / q + 1e-300)[:, None]
-        gain = _quadratic_forms(schur, c)
+        ridge = 1e-10 * np.einsum("mii->m", schur) / q + 1e-300
+        gain = _quadratic_forms(schur, ridge, c)
     gain = np.where(np.isfinite(gain), gain, -np.inf)
     best = int(np.argmax(gain))
     with np.errstate(all="ignore"):
-        coef = np.linalg.solve(schur[best], c[best])
+        coef = np.linalg.solve(schur[best] + ridge[best] * np.eye(q), c[best])
     return StepFit(index=int(edges[best]), gain=float(gain[best]), base=base, total=float(ro @ ro),
                    jump=coef / scale[tail], offsets=bool(offsets))
 
 
-def _quadratic_forms(s: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """``c_k^T s_k^-1 c_k`` for a stack of symmetric positive definite systems (m, q, q): for q = 3 by
-    Cholesky factors written out (a third of a batched LU solve's time on short stacks), else, and where a
-    pivot is not positive, by LU."""
+def _quadratic_forms(s: np.ndarray, ridge: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """``c_k^T (s_k + ridge_k I)^-1 c_k`` for a stack of symmetric positive semi-definite systems (m, q, q):
+    for q = 3 by Cholesky factors written out (a third of a batched LU solve's time on short stacks), else,
+    and where a pivot is not positive, by LU."""
     if s.shape[1] != 3:
-        return np.einsum("mi,mi->m", np.linalg.solve(s, c[:, :, None])[:, :, 0], c)
-    l11 = np.sqrt(s[:, 0, 0])
+        ridged = s + ridge[:, None, None] * np.eye(s.shape[1])
+        return np.einsum("mi,mi->m", np.linalg.solve(ridged, c[:, :, None])[:, :, 0], c)
+    l11 = np.sqrt(s[:, 0, 0] + ridge)
     l21, l31 = s[:, 1, 0] / l11, s[:, 2, 0] / l11
-    l22 = np.sqrt(s[:, 1, 1] - l21 * l21)
+    l22 = np.sqrt(s[:, 1, 1] + ridge - l21 * l21)
     l32 = (s[:, 2, 1] - l31 * l21) / l22
-    l33 = np.sqrt(s[:, 2, 2] - l31 * l31 - l32 * l32)
+    l33 = np.sqrt(s[:, 2, 2] + ridge - l31 * l31 - l32 * l32)
     y1 = c[:, 0] / l11
     y2 = (c[:, 1] - l21 * y1) / l22
     y3 = (c[:, 2] - l31 * y1 - l32 * y2) / l33
     out = y1 * y1 + y2 * y2 + y3 * y3
     bad = ~np.isfinite(out)
     if bad.any():
-        out[bad] = np.einsum("mi,mi->m", np.linalg.solve(s[bad], c[bad][:, :, None])[:, :, 0], c[bad])
+        ridged = s[bad] + ridge[bad][:, None, None] * np.eye(3)
+        out[bad] = np.einsum("mi,mi->m", np.linalg.solve(ridged, c[bad][:, :, None])[:, :, 0], c[bad])
     return out
 
 
@@ -512,7 +520,7 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
     be estimated independently of the fit.  ``at``: the pass at ``x`` (its residuals and Jacobian are used);
     ``geometry``: ``noise_geometry`` of the rows judged, when the caller has it."""
     r = objective.residuals(x) if at is None else at.r
-    jacobian = None if at is None else at.jacobian
+    jacobian, gram = (None, None) if at is None else (at.jacobian, at.gram)
     if len(r) < MIN_NOISE_POINTS:
         return [], [f"only {len(r)} points: the noise could not be estimated independently of the fit"]
     t_in = None if t_s is None else np.asarray(t_s, dtype=float)[rows]
@@ -528,14 +536,14 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
         # follows the attitude, such as offsets that jump: a single step that explains most of what the fit
         # leaves is structure however the noise was estimated
         if how == "time" and rms_nT > STRUCTURE_FLOOR_FRACTION * field_nT and order is not None:
-            step = best_step(objective, x, r, order, jacobian)
+            step = best_step(objective, x, r, order, jacobian, gram)
             if step_dominates(step):
                 shape = describe_structure(step, order, 1e-300, rows, t_s, len(r))
                 return [f"the residual {rms_nT:.3g} nT is structured: {shape}"], warnings
         return [], warnings
     source = {"time": "neighbouring samples in time", "repeats": "repeated attitudes",
               "rows": "neighbouring rows"}[how]
-    step = best_step(objective, x, r, order, jacobian) if order is not None else None
+    step = best_step(objective, x, r, order, jacobian, gram) if order is not None else None
     shape = describe_structure(step, order, sigma, rows, t_s, len(r))
     return [f"the residual {rms_nT:.3g} nT is {rms_nT / max(sigma, 1e-12):.3g} times the noise estimated independently "
             f"of the fit ({sigma:.3g} nT, from {source}): {shape}"], warnings

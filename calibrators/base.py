@@ -430,7 +430,8 @@ class Calibrator(metaclass=_Sealed):
             evaluation_mode="closed-form" if self.closed_form else "counted",
             solver_x=solver_x, solver_rms_nT=float(np.sqrt(f_solver)) if np.isfinite(f_solver) else float("nan"),
             n_overrun_calls=evaluator.n_overrun_calls, accepted=not rejections, rejections=tuple(rejections),
-            reference=_reference_of(dataset), uncertainty=uncertainty, noise_nT=noise,
+            reference=dict(known.get(("reference_of", *_reference_meta(dataset)), lambda: _reference_of(dataset))),
+            uncertainty=uncertainty, noise_nT=noise,
             data_digest=known.digest, n_points=len(dataset))
 
     def _solution_warnings(self, objective: ScalarObjective, x: np.ndarray) -> list[str]:
@@ -581,10 +582,23 @@ class _DatasetCache:
         return cls.of(dataset)
 
     def get(self, key, compute):
-        """The cached value of ``key``, computed by ``compute()`` the first time (an exception is not cached)."""
+        """The cached value of ``key``, computed by ``compute()`` the first time (an exception is not cached; a key
+        that cannot be hashed, such as a dataset's meta holding a list, is not cached either)."""
+        try:
+            hash(key)
+        except TypeError:
+            return compute()
         if key not in self._values:
             self._values[key] = compute()
         return self._values[key]
+
+
+def _reference_meta(dataset: Dataset) -> tuple:
+    """What ``_reference_of`` reads of a dataset besides its reference: with the data digest, the key of its
+    cached value."""
+    meta = dataset.meta
+    return (meta.get("reference_source"), meta.get("reference_estimated"), meta.get("reference_ignored"),
+            "reference_estimated" in meta)
 
 
 def _acceptance_sampling(coverage_report: dict | None, info: dict) -> dict:

@@ -83,8 +83,17 @@ def one_pass(objective: ScalarObjective, x: np.ndarray, keep_jacobian_rows: int 
 def std_from_information(information: np.ndarray, noise_nT: float) -> np.ndarray:
     """Cramér-Rao standard deviations from the Fisher information per unit noise variance and the noise (as
     ``crb_std`` computes them: the same pseudo-inverse, whose cut of the smallest singular values the
-    verdicts on near-planar records depend on)."""
-    return np.sqrt(np.diag(np.linalg.pinv(information / noise_nT ** 2)))
+    verdicts on near-planar records depend on, its diagonal only)."""
+    return np.sqrt(_pinv_diagonal(information / noise_nT ** 2))
+
+
+def _pinv_diagonal(a: np.ndarray) -> np.ndarray:
+    """The diagonal of ``np.linalg.pinv(a)`` from the same singular value decomposition and cut (pinv's default:
+    singular values below 1e-15 of the largest count as zero), without forming the whole inverse."""
+    u, s, vt = np.linalg.svd(a)
+    keep = s > 1e-15 * np.max(s, initial=0.0)
+    inv = np.divide(1.0, s, out=np.zeros_like(s), where=keep)
+    return np.einsum("ji,j,ij->i", vt, inv, u)
 
 
 def fisher_information(objective: ScalarObjective, x: np.ndarray, noise_nT: float) -> np.ndarray:
