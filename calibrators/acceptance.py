@@ -661,9 +661,9 @@ def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray) -> str | None:
     """Why the reference and the readings cannot belong together, or None: the readings' magnitude
     against the reference (wrong units, raw ADC counts, a wrong reference), rows in mixed units, and a
     reference that jumps between values."""
-    mag = np.linalg.norm(raw_nT, axis=1)
+    mag = np.sqrt(np.einsum("ij,ij->i", raw_nT, raw_nT))  # the row norms (a third of np.linalg.norm's time)
     ratio = mag / f_ref_nT
-    typical = float(np.median(ratio))
+    typical = median(ratio)
     if not MAGNITUDE_RATIO_RANGE[0] <= typical <= MAGNITUDE_RATIO_RANGE[1]:
         return (f"the readings' magnitude (median {np.median(mag):.4g}) is {typical:.3g} times the reference "
                 f"(median {np.median(f_ref_nT):.6g} nT): wrong units=, raw ADC counts, or a wrong reference")
