@@ -419,16 +419,18 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
     # a step of the offsets where there are offsets, else of the mean; the mean is never a column of the
     # whole record (with scales the residual |c| - F lies in the span of the scales' columns and a constant)
     jac = objective.jacobian(x) if jacobian is None else jacobian
+    in_order = order[0] == 0 and np.array_equal(order, np.arange(len(order)))  # rows in time order already
+    jo = jac if in_order else jac[order]
     if offsets:
-        full, tail = jac[order], offsets
+        full, tail = jo, offsets
     else:
-        full, tail = np.column_stack([np.ones(len(r)), jac[order]]), [0]
+        full, tail = np.column_stack([np.ones(len(r)), jo]), [0]
     n, q = full.shape[0], len(tail)
     whole = gram if gram is not None and offsets else full.T @ full  # the pass's J^T J: a sum in any row order
     scale = np.sqrt(np.diag(whole) / n)
     scale[scale == 0] = 1.0  # columns of one size: the systems below are then well conditioned
     a_all = whole / np.outer(scale, scale)
-    ro = r[order]
+    ro = r if in_order else r[order]
     margin = max(1, n // 50)
     if n <= STEP_CANDIDATES:  # every row between the margins (what the spaced grid below gives then)
         edges = np.arange(margin, n - margin + 1)

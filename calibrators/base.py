@@ -608,7 +608,7 @@ def _acceptance_sampling(coverage_report: dict | None, info: dict) -> dict:
     if coverage_report and coverage_report.get("rows", 0) < coverage_report.get("of_rows", 0):
         m = coverage_report["rows"]
         out["coverage"] = {"rows": m, "of_rows": coverage_report["of_rows"],
-                           "per_point_information_relative_se_at_most": 2.0 / float(np.sqrt(m))}
+                           "per_point_information_relative_se_for_cv_2": 2.0 / float(np.sqrt(m))}
     if "profile_sample" in info:
         out["profile"] = dict(info["profile_sample"])
     return out

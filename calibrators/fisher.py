@@ -162,7 +162,7 @@ def coverage(objective: ScalarObjective, x: np.ndarray, field_nT: float | None =
         unit = {"angle": " rad", "offset": " nT", "scale": ""}[_kind(names[worst])]
         bound = f"{names[worst]} +-{sigma[worst]:.2g}{unit} per nT of noise (Cramér-Rao)"
         sampled = (f"; judged on a systematic sample of {n:,} of {n_all:,} rows (per-point information to about "
-                   f"{100 * 2 / np.sqrt(n):.1g} %)") if rows.step != 1 else ""
+                   f"{100 * 2 / np.sqrt(n):.2g} %)") if rows.step != 1 else ""
         if cond > COND_REFUSE or over_r.any():
             bad = [names[i] for i in np.flatnonzero(over_r)] or [names[worst]]
             refusal = (f"degenerate attitude coverage: the data cannot determine {', '.join(bad)} "

@@ -259,4 +259,6 @@ def test_a_sampled_profile_test_states_its_precision():
     # a conservative standard error (the sample's own refit agrees with all rows' to within one noise variance,
     # test_a_sampled_profile_refit_decides_as_all_rows): here the increase is about 3 of them below the threshold
     assert 0 < sample["increase_se_noise_variances"] < acceptance.DEFAULT_LIMITS.profile_chi2 / 2
+    coverage = res.extra["acceptance_sampling"]["coverage"]  # the coverage check read a sample too
+    assert coverage["rows"] <= fisher.COVERAGE_ROWS and coverage["of_rows"] == len(d)
     assert "acceptance_sampling" not in make("lsq").fit(get_scenario("vehicle9").build(0)).extra  # every row read
