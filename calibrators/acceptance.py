@@ -306,7 +306,15 @@ class NoiseGeometry:
 
 def noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float) -> NoiseGeometry:
     """The part of ``independent_noise`` that depends on the readings and times only (a dataset's quantity:
-    computed once for every fit of the same record)."""
+    computed once for every fit of the same record; its arrays read-only)."""
+    geometry = _noise_geometry(raw_nT, t_s, field_nT)
+    for part in (geometry.order, *(geometry.weights or ()), *(geometry.pairs or ())):
+        if part is not None:
+            part.setflags(write=False)
+    return geometry
+
+
+def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float) -> NoiseGeometry:
     n = raw_nT.shape[0]
     if t_s is not None and np.ptp(t_s) > 0:
         order = np.argsort(t_s, kind="stable")

@@ -416,7 +416,7 @@ class Calibrator(metaclass=_Sealed):
         rejections += _budget_breaches(evaluator, budget)
         warnings += notes
         extra = dict(out.extra)
-        sampling = _acceptance_sampling(known.get(("coverage", model), lambda: None), info)
+        sampling = _acceptance_sampling(known.peek(("coverage", model)), info)
         if sampling:
             extra["acceptance_sampling"] = sampling
         return CalibrationResult(
@@ -551,6 +551,7 @@ class _DatasetCache:
 
     SIZE = 8
     _entries: dict[str, dict] = {}
+    _lock = threading.Lock()
     _last = threading.local()
 
     def __init__(self, digest: str, values: dict):
@@ -560,12 +561,13 @@ class _DatasetCache:
     def of(cls, dataset: Dataset) -> _DatasetCache:
         """The entry of ``dataset``'s numbers (its digest computed now), remembered for ``again``."""
         digest = data_digest(dataset.raw_nT, dataset.f_ref_nT)
-        values = cls._entries.pop(digest, None)
-        if values is None:
-            values = {}
-            while len(cls._entries) >= cls.SIZE:
-                cls._entries.pop(next(iter(cls._entries)))
-        cls._entries[digest] = values
+        with cls._lock:  # the most recently used last; the least recently used dropped
+            values = cls._entries.pop(digest, None)
+            if values is None:
+                values = {}
+                while len(cls._entries) >= cls.SIZE:
+                    cls._entries.pop(next(iter(cls._entries)))
+            cls._entries[digest] = values
         out = cls(digest, values)
         cls._last.value = (weakref.ref(dataset), weakref.ref(dataset.raw_nT), weakref.ref(dataset.f_ref_nT), out)
         return out
@@ -580,6 +582,10 @@ class _DatasetCache:
                 and last[2]() is dataset.f_ref_nT):
             return last[3]
         return cls.of(dataset)
+
+    def peek(self, key):
+        """The cached value of ``key``, or None (nothing is computed or stored)."""
+        return self._values.get(key)
 
     def get(self, key, compute):
         """The cached value of ``key``, computed by ``compute()`` the first time (an exception is not cached; a key
