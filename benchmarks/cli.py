@@ -29,7 +29,7 @@ from magbench.calibrators.registry import plugin_errors
 from magbench.errors import InputError
 from magbench.paper import ARCSEC_PER_RAD
 from magbench.safeio import atomic_output, check_output, os_reason
-from magbench.simulate.dataset import read_csv, write_truth
+from magbench.simulate.dataset import UNIT_FACTORS_NT, read_csv, write_truth
 from magbench.simulate.effects import EFFECTS
 from magbench.simulate.field import igrf_field
 from magbench.simulate.scenarios import get_scenario, scenario_names
@@ -304,6 +304,13 @@ def _calibration_lines(result, n_points: int) -> list[str]:
     return lines + [f"  warning: {w}" for w in result.warnings]
 
 
+ONE_BLAS_THREAD_ROWS = 100_000
+"""``calibrate`` of a longer record runs BLAS on one thread unless ``--blas-threads`` says otherwise: its
+products are long and thin (9 x 32,768 blocks), which a second thread hardly speeds up on an idle machine
+and slows several-fold on a busy one (2e6 rows on a loaded 2-core host: 8-15 s with the library's threads,
+4-6 s with one)."""
+
+
 def cmd_calibrate(args) -> int:
 
     params = _parse_params(args.param)
@@ -322,14 +329,21 @@ def cmd_calibrate(args) -> int:
     talk = not getattr(args, "json", False)
     with slow_phase(f"reading {args.file}", talk):
         data = load_dataset(args)
+    if not args.blas_threads and len(data) > ONE_BLAS_THREAD_ROWS:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(limits=1)
     with slow_phase(f"calibrating {len(data):,} readings ({args.method}, then the acceptance checks)", talk):
         result = cal.fit(data, field="auto") if field_auto else cal.fit(data)
     obj = result.as_dict()
     obj["input_sha256"] = data.meta.get("file_sha256")  # the bytes the readings were parsed from
     ref = result.reference
     if ref.get("estimated"):
-        sys.stderr.write(f"magbench: reference {ref['median_nT']:.6g} nT estimated from the readings (--field auto); "
-                         "the overall gain is relative to it\n")
+        unit = getattr(args, "units", "nT") or "nT"
+        factor = UNIT_FACTORS_NT.get(unit) if unit != "nT" else None
+        in_unit = f" = {ref['median_nT'] / factor:.6g} {unit}" if factor else ""
+        sys.stderr.write(f"magbench: reference {ref['median_nT']:.6g} nT{in_unit} estimated from the readings "
+                         "(--field auto; MATLAB magcal's expmfs); the overall gain is relative to it\n")
     else:
         sys.stderr.write(f"magbench: reference {ref['median_nT']:.6g} nT (median) from {ref['source']}\n")
     lines = _calibration_lines(result, len(data))
@@ -736,8 +750,9 @@ def _add_calibrate_parser(sub) -> None:
     p.add_argument("--seed", type=seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--algorithm", help="NLopt algorithm name (method nlopt)")
     p.add_argument("--blas-threads", type=_positive_int, metavar="N",
-                   help="limit BLAS/OpenMP to N threads for this fit (default: the library's own; campaigns always "
-                        "use one per worker)")
+                   help="limit BLAS/OpenMP to N threads for this fit (default: one for records of more than "
+                        "100,000 rows, whose long thin products a second thread hardly speeds up, else the library's "
+                        "own; campaigns always use one per worker)")
     p.add_argument("--accept-any", action="store_true",
                    help="keep a calibration that fails its acceptance checks (exit 0, the causes as warnings) "
                         "instead of exit status 3")

@@ -25,15 +25,16 @@ checked before the fit (``reference_problems``): it is bad input, refused with e
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from magbench.numerics import lm_normal, robust_sigma, systematic_rows
+from magbench.numerics import lm_normal, median, median_and_sigma, systematic_rows
 from magbench.simulate.sensor import PARAM_NAMES
 
 from .core.objective import ScalarObjective
-from .fisher import crb_std
+from .fisher import PassAt, crb_std, one_pass, std_from_information
 
 PROFILE_ATOL = 0.02
 """The profile refit stops once an iteration lowers the sum of squares by less than this many noise
@@ -84,8 +85,9 @@ def outlier_mask(residuals_nT: np.ndarray, field_nT: float,
     (the robust sigma floored at 1e-9 of the field, so that exact data have no outliers), and that
     threshold in nT."""
     r = np.asarray(residuals_nT, dtype=float)
-    threshold = limits.outlier_sigmas * max(robust_sigma(r), 1e-9 * field_nT)
-    return np.abs(r - np.median(r)) > threshold, threshold
+    centre, sigma = median_and_sigma(r)
+    threshold = limits.outlier_sigmas * max(sigma, 1e-9 * field_nT)
+    return np.abs(r - centre) > threshold, threshold
 
 
 def identifiability(objective: ScalarObjective, x: np.ndarray, noise_nT: float, field_nT: float,
@@ -120,17 +122,20 @@ def physical_range(x: np.ndarray, model: str, physical_lower: np.ndarray, physic
 
 
 def reference_fit(objective: ScalarObjective, x: np.ndarray, physical_box: tuple[np.ndarray, np.ndarray],
-                  rms_start: float | None = None, max_iter: int = REFERENCE_MAX_ITER) -> tuple[np.ndarray, float]:
+                  rms_start: float | None = None, max_iter: int = REFERENCE_MAX_ITER,
+                  at: PassAt | None = None) -> tuple[np.ndarray, float]:
     """The judge's own optimum: Levenberg-Marquardt inside the physical box on the normal equations
     (analytic Jacobian, bounded memory), polished from the calibrator's answer, and its residual RMS.
     Outside the counter: it measures the answer, it is not part of the contest.  From an answer already
     at the optimum it stops after one or two passes over the data.  ``rms_start``: the residual RMS at
-    ``x`` on this objective when the caller has it (else it is computed)."""
+    ``x`` on this objective when the caller has it (else it is computed); ``at``: the pass at ``x`` on this
+    objective, when the caller has it (its normal equations are then not computed again)."""
     lo, hi = physical_box
     start = np.clip(x, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
     n = objective.raw_nT.shape[0]
     with np.errstate(all="ignore"):
-        x_ref, cost, _ = lm_normal(objective.normal_equations, start, lo, hi, tol=1e-10, max_iter=max_iter)
+        equations = objective.normal_equations if at is None else at.normal_equations(objective.normal_equations)
+        x_ref, cost, _ = lm_normal(equations, start, lo, hi, tol=1e-10, max_iter=max_iter)
     if rms_start is None:
         rms_start = float(np.sqrt(np.mean(objective.residuals(x) ** 2)))
     rms_ref = float(np.sqrt(cost / n))
@@ -150,7 +155,16 @@ PROFILE_ROWS = 20_000
 """The profile test refits on at most this many rows: a systematic sample (every k-th row in file order,
 so stratified in time and attitude), its increase of the sum of squares scaled by n / rows.  For the
 smooth increase a sample of 20,000 rows estimates it to well under 1 % (tested against all rows), far
-inside the factor the test's threshold leaves."""
+inside the factor the test's threshold leaves.  Its power is stated with each sampled test: the standard
+error of the scaled increase in noise variances, ``n / sqrt(m) s sqrt(1 - m/n) / sigma^2`` with ``s^2`` half
+the mean squared successive difference of the m sampled rows' increases d_i in time order (Yates' estimator
+for a systematic sample: a smooth trend along the record cancels in it, independent rows give the random
+sample's variance).  It treats the sampled rows' increases as fixed numbers, so it is conservative: the
+sample's own refit follows the sample (on a near-planar record of 54,000 rows its increase was within one
+noise variance of all rows', tests/test_acceptance_lean.py, where this error says about 3).  A record whose
+all-rows increase lies z standard errors below the threshold ``profile_chi2`` is rejected with probability
+Phi(z) (99.9 % at z = 3.1), one above it accepted alike: where the threshold is more than 3 standard errors
+away, the sample decides as all rows."""
 PROFILE_LINEAR_MARGIN = 100.0
 """The refits are skipped when the quadratic (Gauss-Newton) prediction of the increase is this many times
 the threshold and the record is far from planar (``PROFILE_PLANAR``): there the far-centre family the
@@ -161,9 +175,19 @@ PROFILE_PLANAR = 0.25
 the profile test always refits."""
 
 
+def _pinv_form(a: np.ndarray, e: np.ndarray) -> float:
+    """``e^T pinv(a, hermitian=True) e`` for a symmetric ``a``, from its eigendecomposition (pinv's default cut:
+    eigenvalues below 1e-15 of the largest in magnitude count as zero)."""
+    ev, vec = np.linalg.eigh(a)
+    proj = vec.T @ e
+    keep = np.abs(ev) > 1e-15 * np.max(np.abs(ev), initial=0.0)
+    return float(np.sum(proj[keep] ** 2 / ev[keep]))
+
+
 def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, field_nT: float,
                    limits: AcceptanceLimits = DEFAULT_LIMITS, base_ss: float | None = None,
-                   gram: np.ndarray | None = None) -> list[str]:
+                   gram: np.ndarray | None = None, covered: tuple[np.ndarray, float] | None = None,
+                   info: dict | None = None) -> list[str]:
     """Profile-likelihood check of the offset along the least-covered direction, where near-planar data
     admit the 'far-centre' family of solutions that a local (Cramér-Rao) bound does not see: the offset
     is moved by the tolerance along that direction (both ways), every other parameter refitted, and the
@@ -173,8 +197,10 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
     Lean where that changes nothing: when the record is far from planar and the quadratic prediction of the
     increase, ``step² / (e^T (J^T J)^+ e)`` (``gram``: J^T J at ``x``, when the caller has it), is
     ``PROFILE_LINEAR_MARGIN`` times the threshold, the refits are skipped; on more than ``PROFILE_ROWS`` rows
-    they run on a systematic sample and the increase is scaled to all rows.  ``base_ss``: the sum of squares
-    at ``x`` over all rows when the caller has it."""
+    they run on a systematic sample and the increase is scaled to all rows (``PROFILE_ROWS``: its power),
+    the sample and the standard error of the increase put in ``info["profile_sample"]`` and said in a
+    rejection.  ``base_ss``: the sum of squares at ``x`` over all rows, ``covered``: the least-covered
+    direction of the (sampled) readings, when the caller has them."""
     names = PARAM_NAMES[objective.model]
     if "ox_nT" not in names:
         return []
@@ -184,14 +210,14 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
     rows = systematic_rows(n, PROFILE_ROWS)
     sample = objective if rows.step == 1 else ScalarObjective(objective.raw_nT[rows], objective.f_ref_nT[rows],
                                                               objective.model)
-    normal, ratio = least_covered_direction(sample.raw_nT)
+    normal, ratio = least_covered_direction(sample.raw_nT) if covered is None else covered
     step = limits.tolerance("o_nT", field_nT)
     if ratio >= PROFILE_PLANAR:
         a = sample.normal_equations(x)[0] * (n / sample.raw_nT.shape[0]) if gram is None else gram
         e = np.zeros(p)
         e[io:io + 3] = normal
         with np.errstate(all="ignore"):
-            linear = step ** 2 / float(e @ np.linalg.pinv(a, hermitian=True) @ e) / noise_nT ** 2
+            linear = step ** 2 / _pinv_form(a, e) / noise_nT ** 2
         if np.isfinite(linear) and linear >= PROFILE_LINEAR_MARGIN * limits.profile_chi2:
             return []
     basis = np.linalg.qr(np.column_stack([normal, np.eye(3)]))[0][:, :3]  # normal first, then two more
@@ -206,7 +232,7 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
                                         atol=PROFILE_ATOL * noise_nT ** 2 / scale)
     else:
         base = float(np.sum(sample.residuals(x) ** 2)) if base_ss is None else base_ss
-    increases = []
+    increases, ends = [], []
     for sign in (1.0, -1.0):
         fixed = np.array(centre, dtype=float)
         fixed[io:io + 3] += sign * step * basis[:, 0]
@@ -216,15 +242,27 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
             return transform.T @ a @ transform, transform.T @ g, cost
 
         with np.errstate(all="ignore"):  # the increase is needed to a small fraction of one noise variance
-            _, cost, _ = lm_normal(reduced, np.zeros(p - 1), tol=1e-10, max_iter=REFERENCE_MAX_ITER,
-                                   atol=PROFILE_ATOL * noise_nT ** 2 / scale)
+            z_end, cost, _ = lm_normal(reduced, np.zeros(p - 1), tol=1e-10, max_iter=REFERENCE_MAX_ITER,
+                                       atol=PROFILE_ATOL * noise_nT ** 2 / scale)
         increases.append((cost - base) * scale / noise_nT ** 2)
+        ends.append(fixed + transform @ z_end)
     worst = min(increases)
+    sampled = ""
+    if sample is not objective:
+        m = sample.raw_nT.shape[0]
+        with np.errstate(all="ignore"):
+            d = sample.residuals(ends[int(np.argmin(increases))]) ** 2 - sample.residuals(centre) ** 2
+            spread = np.sqrt(np.mean(np.diff(d) ** 2) / 2.0)  # successive differences (Yates): a trend cancels
+            se = float(n / np.sqrt(m) * spread * np.sqrt(1.0 - m / n) / noise_nT ** 2)
+        if info is not None:
+            info["profile_sample"] = {"rows": m, "of_rows": n, "increase_se_noise_variances": se}
+        sampled = (f" (refitted on a systematic sample of {m:,} of {n:,} rows, the increase scaled to all rows to "
+                   f"+-{se:.2g})")
     if worst >= limits.profile_chi2:
         return []
     return [f"the offset along the least-covered direction is not determined: moving it by {step:.3g} nT (and "
-            f"refitting the rest) raises the squared error by only {max(worst, 0.0):.3g} noise variances (a "
-            f"determined offset needs {limits.profile_chi2:g}); the readings lie close to a plane (out-of-plane "
+            f"refitting the rest) raises the squared error by only {max(worst, 0.0):.3g} noise variances{sampled} "
+            f"(a determined offset needs {limits.profile_chi2:g}); the readings lie close to a plane (out-of-plane "
             f"spread {100 * ratio:.2g} % of the in-plane spread): tilt the sensor more or use model='angles'"]
 
 
@@ -238,6 +276,8 @@ REPEAT_FRACTION = 1e-3
 MIN_REPEATS = 10
 """Pairs of repeated attitudes needed to estimate the noise from them."""
 MIN_NOISE_POINTS = 10
+GEOMETRY_CACHE_ROWS = 100_000
+"""``assess`` keeps a record's ``noise_geometry`` with its data (``memo``) up to this many rows (2.4 MB)."""
 STEP_CANDIDATES = 2000
 """Split points tried when locating a step (evenly spaced in time order)."""
 STEP_ROWS = 200_000
@@ -252,8 +292,45 @@ SCALE_WARNING = 0.05
 """A mean scale factor further than this from 1 gets a warning (a fluxgate's scales are near unity)."""
 
 
-def independent_noise(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray | None,
-                      field_nT: float) -> tuple[float, str, np.ndarray | None]:
+@dataclass(frozen=True)
+class NoiseGeometry:
+    """What ``independent_noise`` needs of a record besides the residual (``noise_geometry``): how the noise
+    is estimated, the time order, the interpolation weights in that order (``w`` and the scale ``1 / sqrt(1 +
+    w^2 + (1 - w)^2)``), or the pairs of repeated attitudes."""
+
+    how: str
+    order: np.ndarray | None = None
+    weights: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    pairs: tuple[np.ndarray, np.ndarray] | None = None
+
+
+def noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float) -> NoiseGeometry:
+    """The part of ``independent_noise`` that depends on the readings and times only (a dataset's quantity:
+    computed once for every fit of the same record; its arrays read-only)."""
+    geometry = _noise_geometry(raw_nT, t_s, field_nT)
+    for part in (geometry.order, *(geometry.weights or ()), *(geometry.pairs or ())):
+        if part is not None:
+            part.setflags(write=False)
+    return geometry
+
+
+def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float) -> NoiseGeometry:
+    n = raw_nT.shape[0]
+    if t_s is not None and np.ptp(t_s) > 0:
+        order = np.argsort(t_s, kind="stable")
+        return NoiseGeometry("time", order, _interpolation_weights(t_s[order]))
+    from scipy.spatial import cKDTree
+
+    dist, idx = cKDTree(raw_nT).query(raw_nT, k=2)
+    close = dist[:, 1] < REPEAT_FRACTION * field_nT
+    if close.sum() >= MIN_REPEATS:
+        i = np.flatnonzero(close)
+        return NoiseGeometry("repeats", pairs=(i, idx[i, 1]))
+    return NoiseGeometry("rows", np.arange(n), _interpolation_weights(np.arange(n, dtype=float)))
+
+
+def independent_noise(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float,
+                      geometry: NoiseGeometry | None = None) -> tuple[float, str, np.ndarray | None]:
     """The noise of the residual ``r`` estimated independently of the fit, how, and the time order used.
 
     With times: the robust scatter of the errors of linear interpolation between time neighbours,
@@ -262,26 +339,29 @@ def independent_noise(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray | None,
     drift, a slowly changing attitude's misfit) cancels in and a step touches only twice.  Without times:
     pairs of repeated attitudes (readings within ``REPEAT_FRACTION`` of the field), ``(r_i - r_j) /
     sqrt(2)``.  With neither, the rows in file order taken as time order ("rows"; an upper bound of the
-    noise when they are not)."""
-    n = len(r)
-    if t_s is not None and np.ptp(t_s) > 0:
-        order = np.argsort(t_s, kind="stable")
-        return _interpolation_sigma(r[order], t_s[order]), "time", order
-    from scipy.spatial import cKDTree
-
-    dist, idx = cKDTree(raw_nT).query(raw_nT, k=2)
-    close = dist[:, 1] < REPEAT_FRACTION * field_nT
-    if close.sum() >= MIN_REPEATS:
-        i = np.flatnonzero(close)
-        return robust_sigma(r[i] - r[idx[i, 1]]) / np.sqrt(2.0), "repeats", None
-    return _interpolation_sigma(r, np.arange(n, dtype=float)), "rows", np.arange(n)
+    noise when they are not).  ``geometry``: ``noise_geometry`` of these readings and times, when the caller
+    has it."""
+    g = noise_geometry(raw_nT, t_s, field_nT) if geometry is None else geometry
+    if g.how == "repeats":
+        assert g.pairs is not None
+        i, j = g.pairs
+        return median_and_sigma(r[i] - r[j])[1] / np.sqrt(2.0), "repeats", None
+    assert g.order is not None and g.weights is not None
+    ro = r if g.how == "rows" else r[g.order]
+    return _interpolation_sigma(ro, g.weights), g.how, g.order
 
 
-def _interpolation_sigma(r: np.ndarray, t: np.ndarray) -> float:
+def _interpolation_weights(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The weight of the earlier neighbour ``w``, ``1 - w`` and the scale to white noise of times ``t``."""
     t = t + np.arange(len(t)) * 1e-9 * max(float(np.ptp(t)), 1.0)  # ties broken
     w = (t[2:] - t[1:-1]) / (t[2:] - t[:-2])  # weight of the earlier neighbour
-    e = (r[1:-1] - (w * r[:-2] + (1 - w) * r[2:])) / np.sqrt(1.0 + w * w + (1 - w) ** 2)
-    return robust_sigma(e)
+    return w, 1 - w, np.sqrt(1.0 + w * w + (1 - w) ** 2)
+
+
+def _interpolation_sigma(r: np.ndarray, weights: tuple[np.ndarray, np.ndarray, np.ndarray]) -> float:
+    w, u, scale = weights
+    e = (r[1:-1] - (w * r[:-2] + u * r[2:])) / scale
+    return median_and_sigma(e)[1]
 
 
 @dataclass(frozen=True)
@@ -299,84 +379,118 @@ class StepFit:
     offsets: bool
 
 
-def _block_sums(full: np.ndarray, ro: np.ndarray, tail: list[int], bounds: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """Per block of rows ``bounds[j]:bounds[j+1]``: ``full^T full[:, tail]`` (blocks, p, q) and
-    ``full[:, tail]^T ro`` (blocks, q).  Short records in one vectorized pass (per-row products summed by
-    ``np.add.reduceat``); long ones block by block (at most ``STEP_CANDIDATES`` blocks), so that memory
-    stays a fraction of the record's."""
-    n, p = full.shape
-    q = len(tail)
-    t = full[:, tail]
-    if n * p * q <= 4_000_000:
-        starts = bounds[:-1]
-        return (np.add.reduceat(full[:, :, None] * t[:, None, :], starts, axis=0),
-                np.add.reduceat(t * ro[:, None], starts, axis=0))
-    sp = np.empty((len(bounds) - 1, p, q))
-    sb = np.empty((len(bounds) - 1, q))
-    for j in range(len(bounds) - 1):
+def _sums_after(t: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """For each split row ``edges[k]`` (sorted, >= 1) the sum over the rows from it on of ``t_i w_i^T``
+    (m, q, w).  Short records from the per-row products summed in one vectorized pass; long ones block by
+    block between the split rows (at most ``STEP_CANDIDATES`` blocks), so that memory stays a fraction of the
+    record's."""
+    n, q = t.shape
+    width = w.shape[1]
+    if n * q * width <= 4_000_000:
+        prod = t[:, :, None] * w[:, None, :]
+        np.cumsum(prod, axis=0, out=prod)
+        return prod[-1] - prod[edges - 1]
+    bounds = np.concatenate([edges, [n]])
+    sums = np.empty((len(edges), q, width))
+    for j in range(len(edges)):
         rows = slice(bounds[j], bounds[j + 1])
-        sp[j], sb[j] = full[rows].T @ t[rows], t[rows].T @ ro[rows]
-    return sp, sb
+        sums[j] = t[rows].T @ w[rows]
+    return np.cumsum(sums[::-1], axis=0)[::-1]
 
 
-def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: np.ndarray) -> StepFit | None:
+def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: np.ndarray,
+              jacobian: np.ndarray | None = None, gram: np.ndarray | None = None) -> StepFit | None:
     """The best single step in time order: a jump of the offsets (of the mean, for a model without
     offsets) after row k, ``[i >= k] (c + J_o d)``, on top of every parameter's direction ``J`` over the
     whole record, at ``STEP_CANDIDATES`` split points.  By the Frisch-Waugh-Lovell theorem the step's gain
     over the whole-record fit is ``c_k^T S_k^+ c_k`` with the Schur complement ``S_k = D_k - B_k^T A^+ B_k``
     and ``c_k = T_k^T r - B_k^T A^+ J^T r`` (A = J^T J, B_k = J^T T_k, D_k = T_k^T T_k for the step columns
-    T_k), so the split points cost q x q systems from block sums, not one (p + q) system each.  None when
-    the record is too short to split.  On more than ``STEP_ROWS`` rows the search runs on every k-th row in
-    time order (the sums scaled to all rows; the step located to within k rows)."""
+    T_k), so the split points cost q x q systems from sums over the rows after each split, not one (p + q)
+    system each.  With ``A^+ = V V^T`` (one eigendecomposition) and the whitened directions ``Z = J V``,
+    ``B_k^T A^+ B_k = E_k^T E_k`` for ``E_k = Z^T T_k`` and ``c_k = T_k^T (r - Z Z^T r)``: one pass of
+    per-row products summed from the end.  None when the record is too short to split.  On more than
+    ``STEP_ROWS`` rows the search runs on every k-th row in time order (the sums scaled to all rows; the step
+    located to within k rows).  ``jacobian``, ``gram``: J at ``x`` (n, p) and J^T J, when the caller has them."""
     n_all = len(r)
     k = max(1, -(-n_all // STEP_ROWS))
     if k > 1:
         keep = order[::k]
         sub = ScalarObjective(objective.raw_nT[keep], objective.f_ref_nT[keep], objective.model)
-        fit = best_step(sub, x, r[keep], np.arange(len(keep)))
+        fit = best_step(sub, x, r[keep], np.arange(len(keep)), None if jacobian is None else jacobian[keep])  # no gram
         if fit is None:
             return None
         scale = n_all / len(keep)
         return replace(fit, index=fit.index * k, gain=fit.gain * scale, base=fit.base * scale,
                        total=fit.total * scale)
     names = PARAM_NAMES[objective.model]
-    offsets = [1 + i for i, nm in enumerate(names) if nm.endswith("_nT")]
+    offsets = [i for i, nm in enumerate(names) if nm.endswith("_nT")]
     # a step of the offsets where there are offsets, else of the mean; the mean is never a column of the
     # whole record (with scales the residual |c| - F lies in the span of the scales' columns and a constant)
-    full = np.column_stack([np.ones(len(r)), objective.jacobian(x)])[order]
+    jac = objective.jacobian(x) if jacobian is None else jacobian
+    in_order = order[0] == 0 and np.array_equal(order, np.arange(len(order)))  # rows in time order already
+    jo = jac if in_order else jac[order]
     if offsets:
-        full[:, 0] = 0.0
-    scale = np.sqrt(np.mean(full * full, axis=0))
-    scale[scale == 0] = 1.0
-    full = full / scale  # columns of one size: the systems below are then well conditioned
-    ro = r[order]
-    n, p = full.shape
-    tail = offsets or [0]
-    edges = np.unique(np.linspace(max(1, n // 50), n - max(1, n // 50), min(STEP_CANDIDATES, n)).astype(int))
+        full, tail = jo, offsets
+    else:
+        full, tail = np.column_stack([np.ones(len(r)), jo]), [0]
+    n, q = full.shape[0], len(tail)
+    whole = gram if gram is not None and offsets else full.T @ full  # the pass's J^T J: a sum in any row order
+    scale = np.sqrt(np.diag(whole) / n)
+    scale[scale == 0] = 1.0  # columns of one size: the systems below are then well conditioned
+    a_all = whole / np.outer(scale, scale)
+    ro = r if in_order else r[order]
+    margin = max(1, n // 50)
+    if n <= STEP_CANDIDATES:  # every row between the margins (what the spaced grid below gives then)
+        edges = np.arange(margin, n - margin + 1)
+    else:
+        edges = np.unique(np.linspace(margin, n - margin, STEP_CANDIDATES).astype(int))
     if len(edges) < 2:
         return None
-    bounds = np.concatenate([[0], edges, [n]])
-    sp, sb = _block_sums(full, ro, tail, bounds)
-    b_after = np.cumsum(sp[::-1], axis=0)[::-1][1:]  # J^T T_k: sums over rows >= edges[k]  (m, p, q)
-    c_after = np.cumsum(sb[::-1], axis=0)[::-1][1:]  # T_k^T r  (m, q)
-    a_all, b_all = full.T @ full, full.T @ ro
     with np.errstate(all="ignore"):
-        a_pinv = np.linalg.pinv(a_all, rcond=1e-9, hermitian=True)
-        coef_all = a_pinv @ b_all
-        base = float(coef_all @ b_all)
-        b_t = np.swapaxes(b_after, 1, 2)  # (m, q, p)
-        schur = b_after[:, tail, :] - b_t @ (a_pinv @ b_after)  # T_k^T T_k is the tail rows of J^T T_k
-        c = c_after - b_t @ coef_all
+        ev, vec = np.linalg.eigh(a_all)  # A^+ = V V^T over the eigenvalues above 1e-9 of the largest
+        kept = ev > 1e-9 * np.max(np.abs(ev))
+        z = full @ (vec[:, kept] / np.sqrt(ev[kept]) / scale[:, None])  # the scaled columns, whitened
+        g = z.T @ ro
+        base = float(g @ g)
+        t = full[:, tail] / scale[tail]
+        pz = z.shape[1]
+        after = _sums_after(t, np.column_stack([z, t, ro - z @ g]), edges)  # (m, q, p' + q + 1)
+        e_t = np.ascontiguousarray(after[:, :, :pz])  # E_k^T
+        schur = after[:, :, pz:pz + q] - e_t @ np.ascontiguousarray(e_t.transpose(0, 2, 1))
+        c = after[:, :, -1]
         # each q x q system with a relative ridge of 1e-10 (a split whose step columns lie in the record's
-        # span has S ~ 0 and c ~ 0 there, so that direction adds nothing): LU solves, 5x faster than eigh
-        ridge = 1e-10 * np.trace(schur, axis1=1, axis2=2)[:, None, None] / len(tail) + 1e-300
-        coef = np.linalg.solve(schur + ridge * np.eye(len(tail)), c[:, :, None])[:, :, 0]
-        gain = np.einsum("mi,mi->m", coef, c)
+        # span has S ~ 0 and c ~ 0 there, so that direction adds nothing)
+        ridge = 1e-10 * np.einsum("mii->m", schur) / q + 1e-300
+        gain = _quadratic_forms(schur, ridge, c)
     gain = np.where(np.isfinite(gain), gain, -np.inf)
     best = int(np.argmax(gain))
+    with np.errstate(all="ignore"):
+        coef = np.linalg.solve(schur[best] + ridge[best] * np.eye(q), c[best])
     return StepFit(index=int(edges[best]), gain=float(gain[best]), base=base, total=float(ro @ ro),
-                   jump=coef[best] / scale[tail], offsets=bool(offsets))
+                   jump=coef / scale[tail], offsets=bool(offsets))
+
+
+def _quadratic_forms(s: np.ndarray, ridge: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """``c_k^T (s_k + ridge_k I)^-1 c_k`` for a stack of symmetric positive semi-definite systems (m, q, q):
+    for q = 3 by Cholesky factors written out (a third of a batched LU solve's time on short stacks), else,
+    and where a pivot is not positive, by LU."""
+    if s.shape[1] != 3:
+        ridged = s + ridge[:, None, None] * np.eye(s.shape[1])
+        return np.einsum("mi,mi->m", np.linalg.solve(ridged, c[:, :, None])[:, :, 0], c)
+    l11 = np.sqrt(s[:, 0, 0] + ridge)
+    l21, l31 = s[:, 1, 0] / l11, s[:, 2, 0] / l11
+    l22 = np.sqrt(s[:, 1, 1] + ridge - l21 * l21)
+    l32 = (s[:, 2, 1] - l31 * l21) / l22
+    l33 = np.sqrt(s[:, 2, 2] + ridge - l31 * l31 - l32 * l32)
+    y1 = c[:, 0] / l11
+    y2 = (c[:, 1] - l21 * y1) / l22
+    y3 = (c[:, 2] - l31 * y1 - l32 * y2) / l33
+    out = y1 * y1 + y2 * y2 + y3 * y3
+    bad = ~np.isfinite(out)
+    if bad.any():
+        ridged = s[bad] + ridge[bad][:, None, None] * np.eye(3)
+        out[bad] = np.einsum("mi,mi->m", np.linalg.solve(ridged, c[bad][:, :, None])[:, :, 0], c[bad])
+    return out
 
 
 def step_dominates(step: StepFit | None) -> bool:
@@ -409,15 +523,18 @@ def describe_structure(step: StepFit | None, order: np.ndarray | None, noise_nT:
 
 
 def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, field_nT: float,
-                    rows: np.ndarray, t_s: np.ndarray | None, info: dict) -> tuple[list[str], list[str]]:
+                    rows: np.ndarray, t_s: np.ndarray | None, info: dict, at: PassAt | None = None,
+                    geometry: NoiseGeometry | None = None) -> tuple[list[str], list[str]]:
     """The residual at ``x`` (the judge's optimum) against ``independent_noise``: a rejection naming the
     structure when it is more than ``STRUCTURE_RATIO`` times that noise; a warning when the noise could not
-    be estimated independently of the fit."""
-    r = objective.residuals(x)
+    be estimated independently of the fit.  ``at``: the pass at ``x`` (its residuals and Jacobian are used);
+    ``geometry``: ``noise_geometry`` of the rows judged, when the caller has it."""
+    r = objective.residuals(x) if at is None else at.r
+    jacobian, gram = (None, None) if at is None else (at.jacobian, at.gram)
     if len(r) < MIN_NOISE_POINTS:
         return [], [f"only {len(r)} points: the noise could not be estimated independently of the fit"]
     t_in = None if t_s is None else np.asarray(t_s, dtype=float)[rows]
-    sigma, how, order = independent_noise(r, objective.raw_nT, t_in, field_nT)
+    sigma, how, order = independent_noise(r, objective.raw_nT, t_in, field_nT, geometry)
     info["noise_independent_nT"], info["noise_independent_from"] = float(sigma), how
     warnings = []
     if how == "rows":
@@ -429,14 +546,14 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
         # follows the attitude, such as offsets that jump: a single step that explains most of what the fit
         # leaves is structure however the noise was estimated
         if how == "time" and rms_nT > STRUCTURE_FLOOR_FRACTION * field_nT and order is not None:
-            step = best_step(objective, x, r, order)
+            step = best_step(objective, x, r, order, jacobian, gram)
             if step_dominates(step):
                 shape = describe_structure(step, order, 1e-300, rows, t_s, len(r))
                 return [f"the residual {rms_nT:.3g} nT is structured: {shape}"], warnings
         return [], warnings
     source = {"time": "neighbouring samples in time", "repeats": "repeated attitudes",
               "rows": "neighbouring rows"}[how]
-    step = best_step(objective, x, r, order) if order is not None else None
+    step = best_step(objective, x, r, order, jacobian, gram) if order is not None else None
     shape = describe_structure(step, order, sigma, rows, t_s, len(r))
     return [f"the residual {rms_nT:.3g} nT is {rms_nT / max(sigma, 1e-12):.3g} times the noise estimated independently "
             f"of the fit ({sigma:.3g} nT, from {source}): {shape}"], warnings
@@ -457,20 +574,32 @@ def scale_warning(x: np.ndarray, model: str) -> list[str]:
 
 def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust: bool, closed_form: bool,
            physical_box: tuple[np.ndarray, np.ndarray], limits: AcceptanceLimits = DEFAULT_LIMITS,
-           info: dict | None = None, t_s: np.ndarray | None = None) -> tuple[list[str], list[str]]:
+           info: dict | None = None, t_s: np.ndarray | None = None, at: PassAt | None = None,
+           memo=None, reference_estimated: bool = False) -> tuple[list[str], list[str]]:
     """Rejections and warnings for the estimate ``x`` on the data of ``objective``: improvement, physical
     range, outliers (robust screening), fitness against the data's own optimum, structure against the
     noise estimated independently of the fit (``t_s``: the sample times, when there are), the mean scale,
     and identifiability at the noise the optimum leaves.  ``info``, when given, receives ``noise_nT``
     (that noise), ``noise_independent_nT``, ``inliers`` (the objective on the points kept) and
-    ``n_outliers``."""
+    ``n_outliers``.
+
+    One pass over the data where possible: ``at``, the pass at ``x`` (``fisher.one_pass``; computed here when
+    not given) holds the residuals, the normal equations, the Fisher information and a short record's
+    Jacobian, which every check reads, and again when the judge's optimum is ``x`` itself (an answer at the
+    optimum); a second pass only when outliers are screened or the judge moves the answer.  ``memo``:
+    ``memo(key, compute)``, the dataset's cache of quantities that do not depend on the answer (the readings'
+    least-covered direction, the noise estimate's time order and weights on records of at most
+    ``GEOMETRY_CACHE_ROWS`` rows), used when no point is screened out."""
     info = {} if info is None else info
     rejections: list[str] = []
     warnings: list[str] = []
-    field_nT = float(np.median(objective.f_ref_nT))
+    field_nT = median(objective.f_ref_nT)
     if not improved:
         rejections.append("the calibration is no better than none (the solver's answer was worse than the start)")
-    r = objective.residuals(x)
+    if at is None or not np.array_equal(at.x, x):
+        with np.errstate(all="ignore"):
+            at = one_pass(objective, x)
+    r = at.r
     mask, threshold = outlier_mask(r, field_nT, limits)
     n_out = int(mask.sum())
     if n_out:  # first: outliers are a cause, an estimate out of range is often their symptom
@@ -488,8 +617,9 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
         return rejections + [f"only {n} points are left after the outlier screening for {p} parameters"], warnings
     inliers = objective if not n_out else ScalarObjective(objective.raw_nT[~mask], objective.f_ref_nT[~mask],
                                                           objective.model)
-    rms_x = float(np.sqrt(np.mean(r[~mask] ** 2)))
-    x_ref, rms_ref = reference_fit(inliers, x, physical_box, rms_start=rms_x)
+    rms_x = float(np.sqrt(np.mean(r[~mask] ** 2))) if n_out else float(np.sqrt(at.ss / n))
+    on_inliers = at if not n_out else None
+    x_ref, rms_ref = reference_fit(inliers, x, physical_box, rms_start=rms_x, at=on_inliers)
     floor = limits.fitness_floor_fraction * field_nT
     if rms_x > limits.fitness_ratio * rms_ref + floor:
         why = ("a closed-form fit does not minimize the total-field error (it assumes one constant field "
@@ -499,14 +629,30 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
                           f"data allow ({rms_ref:.3g} nT): {why}")
     noise = rms_ref * np.sqrt(n / (n - p))
     info["noise_nT"], info["inliers"] = float(noise), inliers
-    structure, notes = structure_check(inliers, x_ref, rms_ref, field_nT, np.flatnonzero(~mask), t_s, info)
-    rejections += structure
-    warnings += notes + scale_warning(x, objective.model)
     with np.errstate(all="ignore"):
-        std = crb_std(inliers, x_ref, max(noise, 1e-9 * field_nT))
+        ref = on_inliers if on_inliers is not None and np.array_equal(x_ref, on_inliers.x) else one_pass(inliers, x_ref)
+    rows = np.arange(n) if not n_out else np.flatnonzero(~mask)
+    geometry = None
+    if memo is not None and not n_out and n <= GEOMETRY_CACHE_ROWS:  # the record's own, kept with its data
+        t_key = None if t_s is None else hashlib.sha256(np.ascontiguousarray(t_s, dtype="<f8").data).hexdigest()
+        geometry = memo(("noise_geometry", t_key), lambda: noise_geometry(
+            objective.raw_nT, None if t_s is None else np.asarray(t_s, dtype=float), field_nT))
+    structure, notes = structure_check(inliers, x_ref, rms_ref, field_nT, rows, t_s, info, at=ref,
+                                       geometry=geometry)
+    rejections += structure
+    # with a reference estimated from the readings (field='auto') the overall gain is relative to it: a mean
+    # scale away from 1 then says nothing about the reference or the units
+    warnings += notes + ([] if reference_estimated else scale_warning(x, objective.model))
+    with np.errstate(all="ignore"):
+        std = std_from_information(ref.fisher, max(noise, 1e-9 * field_nT))
     info["crb_std_at"] = (x_ref, std)  # the uncertainty of an answer at (or next to) x_ref is this
     rejections += identifiability(inliers, x_ref, noise, field_nT, limits, std=std)
-    rejections += profile_offset(inliers, x_ref, noise, field_nT, limits, base_ss=n * rms_ref ** 2)
+    covered = None
+    if memo is not None and not n_out:
+        covered = memo("least_covered", lambda: least_covered_direction(
+            objective.raw_nT[systematic_rows(n, PROFILE_ROWS)]))
+    rejections += profile_offset(inliers, x_ref, noise, field_nT, limits, base_ss=n * rms_ref ** 2, gram=ref.gram,
+                                 covered=covered, info=info)
     return rejections, warnings
 
 
@@ -527,9 +673,9 @@ def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray) -> str | None:
     """Why the reference and the readings cannot belong together, or None: the readings' magnitude
     against the reference (wrong units, raw ADC counts, a wrong reference), rows in mixed units, and a
     reference that jumps between values."""
-    mag = np.linalg.norm(raw_nT, axis=1)
+    mag = np.sqrt(np.einsum("ij,ij->i", raw_nT, raw_nT))  # the row norms (a third of np.linalg.norm's time)
     ratio = mag / f_ref_nT
-    typical = float(np.median(ratio))
+    typical = median(ratio)
     if not MAGNITUDE_RATIO_RANGE[0] <= typical <= MAGNITUDE_RATIO_RANGE[1]:
         return (f"the readings' magnitude (median {np.median(mag):.4g}) is {typical:.3g} times the reference "
                 f"(median {np.median(f_ref_nT):.6g} nT): wrong units=, raw ADC counts, or a wrong reference")

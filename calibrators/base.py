@@ -11,7 +11,9 @@ import contextvars
 import functools
 import hashlib
 import inspect
+import threading
 import time
+import weakref
 from collections.abc import Generator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -21,6 +23,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from magbench.errors import InputError
+from magbench.numerics import median
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
 
@@ -38,7 +41,7 @@ from .core.problem import (  # noqa: F401
     population_box,
     search_bounds,
 )
-from .fisher import coverage, crb_std
+from .fisher import coverage, crb_std, one_pass
 from .inputs import algebraic_vector, as_dataset
 from .params import BUDGET, SEED, Options, as_budget, validate_params
 
@@ -323,14 +326,17 @@ class Calibrator(metaclass=_Sealed):
             raise InputError(NO_REFERENCE)
         if not np.all(np.isfinite(dataset.f_ref_nT)) or np.any(dataset.f_ref_nT <= 0):
             raise InputError("the reference magnitude must be finite and positive on every row")
-        problem = reference_problems(dataset.raw_nT, dataset.f_ref_nT)
+        known = _DatasetCache.of(dataset)
+        problem = known.get("reference_problems", lambda: reference_problems(dataset.raw_nT, dataset.f_ref_nT))
         if problem:
             raise InputError(problem)
-        report = coverage(ScalarObjective(dataset.raw_nT, dataset.f_ref_nT, model), identity_vector(model))
+        field_nT = known.get("field_nT", lambda: median(dataset.f_ref_nT))
+        report = known.get(("coverage", model), lambda: coverage(
+            ScalarObjective(dataset.raw_nT, dataset.f_ref_nT, model), identity_vector(model), field_nT))
         if report["refusal"]:
             raise InputError(report["refusal"])
         warnings = [report["warning"]] if report["warning"] else []
-        spread = np.ptp(dataset.f_ref_nT) / np.median(dataset.f_ref_nT)
+        spread = np.ptp(dataset.f_ref_nT) / field_nT
         if spread > 0.05:
             warnings.append(f"the reference magnitude varies by {100 * spread:.1f} % over the record")
         return warnings
@@ -394,24 +400,36 @@ class Calibrator(metaclass=_Sealed):
         runtime = time.perf_counter() - t0
 
         solver_x, bad_shape = _solver_point(out.x, len(x0))
-        f_start, f_solver = objective.values(np.vstack([x0, solver_x]), exact=True)
+        known = _DatasetCache.again(dataset)
+        f_start = known.get(("f_start", model), lambda: float(np.mean(objective.residuals(x0) ** 2)))
+        with np.errstate(all="ignore"):  # one pass at the answer serves F and every acceptance check
+            at = one_pass(objective, solver_x)
+        f_solver = float(np.mean(at.r ** 2))
         x, f_x, success, status = solver_x, f_solver, out.success, out.status
         if bad_shape or not np.isfinite(f_x) or f_x > f_start:
             what = bad_shape or f"ended worse than no calibration (F {f_x:.6g} > {f_start:.6g})"
             warnings.append(f"{self.name} {what}; the identity is returned")
             x, f_x, success, status = x0.copy(), f_start, False, "worse_than_start"
+            with np.errstate(all="ignore"):
+                at = one_pass(objective, x)
         warnings += self._solution_warnings(objective, x)
-        physical = search_bounds(model, dataset.f_ref_nT, **PHYSICAL_BOX)
+        box = self.search_box()
+        physical = (lower, upper) if box == PHYSICAL_BOX else search_bounds(model, dataset.f_ref_nT, **PHYSICAL_BOX)
         info: dict = {}
         rejections, notes = assess(objective, x, improved=status != "worse_than_start", robust=self.robust,
                                    closed_form=self.closed_form, physical_box=physical, limits=self.acceptance,
-                                   info=info, t_s=dataset.t_s)
+                                   info=info, t_s=dataset.t_s, at=at, memo=known.get,
+                                   reference_estimated="reference_estimated" in dataset.meta)
         uncertainty, noise = _uncertainty(info.get("inliers", objective), x, info.get("noise_nT"),
                                           info.get("crb_std_at"))
         if not self.closed_form:
             rejections += _at_bounds(x, lower, upper, model)
         rejections += _budget_breaches(evaluator, budget)
         warnings += notes
+        extra = dict(out.extra)
+        sampling = _acceptance_sampling(known.peek(("coverage", model)), info)
+        if sampling:
+            extra["acceptance_sampling"] = sampling
         return CalibrationResult(
             method=self.name, model=model, params=ErrorParams.from_vector(x, model), x=x,
             success=bool(success), status=status, message=out.message, fun=float(f_x),
@@ -420,12 +438,13 @@ class Calibrator(metaclass=_Sealed):
             runtime_s=runtime, seed=self.seed, rms_before_nT=float(np.sqrt(f_start)),
             rms_after_nT=float(np.sqrt(f_x)), warnings=tuple(warnings),
             hyperparameters=self.get_params(), trace=tuple(evaluator.trace),
-            extra={**out.extra, **_stop_record(termination, stopped)},
+            extra={**extra, **_stop_record(termination, stopped)},
             evaluation_mode="closed-form" if self.closed_form else "counted",
             solver_x=solver_x, solver_rms_nT=float(np.sqrt(f_solver)) if np.isfinite(f_solver) else float("nan"),
             n_overrun_calls=evaluator.n_overrun_calls, accepted=not rejections, rejections=tuple(rejections),
-            reference=_reference_of(dataset), uncertainty=uncertainty, noise_nT=noise,
-            data_digest=data_digest(dataset.raw_nT, dataset.f_ref_nT), n_points=len(dataset))
+            reference=dict(known.get(("reference_of", *_reference_meta(dataset)), lambda: _reference_of(dataset))),
+            uncertainty=uncertainty, noise_nT=noise,
+            data_digest=known.digest, n_points=len(dataset))
 
     def _solution_warnings(self, objective: ScalarObjective, x: np.ndarray) -> list[str]:
         names = PARAM_NAMES[self.model]
@@ -556,10 +575,88 @@ def data_digest(raw_nT: np.ndarray, f_ref_nT: np.ndarray | None) -> str:
     """sha256 of the readings and the reference as little-endian float64 (C order), prefixed ``sha256:``:
     the same numbers give the same digest, whatever file or array they came from."""
     h = hashlib.sha256()
-    h.update(np.ascontiguousarray(raw_nT, dtype="<f8").tobytes())
+    h.update(np.ascontiguousarray(raw_nT, dtype="<f8").data)  # the bytes as they lie, not a copy
     if f_ref_nT is not None:
-        h.update(np.ascontiguousarray(f_ref_nT, dtype="<f8").tobytes())
+        h.update(np.ascontiguousarray(f_ref_nT, dtype="<f8").data)
     return "sha256:" + h.hexdigest()
+
+
+class _DatasetCache:
+    """Quantities of one dataset's readings and reference that do not depend on the calibrator's answer (the
+    reference and coverage checks of ``validate``, the residual of no calibration), kept for the last
+    ``SIZE`` datasets and keyed by ``data_digest``: the same numbers, from whatever array, find them; other
+    numbers (a copy changed in place) do not.  The digest is computed once per fit: ``validate`` computes it
+    (``of``) and the result of the same ``_fit_dataset`` call takes it from there (``again``)."""
+
+    SIZE = 8
+    _entries: dict[str, dict] = {}
+    _lock = threading.Lock()
+    _last = threading.local()
+
+    def __init__(self, digest: str, values: dict):
+        self.digest, self._values = digest, values
+
+    @classmethod
+    def of(cls, dataset: Dataset) -> _DatasetCache:
+        """The entry of ``dataset``'s numbers (its digest computed now), remembered for ``again``."""
+        digest = data_digest(dataset.raw_nT, dataset.f_ref_nT)
+        with cls._lock:  # the most recently used last; the least recently used dropped
+            values = cls._entries.pop(digest, None)
+            if values is None:
+                values = {}
+                while len(cls._entries) >= cls.SIZE:
+                    cls._entries.pop(next(iter(cls._entries)))
+            cls._entries[digest] = values
+        out = cls(digest, values)
+        cls._last.value = (weakref.ref(dataset), weakref.ref(dataset.raw_nT), weakref.ref(dataset.f_ref_nT), out)
+        return out
+
+    @classmethod
+    def again(cls, dataset: Dataset) -> _DatasetCache:
+        """The entry ``of`` gave for these very arrays in this thread (``validate`` earlier in the same fit),
+        else ``of(dataset)``."""
+        last = getattr(cls._last, "value", None)
+        cls._last.value = None
+        if (last is not None and last[0]() is dataset and last[1]() is dataset.raw_nT
+                and last[2]() is dataset.f_ref_nT):
+            return last[3]
+        return cls.of(dataset)
+
+    def peek(self, key):
+        """The cached value of ``key``, or None (nothing is computed or stored)."""
+        return self._values.get(key)
+
+    def get(self, key, compute):
+        """The cached value of ``key``, computed by ``compute()`` the first time (an exception is not cached; a key
+        that cannot be hashed, such as a dataset's meta holding a list, is not cached either)."""
+        try:
+            hash(key)
+        except TypeError:
+            return compute()
+        if key not in self._values:
+            self._values[key] = compute()
+        return self._values[key]
+
+
+def _reference_meta(dataset: Dataset) -> tuple:
+    """What ``_reference_of`` reads of a dataset besides its reference: with the data digest, the key of its
+    cached value."""
+    meta = dataset.meta
+    return (meta.get("reference_source"), meta.get("reference_estimated"), meta.get("reference_ignored"),
+            "reference_estimated" in meta)
+
+
+def _acceptance_sampling(coverage_report: dict | None, info: dict) -> dict:
+    """Which acceptance checks judged a systematic sample of the rows, and to what precision (the result's
+    ``extra["acceptance_sampling"]``; empty when every check read every row)."""
+    out = {}
+    if coverage_report and coverage_report.get("rows", 0) < coverage_report.get("of_rows", 0):
+        m = coverage_report["rows"]
+        out["coverage"] = {"rows": m, "of_rows": coverage_report["of_rows"],
+                           "per_point_information_relative_se_for_cv_2": 2.0 / float(np.sqrt(m))}
+    if "profile_sample" in info:
+        out["profile"] = dict(info["profile_sample"])
+    return out
 
 
 def _uncertainty(objective: ScalarObjective, x: np.ndarray, noise_nT: float | None,

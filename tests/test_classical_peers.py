@@ -78,6 +78,11 @@ def test_magcal_documentation_example_with_sym_and_field_auto(tmp_path, capsys):
     assert abs(out["reference"]["median_nT"] / 1000.0 - 31.0723) < 5e-4
     # the corrected readings lie on the sphere of radius expmfs
     assert out["rms_after_nT"] < 0.05 * 1000.0
+    # the relative gain of an estimated reference is no sign of wrong units: no mean-scale warning
+    assert not any("mean scale factor" in w for w in out["warnings"])
+    assert main(["calibrate", str(path), "--units", "uT", "--method", "sym", "--field", "auto"]) == 0
+    err = capsys.readouterr().err
+    assert "31.07" in err and "uT estimated from the readings" in err and "expmfs" in err
 
 
 def test_a_fluxgate_model_names_the_physical_limit_it_exceeds(tmp_path, capsys):
