@@ -206,7 +206,7 @@ def _seed000_rows(out: Path) -> list[str]:
     lm_err = np.abs(lu[lu["method"] == "aga-lm"][cols].to_numpy())
     table = _table2_rms()
     text_matches = abs(table[0] - 411.82) < 1.0 and abs(table[1] - 49.38) < 1.0
-    rows = [_row("000 Lu et al. 2014", "Calibration reduces the FGM-2000 error by 88.1 % (411.82 -> 49.38 nT, "
+    rows = [_row("000", "Calibration reduces the FGM-2000 error by 88.1 % (411.82 -> 49.38 nT, "
                  "section 3 text)", f"the paper's own Table 2 gives {table[0]:.2f} -> {table[1]:.2f} nT "
                  f"({100 * (1 - table[1] / table[0]):.1f} %); on simulated lu2014 the angles alone, once recovered, leave "
                  "only the noise (results/lu2014_tables.md)", "reproduced" if text_matches else "partly",
@@ -248,7 +248,7 @@ def _seed001_rows(out: Path) -> list[str]:
     still = run_gradiometer(seed=0, fluctuation_nT=0.0)
     (out / "gradiometer.json").write_text(json.dumps(g, indent=2, default=float) + "\n")
     ell_still = "/".join(f"{x:.2f}" for x in still["gradient_rms_nT"]["ellipsoid"])
-    return [_row("001 Jin et al. 2024", "Gradient calibration by three 6-gene GAs leaves about 1.85 nT per axis "
+    return [_row("001", "Gradient calibration by three 6-gene GAs leaves about 1.85 nT per axis "
                  "under a fluctuating field, where single-sensor ellipsoid fits fail",
                  _gradiometer_text(g) + f"; in a constant field (no fluctuation) the ellipsoid fits leave {ell_still} nT",
                  _gradiometer_verdict(g, still),
