@@ -43,11 +43,8 @@ def lm_iterations(x: np.ndarray, lower: np.ndarray | None = None, upper: np.ndar
     x = np.asarray(x, dtype=float).copy()
     a, g, cost = yield x
     calls, damping = 1, 1e-3
-    try:  # already at the optimum: the Gauss-Newton step would lower the sum of squares by almost nothing
-        if float(g @ np.linalg.solve(a, g)) <= max(tol * cost, atol):
-            return x, float(cost), calls
-    except np.linalg.LinAlgError:
-        pass
+    if _at_optimum(a, g, cost, tol, atol):
+        return x, float(cost), calls
     for _ in range(max_iter):
         diag = np.maximum(np.diag(a), 1e-300)
         try:
@@ -65,13 +62,25 @@ def lm_iterations(x: np.ndarray, lower: np.ndarray | None = None, upper: np.ndar
                     or np.linalg.norm(trial - x) <= tol * (np.linalg.norm(x) + tol))
             x, a, g, cost = trial, a_t, g_t, cost_t
             damping = max(damping / 3.0, 1e-15)
-            if done:
+            if done or _at_optimum(a, g, cost, tol, atol):
                 break
         else:
             damping *= 4.0
             if damping > 1e15:
                 break
     return x, float(cost), calls
+
+
+def _at_optimum(a: np.ndarray, g: np.ndarray, cost: float, tol: float, atol: float) -> bool:
+    """Whether the Gauss-Newton step from here would lower the sum of squares by at most ``tol`` of it (or
+    ``atol``): the decrement ``g^T A^-1 g`` (the predicted decrease, half of it for a full step), so that
+    no further point need be asked for.  Near the optimum of a long record the sum of squares changes by
+    less than its own rounding from step to step; without this test the search asked for a handful more
+    points whose differences were only rounding before one happened to be accepted."""
+    try:
+        return float(g @ np.linalg.solve(a, g)) <= max(tol * cost, atol)
+    except np.linalg.LinAlgError:
+        return False
 
 
 def systematic_rows(n: int, limit: int) -> slice:
