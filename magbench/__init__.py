@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import importlib
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 _LAZY = {"simulate": ("magbench.simulate", None),  # the package, callable: simulate(name, seed)
          "read_csv": ("magbench.simulate.dataset", "read_csv"),
