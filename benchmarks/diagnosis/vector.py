@@ -89,6 +89,9 @@ DEFAULT_FOLDS = 5
 TANGENT_HELDOUT_MIN = 0.5
 """A held-out residual below this share of the same model's in-sample residual cannot come from a least-squares
 fit that its tangent space describes (held-out residuals are larger than in-sample ones)."""
+TANGENT_UNTRUSTED_Z = 2 * REMAINDER_Z
+"""The in-sample residual of such a fit (pinned at a bound: its free parameters are not counted) must exceed the
+floor by this many standard errors, twice the usual test's, before the record is called unexplained."""
 MIN_POINTS_BEYOND_PARAMETERS = 10
 MAX_EFFECTS = 4
 SELECTION_PASSES = 3
@@ -244,12 +247,12 @@ class Diagnosis:
         """When the base model's held-out residual (in its tangent space) is below TANGENT_HELDOUT_MIN of its own
         in-sample residual, the tangent does not describe the fit (a fit pinned at a bound of its parameters on
         nearly planar attitudes: a scale of 2, an offset of 10^4 nT), and no held-out test made in it means
-        anything; when that in-sample residual is itself significantly above the floor, the record is not
+        anything; when that in-sample residual is itself far above the floor (TANGENT_UNTRUSTED_Z), the record is not
         consistent with the noise (returns the evidence; None otherwise)."""
         if rms_base >= TANGENT_HELDOUT_MIN * rms(r_all):
             return None
         inside = remainder(r_all, floor, floor_se, len(BASE_FREE[self.base]), n)
-        if not inside["remainder_significant"]:
+        if not (inside["remainder_significant"] and inside["remainder_z"] > TANGENT_UNTRUSTED_Z):
             return None
         return {"rms_fit_nT": rms(r_all), "rms_heldout_nT": rms_base, "in_sample_remainder_z": inside["remainder_z"],
                 "statement": "the held-out residual of the base model is far below its in-sample residual: the tangent "
