@@ -207,6 +207,10 @@ class Diagnosis:
         rem = remainder(current, floor, floor_se, n_params, n_train, robust="outliers" in selected)
         if not selected and naming["base_significant"]:  # nothing named, the base residual above the floor
             rem["remainder_significant"] = True
+        shifted = any(getattr(EFFECTS[nm], "shift_terms", None) for nm in order)  # a lag named: its own peaks
+        if not shifted and any(row.get("structured") for row in naming["evidence"]):  # spikes refused as structure
+            rem["remainder_significant"] = True
+            rem["remainder_structured_spikes"] = True
         untrusted = self._tangent_untrusted(r_all, rms_base, floor, floor_se, n) if not selected else None
         if untrusted is not None:  # the held-out tests do not describe this fit: what it leaves is not 'none'
             rem["remainder_significant"] = True
