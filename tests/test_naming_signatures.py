@@ -212,3 +212,20 @@ def test_negative_control_runs_beside_a_named_lag_are_its_own_peaks():
     assert case.present == ("lag",)
     assert evidence_row(result, "outliers")["structured"]
     assert result["verdict"] == "lag" and "remainder_structured_spikes" not in result
+
+
+@pytest.mark.parametrize("index", [1801, 2161])  # one axis late on a turntable, its peaks masked as spikes
+def test_a_name_whose_evidence_needed_the_structured_peaks_masked_must_dominate_what_they_leave(index):
+    result, case = run_case(index)
+    assert case.present == ("lag",)
+    assert evidence_row(result, "outliers")["structured"]
+    row = evidence_row(result, "nonlinearity")  # it explained the rest only once the peaks were masked
+    assert not row["named"] and row["why"].startswith("it removes")
+    assert result["verdict"] == "unexplained"
+
+
+def test_negative_control_a_name_that_removes_more_than_the_structure_leaves_stays():
+    result, case = run_case(375)  # a nonlinearity beside spikes that come in runs (irregular sampling)
+    assert set(case.present) == {"nonlinearity", "outliers"}
+    assert evidence_row(result, "outliers")["structured"] and evidence_row(result, "nonlinearity")["named"]
+    assert result["verdict"] == "nonlinearity+unexplained"

@@ -36,7 +36,9 @@ An effect is therefore *named* only when all of these hold:
 5. **Not a by-product of a larger unexplained structure.**  When a significant remainder is left, every
    named effect must remove at least as much as is left (its own held-out contribution at least the
    remainder's RMS above the floor): a flexible basis fits part of any structure it is offered, and a
-   name that explains less than what stays unexplained is more likely that part than a cause.
+   name that explains less than what stays unexplained is more likely that part than a cause.  Spikes refused as
+   structure (below) make the remainder significant for this rule however heavy-tailed it is: the other names
+   were selected with those peaks masked, and must remove at least what the peaks leave once unmasked.
 
 Spikes (``outliers``) keep their own count test (their evidence is their number).  Spikes that pass it but are
 refused as structure (in runs where the readings change fastest, or readings clipped at a range limit) are

@@ -325,10 +325,18 @@ class Diagnosis:
         named = self._shift_signature(evidence, named)
         named = self._within_holds(evidence, named, heldout["random"])
 
+        # spikes refused as structure (no lag named, whose own peaks they may be): the structure is unexplained, and
+        # every named effect must remove at least as much as it leaves (its evidence was taken with the peaks masked)
+        structured = (any(row.get("structured") for row in evidence)
+                      and not any(getattr(EFFECTS[nm], "shift_terms", None) for nm in named))
+
         def remainder_of(names):
             robust = "outliers" in names
-            return remainder(heldout["random"](names), floor, floor_se, len(self.model.free_indices(names)), n_train,
-                             robust=robust)
+            rem = remainder(heldout["random"](names), floor, floor_se, len(self.model.free_indices(names)), n_train,
+                            robust=robust)
+            if structured and not robust:
+                rem["remainder_significant"] = True
+            return rem
 
         named = undominated(evidence, named, remainder_of)
         if named != selected:
