@@ -137,3 +137,11 @@ def test_negative_controls_a_switch_and_a_radial_drift_that_follows_the_temperat
     assert r["verdict"] == "field_drift|temperature", r["time_only"]["drift_direction"]
     r = diagnose(drifting(across_nT=2.0, radial_nT=30.0))  # neither radial nor clearly across: no name
     assert r["verdict"] == "insufficient_data", r["time_only"]["drift_direction"]
+
+
+def test_the_text_report_says_which_way_a_fixed_sensor_drifts():
+    from magbench.benchmarks.diagnosis import diagnosis_text
+
+    text = diagnosis_text(diagnose(drifting(across_nT=30.0, radial_nT=5.0, logged=False)), "fixed.csv")
+    assert "drift direction: the readings drift across their own direction" in text
+    assert "verdict: offset_drift" in text
