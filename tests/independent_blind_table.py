@@ -68,7 +68,7 @@ def main() -> None:
     ap.add_argument("--start", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", type=Path)
-    ap.add_argument("--split", type=str, default="240,480,720,960,1200,1440,1680",
+    ap.add_argument("--split", type=str, default="1440,2400",
                     help="case indices where a new part begins (see the labels below)")
     args = ap.parse_args()
     rows = run(range(args.start, args.start + args.cases), args.jobs)
@@ -78,20 +78,15 @@ def main() -> None:
             "diagnosis, with effects outside the library that resemble library effects. Made by "
             f"`python -P tests/independent_blind_table.py --cases {args.cases} --start {args.start}`.", "",
             "A wrong name is an effect named that is not in the record (the headline: a user acts on it).", "",
-            "Cases 0-959 were the development set of the random-attitude floor (`floor.model_floor`); 960-1919 "
-            "were its held-out blocks until their wrong names were looked at; cases 2160-2399, run once with the "
-            "final code, are its held-out figure (`--start 2160 --cases 240`, README).", "",
+            "Cases 0-2399 were developed on in rounds 1-2 of the naming work (round 1: 0-959 its development set, "
+            "960-2159 its held-out blocks until their wrong names were looked at, 2160-2399 its held-out figure; round 2: "
+            "0-1439 its development set, 1440-2399 the block every change was checked on). Cases 2400-2639 were held "
+            "out for round 2 and run once, with its final code (`--start 2400 --cases 240`, README).", "",
             "## All cases", "", table(rows), ""]
     cuts = [args.start] + [int(c) for c in args.split.split(",") if c] + [args.start + args.cases]
-    labels = ["looked at while the naming rule was developed", "looked at while its signatures were added",
-              "looked at once, before a floor change that was tried and reverted",
-              "looked at with that floor change and the clipping test",
-              "run once, before the fixed sensor's temperature test",
-              "run once, before the temperature-beyond-time test and the switch scan from sums",
-              "held out for the code before the random-attitude floor (its first run); then in that floor's first "
-              "held-out run, whose new wrong names were looked at",
-              "fresh for the random-attitude floor's first held-out run (5 nonlinearities for lags at random "
-              "attitudes, looked at and fixed by the neighbour test), then re-run"]
+    labels = ["developed on in rounds 1-2 (round 2's development set)",
+              "developed on in rounds 1-2 (round 1's held-out blocks; round 2 checked every change on it)",
+              "held out for round 2: run once, with its final code"]
     for (a, b), label in zip(zip(cuts[:-1], cuts[1:]), labels):
         part = [r for r in rows if a <= r["index"] < b]
         if part:

@@ -24,7 +24,8 @@ def fixed(constant_nT=7.0, drift_nT_per_day=4.0, temp_nT_per_C=0.0, noise=0.3, s
 
 def test_constant_and_drift_are_recovered():
     r = diagnose(fixed())
-    assert r["kind"] == "time_only" and r["attitude"] == "insufficient_data" and r["verdict"] == "insufficient_data"
+    assert r["kind"] == "time_only" and r["attitude"] == "insufficient_data"
+    assert r["verdict"] == "field_drift"  # the readings move along their own direction: the magnitude drifts
     to = r["time_only"]
     assert abs(to["constant_nT"] - 9.0) < 0.1  # 7 nT plus half a day of 4 nT/day, at the median
     assert abs(to["drift"]["drift_nT_per_h"] * 24 - 4.0) < 0.1 and to["drift"]["significant"]
@@ -45,15 +46,15 @@ def test_temperature_beyond_time():
     assert r["verdict"] == "temperature" and r["time_only"]["temperature"]["named"]  # beyond any smooth trend
 
 
-def test_a_fixed_sensor_names_temperature_only_when_it_follows_the_temperature_beyond_time():
+def test_a_fixed_sensor_names_temperature_when_it_follows_the_temperature_beyond_time_and_drifts_by_direction():
     import sys
     from pathlib import Path
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from independent_forward import make_case
 
-    for index, expected in ((33, "temperature"), (177, "temperature"), (21, "insufficient_data"),
-                            (69, "insufficient_data")):  # temperature, temperature, offset drift, field drift
+    for index, expected in ((33, "temperature"), (177, "temperature"), (21, "offset_drift|temperature"),
+                            (69, "field_drift")):  # temperature, temperature, offset drift, field drift
         case = make_case(index, 2026)
         assert case.category == "fixed"
         r = diagnose(Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C))
@@ -101,3 +102,46 @@ def test_readings_stuck_at_a_repeated_extreme_are_clipping_not_outliers():
     raw[::50] = raw.max(axis=0) + 300.0  # forty readings at the converter's limit on every axis
     r = diagnose(Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s, temp_C=d.temp_C))
     assert r["verdict"] == "insufficient_data" and r["time_only"]["spikes"]["clipped_share"] == 1.0
+
+
+def drifting(across_nT=0.0, radial_nT=0.0, step=False, temp_follows=False, noise=0.5, seed=1, n=1500, logged=True):
+    """A fixed sensor whose readings drift by ``radial_nT`` along the field and ``across_nT`` across it (a
+    raised-cosine in time, or a step at mid-record)."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 86400.0, n)
+    u = t / t[-1]
+    shape = (u >= 0.5).astype(float) if step else 0.5 * (1 - np.cos(np.pi * u))
+    temp = 20 + 10 * shape if temp_follows else 20 + 5 * np.sin(2 * np.pi * u * 3)
+    b = B / np.linalg.norm(B)
+    across = np.cross(b, [0.0, 1.0, 0.0])
+    across /= np.linalg.norm(across)
+    raw = B + shape[:, None] * (radial_nT * b + across_nT * across) + rng.normal(0, noise, (n, 3))
+    return Dataset(raw, f_ref_nT=np.full(n, F), t_s=t, temp_C=temp if logged else None)
+
+
+def test_a_drift_across_the_readings_is_an_offset_drift_and_along_them_a_field_drift():
+    r = diagnose(drifting(across_nT=30.0, radial_nT=5.0))
+    assert r["verdict"] == "offset_drift", r["time_only"]["drift_direction"]
+    r = diagnose(drifting(across_nT=30.0, radial_nT=5.0, temp_follows=True))  # a temperature coefficient as much
+    assert r["verdict"] == "offset_drift|temperature", r["time_only"]["drift_direction"]
+    r = diagnose(drifting(radial_nT=30.0))
+    assert r["verdict"] == "field_drift", r["time_only"]["drift_direction"]
+
+
+def test_negative_controls_a_switch_and_a_radial_drift_that_follows_the_temperature():
+    r = diagnose(drifting(across_nT=30.0, radial_nT=5.0, step=True, logged=False))  # a field switched on: not a drift
+    assert r["verdict"] == "insufficient_data", r["time_only"]["drift_direction"]
+    assert r["time_only"]["drift_direction"]["step_share"] > 0.9
+    assert diagnose(drifting(across_nT=30.0, radial_nT=5.0, logged=False))["verdict"] == "offset_drift"  # smooth: named
+    r = diagnose(drifting(radial_nT=30.0, temp_follows=True))  # the gains' temperature coefficient fits it as well
+    assert r["verdict"] == "field_drift|temperature", r["time_only"]["drift_direction"]
+    r = diagnose(drifting(across_nT=2.0, radial_nT=30.0))  # neither radial nor clearly across: no name
+    assert r["verdict"] == "insufficient_data", r["time_only"]["drift_direction"]
+
+
+def test_the_text_report_says_which_way_a_fixed_sensor_drifts():
+    from magbench.benchmarks.diagnosis import diagnosis_text
+
+    text = diagnosis_text(diagnose(drifting(across_nT=30.0, radial_nT=5.0, logged=False)), "fixed.csv")
+    assert "drift direction: the readings drift across their own direction" in text
+    assert "verdict: offset_drift" in text

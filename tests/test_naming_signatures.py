@@ -189,3 +189,43 @@ def test_temperature_is_told_from_a_drift_only_by_its_own_changes(monkeypatch):
     smooth = diagnose(get_scenario("tumble9q").with_effects(TemperatureEffect()).build(3), base="nine")
     assert smooth["verdict"] == "temperature|offset_drift", smooth["naming"]["temperature_beyond_time_z"]
     assert smooth["naming"]["temperature_beyond_time_z"] <= 3
+
+
+@pytest.mark.parametrize("index", [347, 899])  # eddy currents on a turntable: peaks at each change of tilt
+def test_spikes_refused_as_structure_leave_an_unexplained_remainder(index):
+    result, case = run_case(index)
+    assert case.outside == ("eddy",)
+    row = evidence_row(result, "outliers")
+    assert not row["named"] and row["structured"]  # more far samples than noise gives, in runs: structure
+    assert result["verdict"] == "unexplained" and result["remainder_structured_spikes"]
+
+
+@pytest.mark.parametrize("index", [109, 37])  # glitches at random times: named, nothing left unexplained
+def test_negative_control_isolated_spikes_are_outliers_and_leave_no_remainder(index):
+    result, case = run_case(index)
+    assert case.present == ("outliers",)
+    assert result["verdict"] == "outliers" and "remainder_structured_spikes" not in result
+
+
+def test_negative_control_runs_beside_a_named_lag_are_its_own_peaks():
+    result, case = run_case(1234)  # one axis late on a turntable: its peaks at the changes of tilt come in runs
+    assert case.present == ("lag",)
+    assert evidence_row(result, "outliers")["structured"]
+    assert result["verdict"] == "lag" and "remainder_structured_spikes" not in result
+
+
+@pytest.mark.parametrize("index", [1801, 2161])  # one axis late on a turntable, its peaks masked as spikes
+def test_a_name_whose_evidence_needed_the_structured_peaks_masked_must_dominate_what_they_leave(index):
+    result, case = run_case(index)
+    assert case.present == ("lag",)
+    assert evidence_row(result, "outliers")["structured"]
+    row = evidence_row(result, "nonlinearity")  # it explained the rest only once the peaks were masked
+    assert not row["named"] and row["why"].startswith("it removes")
+    assert result["verdict"] == "unexplained"
+
+
+def test_negative_control_a_name_that_removes_more_than_the_structure_leaves_stays():
+    result, case = run_case(375)  # a nonlinearity beside spikes that come in runs (irregular sampling)
+    assert set(case.present) == {"nonlinearity", "outliers"}
+    assert evidence_row(result, "outliers")["structured"] and evidence_row(result, "nonlinearity")["named"]
+    assert result["verdict"] == "nonlinearity+unexplained"

@@ -36,9 +36,15 @@ An effect is therefore *named* only when all of these hold:
 5. **Not a by-product of a larger unexplained structure.**  When a significant remainder is left, every
    named effect must remove at least as much as is left (its own held-out contribution at least the
    remainder's RMS above the floor): a flexible basis fits part of any structure it is offered, and a
-   name that explains less than what stays unexplained is more likely that part than a cause.
+   name that explains less than what stays unexplained is more likely that part than a cause.  Spikes refused as
+   structure (below) make the remainder significant for this rule however heavy-tailed it is: the other names
+   were selected with those peaks masked, and must remove at least what the peaks leave once unmasked.
 
-Spikes (``outliers``) keep their own count test (their evidence is their number).
+Spikes (``outliers``) keep their own count test (their evidence is their number).  Spikes that pass it but are
+refused as structure (in runs where the readings change fastest, or readings clipped at a range limit) are
+more samples far from the fit than the noise gives, that no library effect explains: the record has an
+unexplained remainder (``structured`` on their evidence row), however few samples carry it; unless a time shift
+(``lag``) is named, whose peaks where the readings change fastest such runs are as likely to be.
 
 Two explanations the data cannot tell apart are said out loud (``a|b``).  When the logged temperature is
 itself a smooth function of time, a slow drift of the offsets and a temperature effect are the same thing
@@ -308,7 +314,7 @@ def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: flo
                 row["named"], row["why"] = True, "spikes: the count test of the selection; isolated in time"
                 named.append(name)
             elif len(spikes_ok) > 3 and spikes_ok[3] > CLIPPED_SHARE_MAX:
-                row["named"] = False
+                row["named"], row["structured"] = False, True
                 row["why"] = (f"{100 * spikes_ok[3]:.0f} % of the spikes are readings at an axis's repeated extreme value: "
                               "the sensor or its converter saturates (clipping), these are not random glitches")
             elif len(spikes_ok) > 2 and spikes_ok[2] > BULK_RATIO_MAX:
@@ -316,7 +322,7 @@ def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: flo
                 row["why"] = (f"the samples that are not spikes have a tail {spikes_ok[2]:.2f} times a Gaussian's: the errors "
                               "are heavy-tailed throughout, not sparse glitches on top of the noise")
             else:
-                row["named"] = False
+                row["named"], row["structured"] = False, True
                 row["why"] = (f"the spikes come in runs in time ({100 * spikes_ok[1]:.0f} % have a spike as a neighbour), "
                               "where the readings change fastest or in one part of the record: the peaks of a "
                               "structured residual, not outliers")

@@ -78,7 +78,11 @@ def time_only_text(result: dict, source: str = "") -> str:
         tc = to["temperature"]
         lines.append(f"  temperature: {tc['temperature_nT_per_C']:.4g} +- {tc['temperature_se_nT_per_C']:.2g} nT/°C "
                      f"beyond a linear drift ({'significant' if tc['significant'] else 'not significant'})")
-    lines += [f"  time verdict: {result['time_verdict']}; attitude part: insufficient_data ({result['attitude_reason']})"]
+    direction = to.get("drift_direction") or {}
+    if direction.get("why"):
+        lines.append(f"  drift direction: {direction['why']}")
+    lines += [f"  time verdict: {result['time_verdict']}; attitude part: insufficient_data ({result['attitude_reason']})",
+              f"  verdict: {result['verdict']}"]
     return "\n".join(lines)
 
 

@@ -10,10 +10,28 @@ the attitude part is stated as ``insufficient_data``.
 Spikes and a temperature effect are what a fixed sensor can name.  Spikes: glitches in ``|B| - F`` beyond
 the smooth trend, judged by the vector diagnosis's own tests (their count, isolation and spread in time, not clipped
 readings, a noise-like rest).  A temperature effect: ``|B| - F`` follows the logged temperature beyond a smooth function
-of time (the temperature's own changes, not only the time they share).  A drift alone cannot be named: with
-one direction seen and a scalar reference, a drift of the offsets, of the scale and of the field's magnitude
-move ``|B| - F`` alike, so it is reported in ``time_only`` and ``time_verdict``, and the verdict stays
-``insufficient_data``.
+of time (the temperature's own changes, not only the time they share).
+
+A drift is named from the direction in which the *vector* readings move, which ``|B| - F`` alone cannot tell:
+the library's field drift changes the field's magnitude only, so it moves the readings along the direction
+they point (radially: an offset error of up to a few thousand nT tilts that direction by at most a few
+hundredths of a radian), while a drift of the offsets moves them along a fixed direction of its own, in general
+across.  The smooth trend of the readings (a degree-TREND_DEGREE polynomial of time on each axis, spikes left
+out) is split into its radial part and its part across; both are tested against the readings' own scatter about
+the trend (an F test, its samples deflated for autocorrelation, at DRIFT_DIRECTION_ALPHA):
+
+* a significant part across at least ACROSS_MIN_RATIO of the radial part: the offsets drift, said with
+  ``temperature`` when the logged temperature follows time (a temperature coefficient of any smooth shape is
+  such a drift to these data), else ``offset_drift``;
+* a significant radial part with the part across below RADIAL_MAX_RATIO of it: ``field_drift``, said with
+  ``temperature`` when the logged temperature (through a first-order lag, as the library's temperature effect)
+  fits the radial trend as well (the scale coefficients of the three axes changing together move the readings
+  radially too); the gains of the three axes drifting together in time (outside the library) would look the
+  same;
+* in between, or when a single step (a field switched on near the sensor) explains the trend as well as the
+  smooth drift does (STEP_SHARE): no name; the drift stays in ``time_only``.
+
+A temperature effect named on its own signature takes precedence (the drift is then its shape).
 """
 from __future__ import annotations
 
@@ -21,10 +39,10 @@ import numpy as np
 from numpy.polynomial import legendre
 
 from magbench.simulate.dataset import Dataset
-from magbench.simulate.effects import OutlierEffect
+from magbench.simulate.effects import OutlierEffect, first_order_lag
 
 from .floor import time_difference_floor
-from .naming import spike_signature
+from .naming import STEP_SHARE, spike_signature
 from .scoring import rms
 
 SECONDS_PER_HOUR = 3600.0
@@ -32,6 +50,18 @@ DRIFT_Z = 3.0
 """A drift or temperature coefficient is reported as significant beyond this many standard errors (its
 standard error inflated for the residual's autocorrelation: effective samples from the lag-1 correlation)."""
 TREND_DEGREE = 6
+DRIFT_DIRECTION_ALPHA = 1e-6
+"""Level of the F tests of the radial trend and of the trend across (a drift of tens of noise sigmas is far
+beyond it; a record without drift is far from it)."""
+ACROSS_MIN_RATIO = 0.1
+RADIAL_MAX_RATIO = 0.05
+"""The RMS of the trend across over that of the radial trend: at least ACROSS_MIN_RATIO for a drift of the offsets,
+at most RADIAL_MAX_RATIO for a change of the field's magnitude (an offset error of 2500 nT in a 50,000 nT field tilts
+the radial direction by 0.05 rad)."""
+THERMAL_LAG_OF_SPAN = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0)
+"""First-order thermal time constants tried (shares of the record's span) when asking whether the logged
+temperature fits a radial trend as well as the smooth trend does."""
+TEMPERATURE_FOLLOWS_TIME_R2 = 0.9
 TEMPERATURE_NAME_Z = 4.0
 """A fixed sensor's temperature effect is named when |B| - F follows the logged temperature beyond a smooth
 function of time by this many standard errors."""
@@ -111,7 +141,12 @@ def time_only(data: Dataset, reason: str) -> dict:
              if part.get("significant")]
     outliers = ["outliers"] if spike_info["named"] else []
     named = outliers + named
-    verdict = outliers + (["temperature"] if out["time_only"].get("temperature", {}).get("named") else [])
+    temperature_named = bool(out["time_only"].get("temperature", {}).get("named"))
+    direction = _drift_direction(raw[order], t, keep, None if data.temp_C is None else np.asarray(data.temp_C, float)[order],
+                                 data.t_s is not None)
+    out["time_only"]["drift_direction"] = direction
+    drifts = [] if temperature_named or direction.get("named") is None else [direction["named"]]
+    verdict = outliers + (["temperature"] if temperature_named else []) + drifts
     out["verdict"] = "+".join(verdict) if verdict else "insufficient_data"
     out["time_verdict"] = "+".join(named) if named else "constant"
     return out
@@ -136,3 +171,104 @@ def _spikes(r: np.ndarray, design: np.ndarray | None, t: np.ndarray, raw_nT: np.
         "clipped_share": clip,
         "rule": "beyond 5 robust sigma of a smooth trend; named when more than noise gives, isolated and spread in "
                 "time, not readings at a repeated extreme (clipping), on a noise-like rest"}
+
+
+def _f_p(sse0: float, sse1: float, extra: int, n_eff: float, n_params: int) -> float:
+    """p-value of the F test of ``extra`` columns lowering the sum of squares from sse0 to sse1, the samples
+    deflated to ``n_eff`` for autocorrelation."""
+    from scipy.stats import f as f_dist
+
+    dof = max(n_eff - n_params, 1.0)
+    if sse1 <= 0:
+        return 0.0
+    stat = (max(sse0 - sse1, 0.0) / extra) / (sse1 / dof)
+    return float(f_dist.sf(stat, extra, dof))
+
+
+def _step_sse(y: np.ndarray) -> float:
+    """The smallest sum of squares of the rows of ``y`` (n, m) about a constant before and another after one
+    time (a step; any time between the first and last 5 % of the samples)."""
+    n = len(y)
+    c = np.cumsum(y, axis=0)
+    i = np.arange(max(1, n // 20), n - max(1, n // 20))
+    before = c[i - 1]
+    after = c[-1] - before
+    sse = float(np.sum(y ** 2)) - np.sum(before ** 2, axis=1) / i - np.sum(after ** 2, axis=1) / (n - i)
+    return float(sse.min()) if len(sse) else np.inf
+
+
+def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.ndarray | None, timed: bool) -> dict:
+    """The direction in which the vector readings drift (module docstring): the RMS of the radial trend and of
+    the trend across, their F tests, and the name they give (None for none)."""
+    n = int(keep.sum())
+    span = float(np.ptp(t))
+    if not timed or span <= 0 or n <= 3 * TREND_DEGREE:
+        return {"named": None, "why": "no time column, or too few samples"}
+    x, tk = raw[keep], t[keep]
+    m = x.mean(axis=0)
+    m = m / np.linalg.norm(m)
+    e1 = np.cross(m, [1.0, 0.0, 0.0] if abs(m[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(m, e1)
+    design = legendre.legvander(2 * (tk - t[0]) / span - 1, TREND_DEGREE)
+    y = x @ np.column_stack([m, e1, e2])  # radial, across, across
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    resid = y - design @ coef
+    trend = design @ coef
+    trend -= trend.mean(axis=0)
+    n_eff = [_effective_n(resid[:, j]) for j in range(3)]
+    sse1 = np.sum(resid ** 2, axis=0)
+    sse0 = np.sum((y - y.mean(axis=0)) ** 2, axis=0)
+    p_radial = _f_p(float(sse0[0]), float(sse1[0]), TREND_DEGREE, n_eff[0], TREND_DEGREE + 1)
+    p_across = _f_p(float(sse0[1:].sum()), float(sse1[1:].sum()), 2 * TREND_DEGREE, float(np.mean(n_eff[1:])) * 2,
+                    2 * (TREND_DEGREE + 1))
+    radial = float(np.sqrt(np.mean(trend[:, 0] ** 2)))
+    across = float(np.sqrt(np.mean(np.sum(trend[:, 1:] ** 2, axis=1))))
+    ratio = across / radial if radial > 0 else np.inf
+    out: dict = {"radial_trend_rms_nT": radial, "across_trend_rms_nT": across, "across_over_radial": float(ratio),
+                 "radial_p": p_radial, "across_p": p_across, "named": None}
+    follows = None
+    if temp is not None and np.ptp(temp) > 0:
+        tt = temp[keep]
+        fit = legendre.legvander(2 * (tk - t[0]) / span - 1, 4)
+        res_t = tt - fit @ np.linalg.lstsq(fit, tt, rcond=None)[0]
+        follows = float(1.0 - np.var(res_t) / np.var(tt))
+        out["temperature_follows_time_r2"] = follows
+    across_drift = p_across < DRIFT_DIRECTION_ALPHA and ratio >= ACROSS_MIN_RATIO
+    radial_drift = p_radial < DRIFT_DIRECTION_ALPHA and ratio <= RADIAL_MAX_RATIO
+    if not (across_drift or radial_drift):
+        out["why"] = ("no significant drift" if min(p_radial, p_across) >= DRIFT_DIRECTION_ALPHA else
+                      "the drift is neither along the readings' direction nor clearly across it")
+        return out
+    cols = [0] if radial_drift else [0, 1, 2]
+    sse_trend = float(sse1[cols].sum())
+    sse_const = float(sse0[cols].sum())
+    sse_step = _step_sse(y[:, cols])
+    out["step_share"] = float((sse_const - sse_step) / max(sse_const - sse_trend, 1e-300))
+    if sse_const - sse_step >= STEP_SHARE * (sse_const - sse_trend):
+        out["why"] = ("a single step explains the drift as well as a smooth change: a field switched on near the "
+                      "sensor (outside the library), not a drift")
+        return out
+    if across_drift:
+        thermal = follows is not None and follows >= TEMPERATURE_FOLLOWS_TIME_R2
+        out["named"] = "offset_drift|temperature" if thermal else "offset_drift"
+        out["why"] = (f"the readings drift across their own direction (RMS {across:.3g} nT against {radial:.3g} nT "
+                      "along it): the offsets drift" + (", or a temperature coefficient (the logged temperature "
+                                                         "follows time)" if thermal else ""))
+        return out
+    out["named"] = "field_drift"
+    out["why"] = (f"the readings drift along their own direction only (RMS {radial:.3g} nT, {across:.3g} nT across): "
+                  "the field's magnitude changes")
+    if temp is not None and np.ptp(temp) > 0:
+        best = np.inf
+        for share in THERMAL_LAG_OF_SPAN:
+            lagged = first_order_lag(tk, temp[keep], share * span) if share > 0 else temp[keep]
+            d2 = np.column_stack([np.ones(n), lagged])
+            best = min(best, float(np.sum((y[:, 0] - d2 @ np.linalg.lstsq(d2, y[:, 0], rcond=None)[0]) ** 2)))
+        p_beats = _f_p(best, float(sse1[0]), TREND_DEGREE - 1, n_eff[0], TREND_DEGREE + 1)
+        out["trend_beats_temperature_p"] = p_beats
+        if p_beats >= DRIFT_DIRECTION_ALPHA:
+            out["named"] = "field_drift|temperature"
+            out["why"] += ("; the logged temperature fits it as well (the scale coefficients of the axes changing "
+                           "together)")
+    return out

@@ -86,6 +86,12 @@ BEYOND_TIME_ROWS = 50_000
 """The temperature-beyond-time test fits on a systematic sample of at most this many rows (its z grows with the
 square root of the rows: at this size an effect that matters is far beyond the threshold)."""
 DEFAULT_FOLDS = 5
+TANGENT_HELDOUT_MIN = 0.5
+"""A held-out residual below this share of the same model's in-sample residual cannot come from a least-squares
+fit that its tangent space describes (held-out residuals are larger than in-sample ones)."""
+TANGENT_UNTRUSTED_Z = 2 * REMAINDER_Z
+"""The in-sample residual of such a fit (pinned at a bound: its free parameters are not counted) must exceed the
+floor by this many standard errors, twice the usual test's, before the record is called unexplained."""
 MIN_POINTS_BEYOND_PARAMETERS = 10
 MAX_EFFECTS = 4
 SELECTION_PASSES = 3
@@ -201,6 +207,13 @@ class Diagnosis:
         rem = remainder(current, floor, floor_se, n_params, n_train, robust="outliers" in selected)
         if not selected and naming["base_significant"]:  # nothing named, the base residual above the floor
             rem["remainder_significant"] = True
+        shifted = any(getattr(EFFECTS[nm], "shift_terms", None) for nm in order)  # a lag named: its own peaks
+        if not shifted and any(row.get("structured") for row in naming["evidence"]):  # spikes refused as structure
+            rem["remainder_significant"] = True
+            rem["remainder_structured_spikes"] = True
+        untrusted = self._tangent_untrusted(r_all, rms_base, floor, floor_se, n) if not selected else None
+        if untrusted is not None:  # the held-out tests do not describe this fit: what it leaves is not 'none'
+            rem["remainder_significant"] = True
         mdn = min_detectable_nT(floor, n)
         powered = mdn <= POWER_MAX_OF_FLOOR * floor
         alternatives = {c["alternatives"][0]: "|".join(c["alternatives"]) for c in confounded if c.get("named", True)}
@@ -218,6 +231,7 @@ class Diagnosis:
                "coverage_pct": coverage_pct(unit), "folds": k, "seed": self.seed,
                "effect_info": {nm: v for nm, v in self.effect_info.items() if v},
                "selection_trail": trail, "naming": naming, "confounded": confounded,
+               **({"tangent_untrusted": untrusted} if untrusted is not None else {}),
                "localization": self._localize(r_all, unit),
                "base_params": dict(zip(PARAM_NAMES[self.base], map(float, x9[list(BASE_FREE[self.base])]))),
                "fitted_params": {self.model.names[i]: float(x_sel[i]) for i in self.model.free_indices(selected)}}
@@ -232,6 +246,22 @@ class Diagnosis:
             if rs is not None:
                 out["resimulation"] = rs
         return out
+
+    def _tangent_untrusted(self, r_all, rms_base, floor, floor_se, n) -> dict | None:
+        """When the base model's held-out residual (in its tangent space) is below TANGENT_HELDOUT_MIN of its own
+        in-sample residual, the tangent does not describe the fit (a fit pinned at a bound of its parameters on
+        nearly planar attitudes: a scale of 2, an offset of 10^4 nT), and no held-out test made in it means
+        anything; when that in-sample residual is itself far above the floor (TANGENT_UNTRUSTED_Z), the record is not
+        consistent with the noise (returns the evidence; None otherwise)."""
+        if rms_base >= TANGENT_HELDOUT_MIN * rms(r_all):
+            return None
+        inside = remainder(r_all, floor, floor_se, len(BASE_FREE[self.base]), n)
+        if not (inside["remainder_significant"] and inside["remainder_z"] > TANGENT_UNTRUSTED_Z):
+            return None
+        return {"rms_fit_nT": rms(r_all), "rms_heldout_nT": rms_base, "in_sample_remainder_z": inside["remainder_z"],
+                "statement": "the held-out residual of the base model is far below its in-sample residual: the tangent "
+                             "space does not describe the fit (parameters at a bound), the held-out tests cannot be "
+                             "trusted, and the in-sample residual is significantly above the noise floor"}
 
     def _passes(self, x_lin, every, spikes, r_all, floor):
         """Forward selection in the tangent space at the base fit, then again at the selected model's fit
@@ -295,10 +325,18 @@ class Diagnosis:
         named = self._shift_signature(evidence, named)
         named = self._within_holds(evidence, named, heldout["random"])
 
+        # spikes refused as structure (no lag named, whose own peaks they may be): the structure is unexplained, and
+        # every named effect must remove at least as much as it leaves (its evidence was taken with the peaks masked)
+        structured = (any(row.get("structured") for row in evidence)
+                      and not any(getattr(EFFECTS[nm], "shift_terms", None) for nm in named))
+
         def remainder_of(names):
             robust = "outliers" in names
-            return remainder(heldout["random"](names), floor, floor_se, len(self.model.free_indices(names)), n_train,
-                             robust=robust)
+            rem = remainder(heldout["random"](names), floor, floor_se, len(self.model.free_indices(names)), n_train,
+                            robust=robust)
+            if structured and not robust:
+                rem["remainder_significant"] = True
+            return rem
 
         named = undominated(evidence, named, remainder_of)
         if named != selected:
