@@ -187,3 +187,14 @@ def test_the_readme_example_calibrator_passes_the_battery():
     exec(compile(code, "README.md", "exec"), namespace)  # noqa: S102 - the README's own example
     res = namespace["NelderMead"](model="angles").fit(C.check_dataset("angles"))
     assert res.n_evaluations > 50 and res.accepted
+
+
+def test_an_old_style_calibrator_is_told_how_to_ask():
+    class OldStyle(Countdown):
+        name = "old-style"
+
+        def _solve(self, problem):
+            return SolveOutput(problem.x0 if problem.value(problem.x0) >= 0 else None)
+
+    with pytest.raises(AttributeError, match=r"a strategy that asks the framework, e.g. `f = yield loop.value\(x\)`"):
+        OldStyle().fit(C.check_dataset("angles"))

@@ -36,6 +36,13 @@ class Problem:
         self.seed = seed
         self.termination = termination if termination is not None else Termination(budget=evaluator.budget)
 
+    def __getattr__(self, name: str):
+        if name in _ASKED_NOW:  # the counted functions a Problem offered before magbench 0.3
+            raise AttributeError(f"Problem has no {name!r}: a calibrator's _solve is a strategy that asks the "
+                                 f"framework, e.g. `f = yield loop.{_ASKED_NOW[name]}` (calibrators.core.loop; "
+                                 "README, 'Your own calibrator')")
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
     @property
     def n_points(self) -> int:
         """How many readings the objective sums over (their number, not their values)."""
@@ -69,6 +76,10 @@ class Problem:
         """The best point evaluated so far (None before the first evaluation)."""
         x = self._evaluator.best_x
         return None if x is None else x.copy()
+
+
+_ASKED_NOW = {"values": "values(x)", "value": "value(x)", "residuals": "residuals(x)", "jacobian": "jacobian(x)",
+              "gradient": "gradient(x)", "normal_equations": "normal_equations(x)", "algebraic_start": "START"}
 
 
 class ReadingsProblem(Problem):
