@@ -297,28 +297,51 @@ def fig_accuracy_runtime(runs: pd.DataFrame, scenario: str, styles: dict) -> Fig
 
 def _direct_labels(ax, points: list[tuple[str, float, float, str]], font_pt: float = 7.5) -> None:
     """Each point's name written beside it (log axes), pushed up or down just enough that no two names
-    overlap: the reader needs no legend lookup where points crowd."""
+    overlap and no name lies across another's leader: the reader needs no legend lookup where points crowd."""
     ax.autoscale_view()
     (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
     w_in, h_in = ax.figure.get_size_inches() * np.array([0.62, 0.72])  # the axes' share of the figure, about
-    placed: list[tuple[float, float, float]] = []  # (x, y, width) in points
-    # rightmost first: a label pushed up past its right-hand neighbours keeps its leader clear of their names
-    for name, x, y, colour in sorted(points, key=lambda p: (-p[1], p[2])):
-        px = (np.log10(x) - np.log10(x0)) / (np.log10(x1) - np.log10(x0)) * w_in * 72
-        py = (np.log10(y) - np.log10(y0)) / (np.log10(y1) - np.log10(y0)) * h_in * 72
+    at = [((np.log10(x) - np.log10(x0)) / (np.log10(x1) - np.log10(x0)) * w_in * 72,
+           (np.log10(y) - np.log10(y0)) / (np.log10(y1) - np.log10(y0)) * h_in * 72) for _, x, y, _ in points]
+    rises = place_labels([(name, px, py) for (name, *_), (px, py) in zip(points, at)], font_pt)
+    for (name, x, y, colour), dy in zip(points, rises):
+        leader = {"arrowprops": {"arrowstyle": "-", "color": colour, "lw": 0.6, "shrinkA": 0, "shrinkB": 0,
+                                 "relpos": (0.0, 0.0)}} \
+            if dy > font_pt else {}  # a label pushed away from its point is joined to it by a thin line
+        ax.annotate(name, (x, y), xytext=(LABEL_GAP_PT, dy + 3), textcoords="offset points", fontsize=font_pt,
+                    color=colour, ha="left", va="bottom", annotation_clip=False, **leader)
+
+
+LABEL_GAP_PT = 7.0
+"""A direct label starts this far right of its point (points)."""
+
+
+def place_labels(items: list[tuple[str, float, float]], font_pt: float = 7.5) -> list[float]:
+    """How far (points) each label of ``items`` (name, x, y in points) rises above its point so that no two
+    labels overlap and no label lies across the leader of a label pushed away from its point (a near-vertical
+    line from the point to the label's lower-left corner).  Rightmost first: a label pushed up past its
+    right-hand neighbours keeps its leader clear of their names.  Returned in the order of ``items``."""
+    placed: list[tuple[float, float, float]] = []  # labels: (x, y, width)
+    leaders: list[tuple[float, float, float, float]] = []  # (from x, to x, from y, to y)
+    rises = [0.0] * len(items)
+    for i in sorted(range(len(items)), key=lambda k: (-items[k][1], items[k][2])):
+        name, px, py = items[i]
         width = 0.55 * font_pt * len(name)
+        left = px + LABEL_GAP_PT
         dy, moved = 0.0, True
         while moved:  # a label pushed past one neighbour may land on another placed before it: check them all again
             moved = False
             for qx, qy, qw in placed:
                 if abs(px - qx) < max(width, qw) + 8 and abs(py + dy - qy) < font_pt + 1.99:  # 0.01: rounding
                     dy, moved = qy + font_pt + 2 - py, True
+            for xa, xb, lo, hi in leaders:  # a leader rising through this label's box: go above its top
+                if xa <= left + width + 1 and xb >= left - 1 and py + dy < hi and py + dy + font_pt > lo:
+                    dy, moved = hi + 2 - py, True
         placed.append((px, py + dy, width))
-        leader = {"arrowprops": {"arrowstyle": "-", "color": colour, "lw": 0.6, "shrinkA": 0, "shrinkB": 0,
-                                 "relpos": (0.0, 0.0)}} \
-            if dy > font_pt else {}  # a label pushed away from its point is joined to it by a thin line
-        ax.annotate(name, (x, y), xytext=(7, dy + 3), textcoords="offset points", fontsize=font_pt, color=colour,
-                    ha="left", va="bottom", annotation_clip=False, **leader)
+        if dy > font_pt:
+            leaders.append((px, px + LABEL_GAP_PT, py, py + dy + 3))
+        rises[i] = dy
+    return rises
 
 
 def _segments(part: pd.DataFrame) -> list[pd.DataFrame]:

@@ -219,3 +219,28 @@ def test_leaders_of_stacked_labels_stay_clear_of_the_other_names():
     heights = [rise[name] for name, *_ in points]  # left to right
     assert all(a > b for a, b in zip(heights, heights[1:]))
     assert all(a.arrowprops["relpos"] == (0.0, 0.0) for a in ax.texts if a.arrowprops)
+
+
+def test_no_label_lies_across_another_labels_leader():
+    """The crowd of results/campaign's accuracy-runtime figure: ttls, just left of twostep, was written
+    across the leader of twostep's label (pushed up by lsq's). Every label box is now clear of every
+    leader (the near-vertical line from a pushed label's point to its lower-left corner)."""
+    from magbench.benchmarks.figures import LABEL_GAP_PT, place_labels
+
+    font = 7.5
+    items = [("tls", 10.0, 50.0), ("merayo", 14.0, 50.5), ("ellipsoid", 18.0, 50.2), ("sym", 20.0, 50.0),
+             ("ttls", 26.0, 50.1), ("twostep", 34.0, 50.3), ("lsq", 60.0, 50.0), ("nlopt", 150.0, 50.0)]
+    rises = place_labels(items, font)
+    boxes = [(px + LABEL_GAP_PT, px + LABEL_GAP_PT + 0.55 * font * len(n), py + dy, py + dy + font)
+             for (n, px, py), dy in zip(items, rises)]
+    leaders = [(j, px, px + LABEL_GAP_PT, py, py + dy + 3) for j, ((_, px, py), dy) in enumerate(zip(items, rises))
+               if dy > font]
+    assert leaders  # the crowd pushes some labels away from their points
+    for i, (x0, x1, y0, y1) in enumerate(boxes):
+        for j, a, b, lo, hi in leaders:
+            if j != i:  # another label's leader never runs through this label
+                assert not (a <= x1 and b >= x0 and y0 < hi - 0.01 and y1 > lo + 0.01), (items[i][0], items[j][0])
+        for k, (u0, u1, v0, v1) in enumerate(boxes):
+            if k != i:  # no two labels overlap
+                assert not (u0 < x1 - 8 and u1 > x0 + 8 and v0 < y1 - 0.5 and v1 > y0 + 0.5) or \
+                    abs(items[i][1] - items[k][1]) >= max(x1 - x0, u1 - u0) + 8, (items[i][0], items[k][0])
