@@ -457,15 +457,24 @@ class Calibrator(metaclass=_Sealed):
     def termination(self, budget: Budget) -> Termination:
         """When this calibrator's search stops (``core/loop.py``): the comparison's ``budget`` and the
         method's own limits from ``termination_settings``, in the one object the framework enforces."""
+        settings = self.termination_settings()  # raises InputError itself where it checks
         try:
-            return Termination(budget=budget, **self.termination_settings())
+            return Termination(budget=budget, **settings)
         except ValueError as exc:  # a hyper-parameter out of its range (a negative tol, zero generations)
-            raise InputError(f"{self.name}: {exc}") from None
+            text = str(exc)
+            field = next((f for f in ("max_iterations", "max_evaluations", "tol") if text.startswith(f + " ")), "")
+            hyper = self.termination_params.get(field)
+            text = hyper + text[len(field):].replace(" or None", "") if hyper else text
+            raise InputError(f"{self.name}: {text}") from None
 
     def termination_settings(self) -> dict:
         """The method's ``Termination`` fields from its hyper-parameters (``max_iterations``,
         ``max_evaluations``, ``tol``, ``tol_meaning``); none by default."""
         return {}
+
+    termination_params: ClassVar[dict] = {}
+    """Which hyper-parameter gives each ``Termination`` field (``{"max_iterations": "generations"}``), so that
+    a value out of range is refused in the hyper-parameter's name."""
 
     def _solve(self, problem: Any) -> Any:  # pragma: no cover - abstract
         """The method, handed a ``Problem`` (a ``ReadingsProblem`` when ``closed_form``): a strategy, i.e. a

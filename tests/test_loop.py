@@ -100,7 +100,11 @@ def test_a_strategy_may_end_its_search_when_told_the_budget_is_spent():
 
 def test_termination_refuses_limits_out_of_range_in_the_methods_words():
     with pytest.raises(InputError, match="countdown: max_iterations must be a positive integer"):
-        Countdown(iterations=0).fit(C.check_dataset("angles"))
+        Countdown(iterations=0).fit(C.check_dataset("angles"))  # no termination_params: the field's name
+    with pytest.raises(InputError, match=r"^ga: generations must be a positive integer, not 0$"):
+        make("ga", generations=0).fit(C.check_dataset("nine"))
+    with pytest.raises(InputError, match=r"^aga: delta_g must be finite"):
+        make("aga", delta_g=-1.0).fit(C.check_dataset("angles"))
     with pytest.raises(InputError, match="aco: tol must be finite"):
         make("aco", tol=-1.0).fit(C.check_dataset("nine"))
     with pytest.raises(ValueError):

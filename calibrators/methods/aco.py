@@ -60,6 +60,8 @@ class AntColony(Calibrator):
     def search_box(self) -> dict:
         return population_box(self)
 
+    termination_params = {"max_iterations": "iterations", "tol": "tol"}
+
     def termination_settings(self) -> dict:
         return {"max_iterations": int(self.iterations), "tol": float(self.tol),
                 "tol_meaning": "(f_k - f_1) / |f_1| over the archive's values (converged when they agree)"}

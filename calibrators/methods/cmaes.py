@@ -63,6 +63,8 @@ class CMAES(Calibrator):
     def search_box(self) -> dict:
         return population_box(self)
 
+    termination_params = {"max_evaluations": "max_evaluations", "tol": "tolfun_rel"}
+
     def termination_settings(self) -> dict:
         if not (0 < self.sigma0 <= 1 and self.max_evaluations >= 1 and self.population >= 0 and self.tolfun_rel >= 0):
             raise InputError("cmaes: 0 < sigma0 <= 1, max_evaluations >= 1, population >= 0 and tolfun_rel >= 0 "

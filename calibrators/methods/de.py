@@ -50,6 +50,8 @@ class DifferentialEvolution(Calibrator):
     def search_box(self) -> dict:
         return population_box(self)
 
+    termination_params = {"max_iterations": "generations"}
+
     def termination_settings(self) -> dict:
         return {"max_iterations": int(self.generations), "tol": None,
                 "tol_meaning": f"SciPy's own: std of the population's values <= {self.tol:g} x |their mean|"}

@@ -76,6 +76,8 @@ class AdaptiveGA(Calibrator):
     def search_box(self) -> dict:
         return population_box(self)
 
+    termination_params = {"max_iterations": "max_generations", "tol": "delta_g"}
+
     def termination_settings(self) -> dict:
         return {"max_iterations": int(self.max_generations), "tol": float(self.delta_g),
                 "tol_meaning": "step 6: |mean G(k) - mean G(k-1)| at k >= k_max (the generation count doubles)"}
@@ -230,6 +232,8 @@ class RealGA(Calibrator):
         s *= pb - pa
         s += pa
         return s
+
+    termination_params = {"max_iterations": "generations"}
 
     def termination_settings(self) -> dict:
         return {"max_iterations": int(self.generations)}

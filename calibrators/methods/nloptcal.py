@@ -55,6 +55,8 @@ class NLoptCalibrator(Calibrator):
         """Only NLopt's randomized algorithms use the seed (``nlopt.srand``)."""
         return any(tag in str(self.algorithm) for tag in STOCHASTIC_NLOPT)
 
+    termination_params = {"max_evaluations": "max_evaluations"}
+
     def termination_settings(self) -> dict:
         return {"max_evaluations": int(self.max_evaluations), "tol": None,
                 "tol_meaning": f"NLopt's own: ftol_rel {self.ftol_rel:g}, xtol_rel {self.xtol_rel:g}, maxeval counted "
