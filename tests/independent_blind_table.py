@@ -68,7 +68,7 @@ def main() -> None:
     ap.add_argument("--start", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", type=Path)
-    ap.add_argument("--split", type=str, default="1440,2400",
+    ap.add_argument("--split", type=str, default="1440,2640",
                     help="case indices where a new part begins (see the labels below)")
     args = ap.parse_args()
     rows = run(range(args.start, args.start + args.cases), args.jobs)
@@ -81,12 +81,14 @@ def main() -> None:
             "Cases 0-2399 were developed on in rounds 1-2 of the naming work (round 1: 0-959 its development set, "
             "960-2159 its held-out blocks until their wrong names were looked at, 2160-2399 its held-out figure; round 2: "
             "0-1439 its development set, 1440-2399 the block every change was checked on). Cases 2400-2639 were held "
-            "out for round 2 and run once, with its final code (`--start 2400 --cases 240`, README).", "",
+            "out for round 2 and run once, with its final code (`--start 2400 --cases 240`, README). Round 3 developed on "
+            "0-1439 and checked every change on 1440-2639; cases 2640-2879 were held out for round 3 and run once, with "
+            "its final code (`--start 2640 --cases 240`).", "",
             "## All cases", "", table(rows), ""]
     cuts = [args.start] + [int(c) for c in args.split.split(",") if c] + [args.start + args.cases]
-    labels = ["developed on in rounds 1-2 (round 2's development set)",
-              "developed on in rounds 1-2 (round 1's held-out blocks; round 2 checked every change on it)",
-              "held out for round 2: run once, with its final code"]
+    labels = ["developed on in rounds 1-3 (rounds 2-3's development set)",
+              "developed on in rounds 1-3 (round 3 checked every change on it; 2400-2639 was round 2's held-out block)",
+              "held out for round 3: run once, with its final code"]
     for (a, b), label in zip(zip(cuts[:-1], cuts[1:]), labels):
         part = [r for r in rows if a <= r["index"] < b]
         if part:

@@ -105,3 +105,16 @@ def test_model_floor_is_refused_when_the_residual_remembers_where_the_sensor_poi
     lagged = white + 2e-4 * np.einsum("ij,ij->i", u, induced)  # a few nT, below the 20 nT of the base floor
     assert abs(neighbour_z(white, raw)) < 3 and neighbour_z(lagged, raw) > 3
     assert model_floor(fl, lagged, t, raw, 40, np.zeros(len(t), bool))["noise_floor_nT"] == fl["noise_floor_nT"]
+
+
+def test_a_residual_that_follows_the_neighbouring_readings_at_random_attitudes_is_unexplained():
+    # a rotating iron part at random attitudes: the floor (time differences) holds the structure, so the remainder
+    # test reads 'none'; the full fit's residual depends on the neighbouring readings, which noise does not
+    out = _run(341)
+    assert out["floor_neighbour_z"] > 3.0
+    assert out["verdict"] == "unexplained" and out["remainder_follows_neighbours"]
+    # negative controls at random attitudes: a clean record stays 'none', a named temperature gains no 'unexplained'
+    clean = _run(108)
+    assert clean["verdict"] == "none" and "remainder_follows_neighbours" not in clean
+    single = _run(22)
+    assert single["verdict"] == "temperature"

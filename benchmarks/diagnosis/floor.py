@@ -28,7 +28,7 @@ MAD_SE = 1.166  # standard error of the MAD scale: 1.166 sigma / sqrt(m) for Gau
 INDEPENDENT_SHARE = 1.0 / 3.0  # overlapping second differences: about a third of them independent
 LEAK_Z = 3.0
 
-__all__ = ["KNN_NEIGHBOURS", "knn_floor", "model_floor", "neighbour_z", "robust_sigma",
+__all__ = ["KNN_NEIGHBOURS", "MOTION_Z", "knn_floor", "model_floor", "neighbour_z", "robust_sigma",
            "second_difference_floor", "unit_span", "vector_floor",
            "time_difference_floor"]
 

@@ -34,7 +34,7 @@ from magbench.simulate.dataset import Dataset
 from magbench.simulate.effects import EFFECTS, SPIKE_SIGMA, Columns, Normalization, OutlierEffect, robust_sigma
 from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
-from .floor import model_floor, vector_floor
+from .floor import MOTION_Z, model_floor, vector_floor
 from .localize import folds, localize, tails
 from .model import BASE_FREE, ExtendedModel, Tangent
 from .naming import (
@@ -211,6 +211,9 @@ class Diagnosis:
         if not shifted and any(row.get("structured") for row in naming["evidence"]):  # spikes refused as structure
             rem["remainder_significant"] = True
             rem["remainder_structured_spikes"] = True
+        if self._follows_neighbours(fl):  # at random attitudes the floor holds the structure: it is not noise
+            rem["remainder_significant"] = True
+            rem["remainder_follows_neighbours"] = True
         untrusted = self._tangent_untrusted(r_all, rms_base, floor, floor_se, n) if not selected else None
         if untrusted is not None:  # the held-out tests do not describe this fit: what it leaves is not 'none'
             rem["remainder_significant"] = True
@@ -246,6 +249,17 @@ class Diagnosis:
             if rs is not None:
                 out["resimulation"] = rs
         return out
+
+    def _follows_neighbours(self, fl: dict) -> bool:
+        """Whether the residual of the fit with every effect free depends on the neighbouring readings
+        (``floor.neighbour_z`` above MOTION_Z) on a record whose consecutive attitudes are as unrelated as random
+        attitudes (``roughness`` above ROUGHNESS_MAX).  There the time differences that give the floor do not cancel
+        attitude structure, so the floor holds whatever the library leaves and the remainder test cannot see it; noise
+        does not depend on the neighbouring readings, so such a residual is structure the named effects leave
+        (outside the library, or a lag no fit of the library removes at random attitudes): the remainder is
+        significant.  On smooth schedules neighbouring readings are nearly the current one and the test says nothing."""
+        rough = roughness(self.columns.t_s, self.columns.raw_nT)
+        return bool(rough is not None and rough > ROUGHNESS_MAX and fl.get("floor_neighbour_z", 0.0) > MOTION_Z)
 
     def _tangent_untrusted(self, r_all, rms_base, floor, floor_se, n) -> dict | None:
         """When the base model's held-out residual (in its tangent space) is below TANGENT_HELDOUT_MIN of its own
