@@ -393,7 +393,7 @@ class Calibrator(metaclass=_Sealed):
             if evaluator.best_x is None:
                 raise
             out = SolveOutput(evaluator.best_x, status="budget", message=f"stopped: {exc}", success=True)
-            stopped = Stopped(stopped.iterations if stopped else 0, "budget")
+            stopped = Stopped(getattr(exc, "iterations", 0), "budget")
         if not isinstance(out, SolveOutput):
             out = SolveOutput(out, status="no_output", message=f"{self.name}'s _solve returned {type(out).__name__}, "
                               "not a SolveOutput", success=False)

@@ -78,9 +78,11 @@ def _at_optimum(a: np.ndarray, g: np.ndarray, cost: float, tol: float, atol: flo
     less than its own rounding from step to step; without this test the search asked for a handful more
     points whose differences were only rounding before one happened to be accepted."""
     try:
-        return float(g @ np.linalg.solve(a, g)) <= max(tol * cost, atol)
+        decrement = float(g @ np.linalg.solve(a, g))
     except np.linalg.LinAlgError:
         return False
+    # a numerically singular A can give a negative decrement: that is no sign of an optimum
+    return 0.0 <= decrement <= max(tol * cost, atol)
 
 
 def systematic_rows(n: int, limit: int) -> slice:

@@ -202,3 +202,30 @@ def test_an_old_style_calibrator_is_told_how_to_ask():
 
     with pytest.raises(AttributeError, match=r"a strategy that asks the framework, e.g. `f = yield loop.value\(x\)`"):
         OldStyle().fit(C.check_dataset("angles"))
+
+
+def test_a_budget_stop_says_how_many_iterations_the_framework_counted():
+    res = make("cmaes", budget=777).fit(C.check_dataset("nine"))
+    assert res.status == "budget" and res.extra["stopped_by"] == "budget"
+    assert res.extra["iterations"] == (777 - 1) // 10  # whole generations of 10 after the start, before the cut
+
+
+def test_a_library_in_recast_sees_the_callers_context():
+    def run(ask):
+        return np.geterr()["divide"]
+
+    with np.errstate(divide="raise"):
+        search = loop.recast(run)
+        with pytest.raises(StopIteration) as done:
+            next(search)
+    assert done.value.value == "raise"
+
+
+def test_lm_does_not_take_a_negative_decrement_for_an_optimum():
+    from magbench.numerics import _at_optimum
+
+    a = np.array([[1.0, 0.0], [0.0, -1e-30]])  # numerically singular, solve does not raise
+    g = np.array([0.0, 1e-10])
+    assert float(g @ np.linalg.solve(a, g)) < 0
+    assert not _at_optimum(a, g, cost=1.0, tol=1e-12, atol=0.0)
+    assert _at_optimum(np.eye(2), np.array([1e-7, 0.0]), cost=1.0, tol=1e-12, atol=0.0)  # a true optimum

@@ -18,6 +18,7 @@ without a thread: a switch costs about a microsecond).
 """
 from __future__ import annotations
 
+import contextvars
 from collections.abc import Callable, Generator
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -183,6 +184,9 @@ def drive(search: Generator, evaluator: Evaluator, termination: Termination,
             request = send(reply)
     except StopIteration as done:
         return done.value, Stopped(iterations, reason)
+    except BudgetExhausted as exc:  # the strategy did not end on its own: say how far it got
+        exc.iterations = iterations  # type: ignore[attr-defined]
+        raise
 
 
 def asks(kind: str, points: Generator[Any, Any, Any]) -> Generator[Ask, Any, Any]:
@@ -205,6 +209,7 @@ def recast(run: Callable[[Callable[[Ask], Any]], Any]) -> Generator[Ask, Any, An
         return ("done", run(ask))
 
     child = greenlet(body)
+    child.gr_context = contextvars.copy_context()  # the library sees the caller's context (np.errstate, ...)
 
     def ask(request: Ask):
         return child.parent.switch(("ask", request))
@@ -232,5 +237,5 @@ def _unwind(child) -> None:
             return
         try:
             child.throw(GreenletExit)
-        except GreenletExit:
+        except BaseException:  # noqa: BLE001 - GreenletExit, or what the library turned it into: it has ended
             return
