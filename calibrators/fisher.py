@@ -61,23 +61,10 @@ KEEP_JACOBIAN_ROWS = 200_000
 
 
 def one_pass(objective: ScalarObjective, x: np.ndarray, keep_jacobian_rows: int = KEEP_JACOBIAN_ROWS) -> PassAt:
-    """Every quantity of ``PassAt`` at ``x`` from one pass over the data, block by block (the objective's own
-    blocks: memory bounded but for the residuals and a short record's Jacobian)."""
+    """Every quantity of ``PassAt`` at ``x`` from one pass over the data (``ScalarObjective.one_pass``)."""
     x = np.array(x, dtype=float)
-    n, p = objective.raw_nT.shape[0], objective.n_params
-    r = np.empty(n)
-    keep = np.empty((p, n)) if n <= keep_jacobian_rows else None
-    gram, fisher, grad, ss = np.zeros((p, p)), np.zeros((p, p)), np.zeros(p), 0.0
-    for rows in objective._blocks():
-        rb, jt, w = objective._block(x, rows)
-        r[rows] = rb
-        if keep is not None:
-            keep[:, rows] = jt
-        gram += jt @ jt.T
-        fisher += (jt / w) @ jt.T
-        grad += jt @ rb
-        ss += float(rb @ rb)
-    return PassAt(x, r, gram, grad, ss, fisher, None if keep is None else keep.T)
+    r, gram, grad, ss, fisher, jacobian = objective.one_pass(x, objective.raw_nT.shape[0] <= keep_jacobian_rows)
+    return PassAt(x, r, gram, grad, ss, fisher, jacobian)
 
 
 def std_from_information(information: np.ndarray, noise_nT: float) -> np.ndarray:

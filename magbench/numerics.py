@@ -11,11 +11,8 @@ MAD_TO_SIGMA = 1.4826
 
 
 def robust_sigma(x: np.ndarray) -> float:
-    """The scale estimate MAD_TO_SIGMA * median absolute deviation (Hampel 1974)."""
-    x = np.asarray(x, dtype=float)
-    if x.size == 0:
-        return 0.0
-    return float(MAD_TO_SIGMA * np.median(np.abs(x - np.median(x))))
+    """The scale estimate MAD_TO_SIGMA * median absolute deviation (Hampel 1974); 0 for no values."""
+    return median_and_sigma(x)[1]
 
 
 def lm_normal(normal_equations, x: np.ndarray, lower: np.ndarray | None = None, upper: np.ndarray | None = None,

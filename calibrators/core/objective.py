@@ -237,13 +237,29 @@ class ScalarObjective:
 
     def grams(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(J^T J, J^T W J)`` in one pass over the data (the two Gram matrices of ``normal_equations``)."""
-        p = self.n_params
-        plain, weighted = np.zeros((p, p)), np.zeros((p, p))
-        for rows in self._blocks():
-            _, jt, w = self._block(x, rows)
-            plain += jt @ jt.T
-            weighted += (jt / w) @ jt.T
+        _, plain, _, _, weighted, _ = self.one_pass(x, keep_jacobian=False)
         return plain, weighted
+
+    def one_pass(self, x: np.ndarray, keep_jacobian: bool
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray, np.ndarray | None]:
+        """At ``x``, in one pass over the data block by block: the residuals r (n,), ``J^T J``, ``J^T r``,
+        ``r^T r``, the Fisher information per unit noise variance ``J^T W J`` and, with ``keep_jacobian``,
+        the Jacobian J (n, p) (memory bounded but for r and that Jacobian)."""
+        x = np.array(x, dtype=float)
+        n, p = self._raw.shape[0], self.n_params
+        r = np.empty(n)
+        keep = np.empty((p, n)) if keep_jacobian else None
+        gram, fisher, grad, ss = np.zeros((p, p)), np.zeros((p, p)), np.zeros(p), 0.0
+        for rows in self._blocks():
+            rb, jt, w = self._block(x, rows)
+            r[rows] = rb
+            if keep is not None:
+                keep[:, rows] = jt
+            gram += jt @ jt.T
+            fisher += (jt / w) @ jt.T
+            grad += jt @ rb
+            ss += float(rb @ rb)
+        return r, gram, grad, ss, fisher, None if keep is None else keep.T
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
         """dF/dx of eq. 3: (2/N) J^T r."""
