@@ -96,6 +96,17 @@ def _lstsq_sse(x: np.ndarray, y: np.ndarray) -> float:
     return float(np.sum((y - x @ coef) ** 2))
 
 
+def _f_test_p(sse_small: float, sse_big: float, extra: int, dof: int) -> float:
+    """p-value of the F test that ``extra`` more columns (residual sum of squares ``sse_big`` with ``dof``
+    degrees of freedom left, against ``sse_small`` without them) explain nothing."""
+    from scipy.stats import f as f_dist
+
+    if dof <= 0 or sse_big <= 0:
+        return 1.0
+    stat = max(sse_small - sse_big, 0.0) / extra / (sse_big / dof)
+    return float(f_dist.sf(stat, extra, dof))
+
+
 def time_derivative(t_s: np.ndarray, x: np.ndarray) -> np.ndarray:
     """d x / d t along time order (central differences; x may be (n,) or (n, k))."""
     order = np.argsort(t_s, kind="stable")
@@ -496,18 +507,30 @@ class OffsetEffect(Effect):
 @register_effect
 @dataclass(frozen=True)
 class TemperatureEffect(Effect):
-    """Offset and scale drifting linearly with temperature, optionally through a first-order thermal lag
-    (time constant fitted when t is present): raw_j = o_j + o_T,j dT + (1 + k_T,j dT)(lin_j - o_j), dT the
-    lagged temperature minus its mean."""
+    """Offset, scale and alignment drifting linearly with temperature, optionally through a first-order
+    thermal lag (time constant fitted when t is present):
+    raw_j = o_j + o_T,j dT + (lin_j - o_j) + dT (k_T,j (lin_j - o_j) + sum_{i != j} a_T,ij (lin_i - o_i)),
+    dT the lagged temperature minus its mean, a_T symmetric.  The a_T are the temperature coefficients of the
+    angles between the axes (a fluxgate's cores and windings expand with their mounts, so the axes' mutual
+    angles, not only their gains, change with temperature); only the symmetric part shows in a magnitude, the
+    antisymmetric part being a rotation of the whole triad."""
 
     name: ClassVar[str] = "temperature"
     needs: ClassVar[tuple[str, ...]] = ("temp",)
     optional: ClassVar[tuple[str, ...]] = ("t",)
     fit_params: ClassVar[tuple[str, ...]] = ("oTx_nT_per_C", "oTy_nT_per_C", "oTz_nT_per_C",
-                                             "kTx_ppm_per_C", "kTy_ppm_per_C", "kTz_ppm_per_C")
+                                             "kTx_ppm_per_C", "kTy_ppm_per_C", "kTz_ppm_per_C",
+                                             "aTxy_urad_per_C", "aTxz_urad_per_C", "aTyz_urad_per_C")
+    AXIS_PAIRS: ClassVar[tuple[tuple[int, int], ...]] = ((0, 1), (0, 2), (1, 2))
+    """The axis pairs of the alignment coefficients a_T (x-y, x-z, y-z), in the order of ``fit_params``."""
     LAG_GRID_OF_SPAN: ClassVar[tuple[float, ...]] = (0.0, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
     """Thermal time constants tried, as shares of the record's time span (the best on the whole record)."""
     LAG_REFINE_ROWS: ClassVar[int] = 200_000
+    ALIGNMENT_P: ClassVar[float] = 1e-3
+    """The alignment coefficients a_T are fitted only when they explain the base residual beside the offset and
+    scale coefficients on the whole record (an F test of the three, at this level, in ``prepare``): a record
+    whose attitudes are a few held positions, visited each at one temperature, gives them no leverage, and
+    three free coefficients there only make the form extrapolate wildly to directions it did not see."""
     RAMP_RATE: ClassVar[float] = 3.0  # warm-up time constant: a third of the record
     RIPPLE_C: ClassVar[float] = 1.5
     RIPPLE_CYCLES: ClassVar[float] = 2.3
@@ -515,6 +538,7 @@ class TemperatureEffect(Effect):
     RANDOM_SCALE_PPM_PER_C: ClassVar[float] = 60.0
     offset_nT_per_C: tuple[float, float, float] = (3.0, -2.0, 2.5)
     scale_ppm_per_C: tuple[float, float, float] = (60.0, -40.0, 30.0)
+    alignment_urad_per_C: tuple[float, float, float] = (0.0, 0.0, 0.0)
     start_C: float = 10.0
     end_C: float = 35.0
     ref_C: float = 20.0
@@ -537,14 +561,23 @@ class TemperatureEffect(Effect):
             temp = first_order_lag(np.asarray(ctx["t_s"]), temp, self.time_constant_s)
         dt = (temp - self.ref_C)[:, None]
         o = np.asarray(ctx["offset_nT"])
-        return o + np.asarray(self.offset_nT_per_C) * dt + (1 + PPM * np.asarray(self.scale_ppm_per_C) * dt) * (lin - o)
+        mix = np.diag(np.asarray(self.scale_ppm_per_C, dtype=float))
+        for (i, j), a in zip(self.AXIS_PAIRS, self.alignment_urad_per_C):
+            mix[i, j] = mix[j, i] = a
+        return o + np.asarray(self.offset_nT_per_C) * dt + (lin - o) + PPM * dt * ((lin - o) @ mix.T)
 
     @classmethod
-    def _columns_for(cls, u0, dtemp):
-        g = np.zeros((len(u0), 3, 6))
+    def _columns_for(cls, u0, dtemp, alignment=True):
+        """G of the fitted form (offset, scale, alignment coefficients); the alignment columns zero (no
+        information: the fit leaves them at 0) when ``alignment`` is false."""
+        g = np.zeros((len(u0), 3, len(cls.fit_params)))
         for a in range(3):
             g[:, a, a] = dtemp
             g[:, a, 3 + a] = PPM * dtemp * u0[:, a]
+        if alignment:
+            for k, (i, j) in enumerate(cls.AXIS_PAIRS):
+                g[:, i, 6 + k] = PPM * dtemp * u0[:, j]
+                g[:, j, 6 + k] = PPM * dtemp * u0[:, i]
         return g
 
     @classmethod
@@ -553,7 +586,8 @@ class TemperatureEffect(Effect):
         beside the first-order freedom of the base correction) explain most of the base residual on the whole
         record, spikes left out: the best of LAG_GRID_OF_SPAN, refined between its neighbours by a bounded
         search on log(tau) (records up to LAG_REFINE_ROWS rows; a grid point alone leaves a remainder of
-        several noise sigmas when the true constant falls between two)."""
+        several noise sigmas when the true constant falls between two).  Then whether the alignment
+        coefficients are fitted (ALIGNMENT_P)."""
         keep = ~OutlierEffect.spike_mask(r_base)
         if spikes is not None:
             keep &= ~spikes
@@ -564,41 +598,71 @@ class TemperatureEffect(Effect):
         lin = [unit[keep, i] * u0[:, j] for i in range(3) for j in range(i + 1)] + [unit[keep, j] for j in range(3)]
         lin = np.column_stack([np.ones(len(u0))] + lin)
         r = r_base[keep]
-        cache: dict[float, tuple[float, np.ndarray]] = {}
+        # the alignment coefficients must explain what a static response to the attitude cannot (the per-axis
+        # response up to the fifth order: a quadratic form that changes with temperature is also a cubic one
+        # when the attitude and the temperature change together), nor a slow change in time of the field or of
+        # the offsets, nor a time shift of the axes (on a turntable its error is a quadratic form of the field
+        # that changes with the tilt, and so with the time and the temperature): a temperature that follows
+        # time would otherwise lend them whatever those leave
+        other = [unit[keep, a] * term[:, a] for term in NonlinearityEffect.basis(unit[keep]) for a in range(3)]
+        if timed:
+            slow = legendre.legvander(norm.tau(d.t_s[keep]), FieldDriftEffect.DEGREE)[:, 1:]
+            other += list(slow.T) + [unit[keep, a] * slow[:, j] for a in range(3) for j in range(OffsetDriftEffect.DEGREE)]
+            rate = central_derivative(d.t_s, d.raw_nT)[keep]
+            other += [unit[keep, a] * rate[:, a] for a in range(3)]
+        other_cols = np.column_stack(other)
 
-        def sse(share: float) -> float:
-            if share not in cache:
-                temp = first_order_lag(d.t_s, d.temp_C, share * span) if share > 0 else d.temp_C
-                x = np.einsum("na,nak->nk", unit[keep], cls._columns_for(u0, temp[keep] - norm.temp0_C))
-                cache[share] = (_lstsq_sse(np.column_stack([x, lin]), r), temp)
-            return cache[share][0]
+        def thermal_lag(k: int) -> tuple[float, np.ndarray]:
+            """The best share of the span and its lagged temperature, with the first k temperature columns."""
+            cache: dict[float, tuple[float, np.ndarray]] = {}
 
-        grid = list(cls.LAG_GRID_OF_SPAN) if timed else [0.0]
-        scores = [sse(g) for g in grid]
-        i = int(np.argmin(scores))
-        best = grid[i]
-        if timed and len(d) <= cls.LAG_REFINE_ROWS and len(grid) > 1:
-            from scipy.optimize import minimize_scalar
+            def sse(share: float) -> float:
+                if share not in cache:
+                    temp = first_order_lag(d.t_s, d.temp_C, share * span) if share > 0 else d.temp_C
+                    x = np.einsum("na,nak->nk", unit[keep], cls._columns_for(u0, temp[keep] - norm.temp0_C)[:, :, :k])
+                    cache[share] = (_lstsq_sse(np.column_stack([x, lin]), r), temp)
+                return cache[share][0]
 
-            lo = np.log(grid[i - 1] if i > 1 else grid[1] / 3.0)
-            hi = np.log(grid[i + 1] if i + 1 < len(grid) else grid[-1] * 3.0)
-            opt = minimize_scalar(lambda v: sse(float(np.exp(v))), bounds=(lo, hi), method="bounded",
-                                  options={"xatol": 0.02})
-            share = float(np.exp(opt.x))
-            if sse(share) < scores[i] * (1 - 1e-9):
-                best = share
-        d.extra["temp_eff_C"] = cache[best][1]
-        return {"thermal_time_constant_s": best * span}
+            grid = list(cls.LAG_GRID_OF_SPAN) if timed else [0.0]
+            scores = [sse(g) for g in grid]
+            i = int(np.argmin(scores))
+            best = grid[i]
+            if timed and len(d) <= cls.LAG_REFINE_ROWS and len(grid) > 1:
+                from scipy.optimize import minimize_scalar
+
+                lo = np.log(grid[i - 1] if i > 1 else grid[1] / 3.0)
+                hi = np.log(grid[i + 1] if i + 1 < len(grid) else grid[-1] * 3.0)
+                opt = minimize_scalar(lambda v: sse(float(np.exp(v))), bounds=(lo, hi), method="bounded",
+                                      options={"xatol": 0.02})
+                share = float(np.exp(opt.x))
+                if sse(share) < scores[i] * (1 - 1e-9):
+                    best = share
+            return best, cache[best][1]
+
+        best, temp = thermal_lag(6)  # offsets and scales
+        x = np.einsum("na,nak->nk", unit[keep], cls._columns_for(u0, temp[keep] - norm.temp0_C))
+        beside = np.column_stack([x[:, :6], other_cols, lin])
+        sse_without = _lstsq_sse(beside, r)
+        sse_with = _lstsq_sse(np.column_stack([x[:, 6:], beside]), r)
+        p_align = _f_test_p(sse_without, sse_with, 3, len(r) - 3 - beside.shape[1])
+        aligned = bool(p_align < cls.ALIGNMENT_P)
+        if aligned:  # the time constant again, with the alignment coefficients
+            best, temp = thermal_lag(len(cls.fit_params))
+        d.extra["temp_eff_C"] = temp
+        d.extra["temp_alignment_on"] = np.full(len(d), float(aligned))
+        return {"thermal_time_constant_s": best * span, "alignment_fitted": aligned, "alignment_p": p_align}
 
     @classmethod
     def fit_columns(cls, u0, d, norm):
         temp = d.extra.get("temp_eff_C", d.temp_C)
-        return cls._columns_for(u0, temp - norm.temp0_C), None
+        on = d.extra.get("temp_alignment_on")
+        return cls._columns_for(u0, temp - norm.temp0_C, alignment=on is None or bool(np.any(on))), None
 
     @classmethod
     def from_fit(cls, e, norm, info=None):
         tau = float((info or {}).get("thermal_time_constant_s", 0.0))
-        return cls(tuple(map(float, e[:3])), tuple(map(float, e[3:6])), ref_C=norm.temp0_C, time_constant_s=tau)
+        return cls(tuple(map(float, e[:3])), tuple(map(float, e[3:6])), tuple(map(float, e[6:9])), ref_C=norm.temp0_C,
+                   time_constant_s=tau)
 
 
 @register_effect
