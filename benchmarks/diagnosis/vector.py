@@ -323,6 +323,7 @@ class Diagnosis:
         spikes_ok = spike_signature(tangent.spikes, tangent.r, d.t_s, d.raw_nT, d.raw_nT)
         named, evidence = confirm(heldout, selected, floor, mde, bool(base_rem["remainder_significant"]),
                                   spikes_ok, slow, temp_r2)
+        confirmed = list(named)
         if any(s in BODY_DRIFTS for s in named):  # a switch is not a slow drift
             drift_res = np.nan_to_num(self.model_residuals(named))
             others = [s for s in named if s not in BODY_DRIFTS]
@@ -352,7 +353,13 @@ class Diagnosis:
                 rem["remainder_significant"] = True
             return rem
 
-        named = undominated(evidence, named, remainder_of)
+        # effects the tests confirmed, refused for their signature while their form still describes the structure
+        # (a time shift at random attitudes, a drift that is a switch or a temperature coefficient): not one whose
+        # gain comes from its second-order terms (the form does not describe the structure, rule 4)
+        rows = {row["name"]: row for row in evidence}
+        modelled = tuple(s for s in confirmed if s not in named and not EFFECTS[s].robust
+                         and rows[s].get("first_order_share", 1.0) >= LAG_SHIFT_SHARE)
+        named = undominated(evidence, named, remainder_of, modelled)
         if named != selected:
             current = heldout["random"](named)
         follows = temp_r2 is not None and temp_r2 >= TEMPERATURE_FOLLOWS_TIME_R2
