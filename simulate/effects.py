@@ -1,8 +1,8 @@
 """Effects that simple calibration models leave out: one class per effect, one registry (``EFFECTS``).
 
 Names follow CONTRACT section 3: ``scale``, ``offset`` (relative to the ``angles`` model),
-``temperature`` (offset and scale drifting with temperature, optionally through a first-order thermal
-lag), ``field_drift`` (the ambient field changing in time, unseen by the reference), ``nonlinearity``
+``temperature`` (offset, scale and the axes' alignment drifting with temperature, optionally through a
+first-order thermal lag), ``field_drift`` (the ambient field changing in time, unseen by the reference), ``nonlinearity``
 (per-axis quadratic and cubic response), ``outliers`` (sparse spikes, seed 003), ``offset_drift``
 (offsets changing slowly in time, independent of temperature) and ``lag`` (a time shift between each
 axis and the reference).  ``attitude_ripple`` is deliberately *outside* the library (``in_library =
