@@ -54,6 +54,8 @@ SPIKE_SIGMA = 5.0
 """A sample further than this many robust sigmas (MAD) from the median residual is a spike (seed 003)."""
 MIN_TEMPERATURE_SPAN_C = 1.0
 """Least temperature range (max - min) that makes a temperature effect identifiable."""
+CLIP_MIN_REPEATS = 3
+"""An axis is clipped when its largest (or smallest) reading occurs at least this many times exactly."""
 MIN_SPAN_S = 1e-9
 """Least time span used as a divisor (a record at one instant)."""
 FD_STEP = 1e-3
@@ -94,6 +96,19 @@ def _lstsq_sse(x: np.ndarray, y: np.ndarray) -> float:
     else:
         coef = np.linalg.lstsq(x, y, rcond=None)[0]
     return float(np.sum((y - x @ coef) ** 2))
+
+
+def clipped(raw_nT: np.ndarray) -> np.ndarray:
+    """Samples whose reading on some axis sits exactly at that axis's largest or smallest value, where that value
+    repeats at least CLIP_MIN_REPEATS times: an ADC or range limit (saturation)."""
+    out = np.zeros(len(raw_nT), dtype=bool)
+    for a in range(raw_nT.shape[1]):
+        col = raw_nT[:, a]
+        for edge in (col.max(), col.min()):
+            at = col == edge
+            if at.sum() >= CLIP_MIN_REPEATS:
+                out |= at
+    return out
 
 
 def _f_test_p(sse_small: float, sse_big: float, extra: int, dof: int) -> float:
@@ -592,6 +607,10 @@ class TemperatureEffect(Effect):
         if spikes is not None:
             keep &= ~spikes
         timed = d.t_s is not None and np.ptp(d.t_s) > 0
+        # the alignment test leaves out readings at an axis's range limit as well: a clipped reading says nothing of
+        # the sensor's response, and on a turntable the clipping comes and goes with the tilt (so with the time and
+        # the temperature), which changing alignment coefficients would fit
+        unclipped = ~clipped(d.raw_nT[keep])
         span = float(np.ptp(d.t_s)) if timed else 0.0
         u0 = unit[keep] * norm.f0_nT
         # the freedom of a 9-parameter correction, to first order: b_i u_j (i >= j) and b_j
@@ -641,10 +660,10 @@ class TemperatureEffect(Effect):
 
         best, temp = thermal_lag(6)  # offsets and scales
         x = np.einsum("na,nak->nk", unit[keep], cls._columns_for(u0, temp[keep] - norm.temp0_C))
-        beside = np.column_stack([x[:, :6], other_cols, lin])
-        sse_without = _lstsq_sse(beside, r)
-        sse_with = _lstsq_sse(np.column_stack([x[:, 6:], beside]), r)
-        p_align = _f_test_p(sse_without, sse_with, 3, len(r) - 3 - beside.shape[1])
+        beside = np.column_stack([x[:, :6], other_cols, lin])[unclipped]
+        sse_without = _lstsq_sse(beside, r[unclipped])
+        sse_with = _lstsq_sse(np.column_stack([x[unclipped, 6:], beside]), r[unclipped])
+        p_align = _f_test_p(sse_without, sse_with, 3, int(unclipped.sum()) - 3 - beside.shape[1])
         aligned = bool(p_align < cls.ALIGNMENT_P)
         if aligned:  # the time constant again, with the alignment coefficients
             best, temp = thermal_lag(len(cls.fit_params))

@@ -63,7 +63,7 @@ import numpy as np
 from numpy.polynomial import legendre
 from scipy.stats import kstest, norm
 
-from magbench.simulate.effects import EFFECTS
+from magbench.simulate.effects import CLIP_MIN_REPEATS, EFFECTS, clipped  # noqa: F401  (clipped: re-exported)
 
 from .scoring import paired_z, rms
 
@@ -211,23 +211,8 @@ random attitudes, gives 1.4 and more."""
 GAUSSIAN_Q90_OVER_Q50 = 2.4387
 
 
-CLIP_MIN_REPEATS = 3
-"""An axis is clipped when its largest (or smallest) reading occurs at least this many times exactly."""
 CLIPPED_SHARE_MAX = 0.5
 """Spikes are not outliers when more than this share of them are clipped readings (saturation)."""
-
-
-def clipped(raw_nT: np.ndarray) -> np.ndarray:
-    """Samples whose reading on some axis sits exactly at that axis's largest or smallest value, where that value
-    repeats at least CLIP_MIN_REPEATS times: an ADC or range limit (saturation)."""
-    out = np.zeros(len(raw_nT), dtype=bool)
-    for a in range(raw_nT.shape[1]):
-        col = raw_nT[:, a]
-        for edge in (col.max(), col.min()):
-            at = col == edge
-            if at.sum() >= CLIP_MIN_REPEATS:
-                out |= at
-    return out
 
 
 def clipped_share(spikes: np.ndarray, raw_nT: np.ndarray) -> float:
