@@ -45,7 +45,7 @@ import numpy as np
 from numpy.polynomial import legendre
 
 from magbench.errors import InputError
-from magbench.numerics import MAD_TO_SIGMA, robust_sigma  # noqa: F401  (re-exported for the diagnosis)
+from magbench.numerics import MAD_TO_SIGMA, robust_sigma, systematic_rows  # noqa: F401  (re-exported)
 
 from .field import ConstantField, VaryingField
 
@@ -542,6 +542,9 @@ class TemperatureEffect(Effect):
     """Thermal time constants tried, as shares of the record's time span (the best on the whole record)."""
     LAG_REFINE_ROWS: ClassVar[int] = 200_000
     ALIGNMENT_P: ClassVar[float] = 1e-3
+    ALIGNMENT_ROWS: ClassVar[int] = 50_000
+    """The alignment test uses a systematic sample of at most this many rows (at this size a coefficient that
+    matters is far beyond the level)."""
     """The alignment coefficients a_T are fitted only when they explain the base residual beside the offset and
     scale coefficients on the whole record (an F test of the three, at this level, in ``prepare``): a record
     whose attitudes are a few held positions, visited each at one temperature, gives them no leverage, and
@@ -607,30 +610,12 @@ class TemperatureEffect(Effect):
         if spikes is not None:
             keep &= ~spikes
         timed = d.t_s is not None and np.ptp(d.t_s) > 0
-        # the alignment test leaves out readings at an axis's range limit as well: a clipped reading says nothing of
-        # the sensor's response, and on a turntable the clipping comes and goes with the tilt (so with the time and
-        # the temperature), which changing alignment coefficients would fit
-        unclipped = ~clipped(d.raw_nT[keep])
         span = float(np.ptp(d.t_s)) if timed else 0.0
         u0 = unit[keep] * norm.f0_nT
         # the freedom of a 9-parameter correction, to first order: b_i u_j (i >= j) and b_j
         lin = [unit[keep, i] * u0[:, j] for i in range(3) for j in range(i + 1)] + [unit[keep, j] for j in range(3)]
         lin = np.column_stack([np.ones(len(u0))] + lin)
         r = r_base[keep]
-        # the alignment coefficients must explain what a static response to the attitude cannot (the per-axis
-        # response up to the fifth order: a quadratic form that changes with temperature is also a cubic one
-        # when the attitude and the temperature change together), nor a slow change in time of the field or of
-        # the offsets, nor a time shift of the axes (on a turntable its error is a quadratic form of the field
-        # that changes with the tilt, and so with the time and the temperature): a temperature that follows
-        # time would otherwise lend them whatever those leave
-        other = [unit[keep, a] * term[:, a] for term in NonlinearityEffect.basis(unit[keep]) for a in range(3)]
-        if timed:
-            slow = legendre.legvander(norm.tau(d.t_s[keep]), FieldDriftEffect.DEGREE)[:, 1:]
-            other += list(slow.T) + [unit[keep, a] * slow[:, j] for a in range(3) for j in range(OffsetDriftEffect.DEGREE)]
-            rate = central_derivative(d.t_s, d.raw_nT)[keep]
-            other += [unit[keep, a] * rate[:, a] for a in range(3)]
-        other_cols = np.column_stack(other)
-
         def thermal_lag(k: int) -> tuple[float, np.ndarray]:
             """The best share of the span and its lagged temperature, with the first k temperature columns."""
             cache: dict[float, tuple[float, np.ndarray]] = {}
@@ -659,17 +644,40 @@ class TemperatureEffect(Effect):
             return best, cache[best][1]
 
         best, temp = thermal_lag(6)  # offsets and scales
-        x = np.einsum("na,nak->nk", unit[keep], cls._columns_for(u0, temp[keep] - norm.temp0_C))
-        beside = np.column_stack([x[:, :6], other_cols, lin])[unclipped]
-        sse_without = _lstsq_sse(beside, r[unclipped])
-        sse_with = _lstsq_sse(np.column_stack([x[unclipped, 6:], beside]), r[unclipped])
-        p_align = _f_test_p(sse_without, sse_with, 3, int(unclipped.sum()) - 3 - beside.shape[1])
+        p_align = cls._alignment_p(d, norm, unit, r_base, keep, temp, lin)
         aligned = bool(p_align < cls.ALIGNMENT_P)
         if aligned:  # the time constant again, with the alignment coefficients
             best, temp = thermal_lag(len(cls.fit_params))
         d.extra["temp_eff_C"] = temp
         d.extra["temp_alignment_on"] = np.full(len(d), float(aligned))
         return {"thermal_time_constant_s": best * span, "alignment_fitted": aligned, "alignment_p": p_align}
+
+    @classmethod
+    def _alignment_p(cls, d, norm, unit, r_base, keep, temp, lin) -> float:
+        """p-value of the F test of the alignment coefficients (ALIGNMENT_P) on the rows ``keep`` (a systematic
+        sample of at most ALIGNMENT_ROWS of them), the temperature ``temp`` (lagged) and the base freedom ``lin``.
+        The coefficients must explain what a static response to the attitude cannot (the per-axis response up to
+        the fifth order: a quadratic form that changes with temperature is also a cubic one when the attitude
+        and the temperature change together), nor a slow change in time of the field or of the offsets, nor a
+        time shift of the axes (on a turntable its error is a quadratic form of the field that changes with the
+        tilt, and so with the time and the temperature): a temperature that follows time would otherwise lend
+        them whatever those leave.  Readings at an axis's range limit are left out: a clipped reading says
+        nothing of the sensor's response, and on a turntable the clipping comes and goes with the tilt."""
+        rows = np.flatnonzero(keep)
+        sub = np.flatnonzero(~clipped(d.raw_nT[rows]))
+        sub = sub[systematic_rows(len(sub), cls.ALIGNMENT_ROWS)]
+        rows = rows[sub]
+        b = unit[rows]
+        cols = [np.einsum("na,nak->nk", b, cls._columns_for(b * norm.f0_nT, temp[rows] - norm.temp0_C)), lin[sub]]
+        cols += [b[:, a:a + 1] * term[:, a:a + 1] for term in NonlinearityEffect.basis(b) for a in range(3)]
+        if d.t_s is not None and np.ptp(d.t_s) > 0:
+            slow = legendre.legvander(norm.tau(d.t_s[rows]), FieldDriftEffect.DEGREE)[:, 1:]
+            rate = central_derivative(d.t_s, d.raw_nT)[rows]
+            cols += [slow, b[:, :, None] * slow[:, None, :OffsetDriftEffect.DEGREE]] + [b * rate]
+        x = np.column_stack([c.reshape(len(rows), -1) for c in cols])
+        sse_without = _lstsq_sse(np.delete(x, [6, 7, 8], axis=1), r_base[rows])  # without the alignment columns
+        sse_with = _lstsq_sse(x, r_base[rows])
+        return _f_test_p(sse_without, sse_with, 3, len(rows) - x.shape[1])
 
     @classmethod
     def fit_columns(cls, u0, d, norm):
