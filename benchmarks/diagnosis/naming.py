@@ -441,7 +441,7 @@ def undominated(evidence: list[dict], named: list[str], remainder_of, modelled: 
     dict of ``scoring.remainder``), the named effect that removes least is dropped when it removes less than
     DOMINANCE times the remainder; its evidence row says why.  Spikes keep their count test.  ``modelled``:
     effects that passed the held-out tests but are not named for their signature (a time shift at random
-    attitudes, a drift that is a switch): the structure they fit is not unmodelled, the other effects' own
+    attitudes, a drift folded into a temperature coefficient): the structure they fit is not unmodelled, the other effects' own
     contributions were measured beside them, so the remainder is taken with them fitted (it stays unexplained
     in the verdict)."""
     rows = {row["name"]: row for row in evidence}

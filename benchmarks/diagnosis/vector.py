@@ -357,10 +357,11 @@ class Diagnosis:
             return rem
 
         # effects the tests confirmed, refused for their signature while their form still describes the structure
-        # (a time shift at random attitudes, a drift that is a switch or a temperature coefficient): not one whose
-        # gain comes from its second-order terms (the form does not describe the structure, rule 4)
+        # (a time shift at random attitudes, a drift folded into a temperature coefficient): not one whose gain
+        # comes from its second-order terms (the form does not describe the structure, rule 4), nor a drift that a
+        # single step explains as well (a switch: structure outside the library, the very thing rule 5 guards)
         rows = {row["name"]: row for row in evidence}
-        modelled = tuple(s for s in confirmed if s not in named and not EFFECTS[s].robust
+        modelled = tuple(s for s in confirmed if s not in named and not EFFECTS[s].robust and "step" not in rows[s]
                          and rows[s].get("first_order_share", 1.0) >= LAG_SHIFT_SHARE)
         named = undominated(evidence, named, remainder_of, modelled)
         if named != selected:
