@@ -107,14 +107,3 @@ def test_temperature_beside_a_structure_a_refused_time_shift_fits_is_named_with_
     lag = next(r for r in result["naming"]["evidence"] if r["name"] == "lag")
     assert not lag["named"] and "roughness" in lag
     assert result["verdict"] == "temperature+unexplained"
-
-
-@pytest.mark.parametrize("index", [433, 1150])  # offsets and gains that follow temperature, 12 held attitudes
-def test_a_temperature_effect_in_held_attitudes_is_named_on_its_gain_within_the_holds(index):
-    """The attitude-blocked folds leave whole holds out, and the base correction cannot extrapolate to them; the
-    temperature effect is named on the random and time-blocked folds and its gain within the holds."""
-    result, case = run_case(index)
-    assert case.present == ("temperature",) and case.schedule == "steps"
-    row = next(r for r in result["naming"]["evidence"] if r["name"] == "temperature")
-    assert row["failed_families"] == ["attitude-blocked"] and row["named"] and row["within_holds_z"] > 3.0
-    assert result["verdict"] == "temperature"

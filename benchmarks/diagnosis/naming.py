@@ -32,9 +32,7 @@ An effect is therefore *named* only when all of these hold:
    (BULK_RATIO_MAX).
    In a record of held attitudes (the sensor set down in a few positions, each held for a while), a time
    effect must lower the residual *within* the holds: between them, each attitude was seen at one time
-   only, and a drift in time cannot be told from structure that depends on the attitude.  There a temperature
-   effect that fails only the attitude-blocked folds (they leave whole holds out, and the base correction
-   fitted on the few directions left cannot extrapolate to the others) is named on that gain within the holds.
+   only, and a drift in time cannot be told from structure that depends on the attitude.
 5. **Not a by-product of a larger unexplained structure.**  When a significant remainder is left, every
    named effect must remove at least as much as is left (its own held-out contribution at least the
    remainder's RMS above the floor): a flexible basis fits part of any structure it is offered, and a
@@ -319,7 +317,7 @@ def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: flo
         if not base_significant:
             row["named"], row["why"] = False, "the base residual is not significantly above the noise floor"
         elif failed:
-            row["named"], row["failed_families"] = False, failed
+            row["named"] = False
             row["why"] = ("no significant held-out gain (Holm, family-wise "
                           f"{FAMILY_ALPHA:g}) on the {', '.join(failed)} folds")
         elif own < mde:

@@ -46,7 +46,6 @@ from .naming import (
     TEMPERATURE_FOLLOWS_TIME_R2,
     TEMPERATURE_SMOOTH_DEGREE,
     TIME_EFFECTS,
-    TIME_PREDICTS_ATTITUDE_R2,
     _is_thermal,
     attitude_blocks,
     attitude_confounds,
@@ -324,8 +323,6 @@ class Diagnosis:
         spikes_ok = spike_signature(tangent.spikes, tangent.r, d.t_s, d.raw_nT, d.raw_nT)
         named, evidence = confirm(heldout, selected, floor, mde, bool(base_rem["remainder_significant"]),
                                   spikes_ok, slow, temp_r2)
-        named = self._held_thermal(evidence, named, selected, heldout["random"], mde,
-                                   bool(base_rem["remainder_significant"]), slow, temp_r2)
         confirmed = list(named)
         if any(s in BODY_DRIFTS for s in named):  # a switch is not a slow drift
             drift_res = np.nan_to_num(self.model_residuals(named))
@@ -446,35 +443,6 @@ class Diagnosis:
             x = model.fit(self.tangent.x, free, blocks=blocks)
             out.append(np.concatenate([model.residual_jacobian(x, sl, cols)[0] for sl, cols in blocks]))
         return float(paired_z(out[1], out[0]))
-
-    def _held_thermal(self, evidence: list[dict], named: list[str], selected: list[str], heldout, mde: float,
-                      base_significant: bool, slow: float | None, temp_r2: float | None) -> list[str]:
-        """In a record of held attitudes (``holds``), a temperature effect that failed only the attitude-blocked
-        folds is named when it lowers the residual within the holds (HOLD_Z; the test rule 4 asks of every time
-        effect there).  An attitude-blocked fold leaves out whole holds: the base correction, fitted on the few
-        directions left, must then extrapolate to directions it never saw, at temperatures it never saw, and
-        that fails whatever the effect; within a hold the attitude is fixed, so what changes there with the
-        temperature is not attitude structure."""
-        label = holds(self.columns.t_s, self.unit)
-        if label is None or not base_significant:
-            return named
-        slow_conf = slow is not None and slow >= TIME_PREDICTS_ATTITUDE_R2 and temp_r2 is not None \
-            and temp_r2 >= TEMPERATURE_FOLLOWS_TIME_R2
-        for row in evidence:
-            name = row["name"]
-            if name in named or not _is_thermal(name) or row.get("failed_families") != ["attitude-blocked"] or slow_conf:
-                continue
-            if min(v["own_rms_nT"] for f, v in row["families"].items() if f != "attitude-blocked") < mde:
-                continue
-            z = within_holds_z(heldout([s for s in selected if s != name]), heldout(selected), label)
-            row["within_holds_z"] = z
-            if z >= HOLD_Z:
-                row["named"] = True
-                row["why"] = (f"significant on random and time-blocked folds; the attitudes were held ({int(label.max()) + 1} "
-                              f"holds), where attitude-blocked folds leave whole holds out, and it lowers the residual within "
-                              f"them by {z:.1f} standard errors")
-                named = [s for s in selected if s in named or s == name]
-        return named
 
     def _within_holds(self, evidence: list[dict], named: list[str], heldout) -> list[str]:
         """Rule 4 for time effects in a record of held attitudes: named only when they lower the held-out
