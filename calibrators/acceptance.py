@@ -26,7 +26,7 @@ checked before the fit (``reference_problems``): it is bad input, refused with e
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -369,14 +369,22 @@ class StepFit:
     """The best single step of a residual in time order (``best_step``): where, how much of the residual it
     explains beyond the whole-record directions (``gain``), what those directions explain (``base``), the
     residual's sum of squares (``total``) and the step's size (``jump``: the offsets' jump in nT, or the
-    residual's)."""
+    residual's; solved when asked, from the best split's system ``system`` and the columns' ``column_scale``:
+    most checks only ask whether the step dominates)."""
 
     index: int
     gain: float
     base: float
     total: float
-    jump: np.ndarray
     offsets: bool
+    system: tuple[np.ndarray, np.ndarray] = field(repr=False, compare=False)
+    column_scale: np.ndarray = field(repr=False, compare=False)
+
+    @property
+    def jump(self) -> np.ndarray:
+        matrix, rhs = self.system
+        with np.errstate(all="ignore"):
+            return np.linalg.solve(matrix, rhs) / self.column_scale
 
 
 def _sums_after(t: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -470,10 +478,9 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
         gain = _quadratic_forms(schur, ridge, c)
     gain = np.where(np.isfinite(gain), gain, -np.inf)
     best = int(np.argmax(gain))
-    with np.errstate(all="ignore"):
-        coef = np.linalg.solve(schur[best] + ridge[best] * np.eye(q), c[best])
     return StepFit(index=int(edges[best]), gain=float(gain[best]), base=base, total=float(ro @ ro),
-                   jump=coef / scale[tail], offsets=bool(offsets))
+                   offsets=bool(offsets), system=(schur[best] + ridge[best] * np.eye(q), c[best].copy()),
+                   column_scale=scale[tail])
 
 
 def _quadratic_forms(s: np.ndarray, ridge: np.ndarray, c: np.ndarray) -> np.ndarray:
