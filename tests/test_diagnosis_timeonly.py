@@ -166,3 +166,34 @@ def test_a_field_change_the_reference_follows_is_not_a_drift():
     assert follows["verdict"] == "insufficient_data", follows["time_only"]["drift_direction"]
     constant = diagnose(Dataset(raw, f_ref_nT=np.full(n, F), t_s=t))
     assert constant["verdict"] == "field_drift", constant["time_only"]["drift_direction"]
+
+
+def test_two_wandering_series_do_not_make_a_temperature_effect():
+    """A temperature that wanders over tens of minutes and a sensor whose zero wanders in the same band under white
+    noise (1/f-like: a small lag-1 correlation, a long memory) correlate by chance; judged on their common memory
+    (Bartlett's effective samples) the temperature's z stays a standard normal's, so no temperature is named
+    (an AR(1) allowance from the lag-1 correlation gave z up to 6 on these seeds); control: the same temperature
+    driving the readings is named every time."""
+    n, F = 1500, 50000.0
+    t = np.linspace(0.0, 6 * 3600.0, n)
+    b = np.array([0.6, 0.0, 0.8])
+    freq = np.fft.rfftfreq(n, t[1] - t[0])
+
+    def band(rng):  # periods of 10 to 60 minutes
+        spec = np.fft.rfft(rng.standard_normal(n))
+        spec[(freq < 1 / 3600) | (freq > 1 / 600)] = 0
+        x = np.fft.irfft(spec, n)
+        return x / x.std()
+
+    null, driven = [], []
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        temp = 20 + 3 * t / t[-1] + 0.4 * band(rng)
+        wander = band(rng)
+        for drive, out in ((0.0, null), (2.0, driven)):
+            change = wander if drive == 0.0 else drive * (temp - temp.mean())
+            raw = F * b + change[:, None] * b + rng.normal(0, 1.5, (n, 3))
+            out.append(diagnose(Dataset(raw, f_ref_nT=np.full(n, F), t_s=t, temp_C=temp))["time_only"]["temperature"])
+    assert not any(c["named"] for c in null) and sum(c["beyond_smooth_time_z"] > 3 for c in null) <= 1, \
+        [round(c["beyond_smooth_time_z"], 1) for c in null]
+    assert all(c["named"] for c in driven)

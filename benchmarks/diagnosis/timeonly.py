@@ -81,6 +81,28 @@ def _effective_n(resid: np.ndarray) -> float:
     return max(n * (1 - rho) / (1 + rho), 2.0)
 
 
+def _autocorrelation(x: np.ndarray, lags: int) -> np.ndarray:
+    """The sample autocorrelation of ``x`` at lags 1..``lags`` (in sample order), by FFT."""
+    x = x - x.mean()
+    n = len(x)
+    spec = np.fft.rfft(x, 2 * n)
+    acov = np.fft.irfft(spec * np.conj(spec), 2 * n)[:lags + 1]
+    return acov[1:] / acov[0] if acov[0] > 0 else np.zeros(lags)
+
+
+def _bartlett_n(resid: np.ndarray, regressor: np.ndarray) -> float:
+    """Samples worth of independent information in the regression of an autocorrelated residual on an
+    autocorrelated regressor (Bartlett 1935): ``n / (1 + 2 sum_k rho_r(k) rho_x(k))`` over the lags up to a
+    quarter of the record.  Two slowly wandering series (a weather temperature and 1/f sensor noise) correlate
+    by chance far beyond an AR(1) residual's allowance; this counts their common memory."""
+    n = len(resid)
+    if n < 8 or np.var(resid) == 0 or np.var(regressor) == 0:
+        return float(n)
+    lags = n // 4
+    total = float(np.sum(_autocorrelation(resid, lags) * _autocorrelation(regressor, lags)))
+    return float(min(max(n / max(1.0 + 2.0 * total, 1e-9), 2.0), n))
+
+
 def _linear(design: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Least squares with standard errors inflated for autocorrelation: (coef, se, residual)."""
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
@@ -133,13 +155,22 @@ def time_only(data: Dataset, reason: str) -> dict:
             "significant": bool(abs(tcoef[2]) > DRIFT_Z * tse[2])}
         if trend_design is not None and n > 3 * TREND_DEGREE:  # beyond any smooth function of time: its own signature
             sdesign = np.column_stack([trend_design, temp - temp.mean()])
-            scoef, sse, _ = _linear(sdesign[keep], r[keep])
-            z = float(abs(scoef[-1]) / sse[-1]) if sse[-1] > 0 else 0.0
+            scoef, sse, sres = _linear(sdesign[keep], r[keep])
+            # the temperature's own changes (what the smooth trend leaves of it) against the residual: their common
+            # memory, not the residual's alone, sets how far they can correlate by chance
+            # (under the null: the residual of the smooth trend alone, not the one the temperature was fitted into)
+            td, rk, tk = trend_design[keep], r[keep], temp[keep] - temp[keep].mean()
+            t_own = tk - td @ np.linalg.lstsq(td, tk, rcond=None)[0]
+            bartlett = _bartlett_n(rk - td @ np.linalg.lstsq(td, rk, rcond=None)[0], t_own)
+            se_t = float(sse[-1]) * np.sqrt(max(_effective_n(sres) / bartlett, 1.0))
+            z = float(abs(scoef[-1]) / se_t) if se_t > 0 else 0.0
             out["time_only"]["temperature"].update({
                 "beyond_smooth_time_nT_per_C": float(scoef[-1]), "beyond_smooth_time_z": z,
+                "beyond_smooth_time_effective_n": bartlett,
                 "named": bool(z > TEMPERATURE_NAME_Z),
                 "named_rule": f"the coefficient with a degree-{TREND_DEGREE} polynomial of time fitted beside it, beyond "
-                              f"{TEMPERATURE_NAME_Z:g} standard errors (inflated for autocorrelation): |B| - F follows the "
+                              f"{TEMPERATURE_NAME_Z:g} standard errors (inflated for the residual's and the temperature's "
+                              "common autocorrelation, Bartlett's effective samples): |B| - F follows the "
                               "logged temperature's own changes, not only the time they share"})
     named = [name for name, part in (("drift", drift), ("temperature", out["time_only"].get("temperature", {})))
              if part.get("significant")]
