@@ -34,7 +34,7 @@ from magbench.simulate.dataset import Dataset
 from magbench.simulate.effects import EFFECTS, SPIKE_SIGMA, Columns, Normalization, OutlierEffect, robust_sigma
 from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
-from .floor import MOTION_Z, model_floor, vector_floor
+from .floor import MOTION_Z, attitude_floor, model_floor, vector_floor
 from .localize import folds, localize, tails
 from .model import BASE_FREE, ExtendedModel, Tangent
 from .naming import (
@@ -494,7 +494,12 @@ class Diagnosis:
         d = self.columns
         if x is None or d.t_s is None or np.ptp(d.t_s) <= 0:
             return fl
-        return model_floor(fl, model.residuals(x), d.t_s, d.raw_nT, n_free, spikes)
+        r_model = model.residuals(x)
+        fl = model_floor(fl, r_model, d.t_s, d.raw_nT, n_free, spikes)
+        rough = roughness(d.t_s, d.raw_nT)
+        if rough is not None and rough > ROUGHNESS_MAX:  # random attitudes: attitude neighbours, not time ones
+            fl = attitude_floor(fl, r_model, self.unit, self.gravity, n_free, spikes)
+        return fl
 
     @staticmethod
     def _spikes(model: ExtendedModel, x_lin: np.ndarray, every: list[str]) -> tuple[np.ndarray, np.ndarray | None, int]:
