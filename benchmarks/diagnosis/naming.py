@@ -35,8 +35,9 @@ An effect is therefore *named* only when all of these hold:
    only, and a drift in time cannot be told from structure that depends on the attitude.
 5. **Not a by-product of a larger unexplained structure.**  When a significant remainder is left, every
    named effect must remove at least as much as is left (its own held-out contribution at least the
-   remainder's RMS above the floor): a flexible basis fits part of any structure it is offered, and a
-   name that explains less than what stays unexplained is more likely that part than a cause.  Spikes refused as
+   remainder's RMS above the floor; a time shift twice that, DOMINANCE_SHIFT): a flexible basis fits part of any
+   structure it is offered, and a name that explains less than what stays unexplained is more likely that part
+   than a cause.  Spikes refused as
    structure (below) make the remainder significant for this rule however heavy-tailed it is: the other names
    were selected with those peaks masked, and must remove at least what the peaks leave once unmasked.
 
@@ -83,6 +84,14 @@ LAG_SHIFT_SHARE = 0.5
 DOMINANCE = 1.0
 """Beside a significant remainder, a named effect's own held-out contribution must be at least this multiple
 of the remainder's RMS above the floor."""
+DOMINANCE_SHIFT = 2.0
+"""... and for a time shift (``shift_terms``) this multiple.  Its form is the first two terms of the Taylor series of
+a reading shifted by a sample or less, which converges fast: such a shift leaves only the readings' interpolation
+error, a fraction of what it removes.  A remainder more than half its own contribution means the series does not
+converge, i.e. the readings depend on their past over many samples (a field induced with a lag, a low-pass
+response), which the shift's terms fit in part (on the independent blind records, an axis read late left at most
+about half its contribution as a remainder, even on irregular sampling; an induced field lagging by many samples
+left 55 to 90 %)."""
 SPIKE_TIMES_ALPHA = FAMILY_ALPHA
 """Level of the test that spike times are spread over the record like the samples (Kolmogorov-Smirnov)."""
 HOLD_ANGLE_RAD = 0.005
@@ -449,6 +458,10 @@ def own_rms(row: dict) -> float:
     return min(v["own_rms_nT"] for v in row["families"].values())
 
 
+def _dominance(name: str) -> float:
+    return DOMINANCE_SHIFT if getattr(EFFECTS[name], "shift_terms", None) else DOMINANCE
+
+
 def undominated(evidence: list[dict], named: list[str], remainder_of) -> list[str]:
     """Rule 5 of the module docstring: while a significant remainder is left (``remainder_of(names)``, the
     dict of ``scoring.remainder``), the named effect that removes least is dropped when it removes less than
@@ -460,14 +473,17 @@ def undominated(evidence: list[dict], named: list[str], remainder_of) -> list[st
         if not rem["remainder_significant"]:
             return named
         weak = [(own_rms(rows[nm]), nm) for nm in named if not EFFECTS[nm].robust and nm in rows
-                and own_rms(rows[nm]) < DOMINANCE * rem["remainder_nT"]]
+                and own_rms(rows[nm]) < _dominance(nm) * rem["remainder_nT"]]
         if not weak:
             return named
         own, name = min(weak)
         named.remove(name)
         rows[name]["named"] = False
-        rows[name]["why"] = (f"it removes {own:.3g} nT, less than the {rem['remainder_nT']:.3g} nT left unexplained beside it: "
-                             "more likely the part of an unmodelled structure that its form can fit than a cause")
+        left = rem["remainder_nT"]
+        factor = "" if _dominance(name) == 1.0 else f"{_dominance(name):g} times "
+        rows[name]["why"] = (f"it removes {own:.3g} nT, less than {factor}the {left:.3g} nT left "
+                             "unexplained beside it: more likely the part of an unmodelled structure that its form can fit "
+                             "than a cause")
 
 
 def fold_drift_into_temperature(evidence: list[dict], named: list[str], temp_r2: float | None) -> list[str]:
