@@ -373,7 +373,7 @@ class Diagnosis:
         temp_r2 = temperature_follows_time(d.t_s, d.temp_C)
         spikes_ok = spike_signature(tangent.spikes, tangent.r, d.t_s, d.raw_nT, d.raw_nT)
         named, evidence = confirm(heldout, selected, floor, mde, bool(base_rem["remainder_significant"]),
-                                  spikes_ok, slow, temp_r2)
+                                  spikes_ok, slow, temp_r2, hold_label=holds(d.t_s, self.unit))
         if any(s in BODY_DRIFTS for s in named):  # a switch is not a slow drift
             drift_res = np.nan_to_num(self.model_residuals(named))
             others = [s for s in named if s not in BODY_DRIFTS]
