@@ -245,6 +245,11 @@ def model_floor(fl: dict, r_model: np.ndarray, t_s: np.ndarray, raw_nT: np.ndarr
     return out
 
 
+ATTITUDE_FLOOR_ROWS = 50_000
+"""``attitude_floor`` reads a systematic sample of at most this many rows (its neighbours then a little farther
+apart, so the estimate stays an upper bound; the k-d tree of a million rows in six dimensions is not needed)."""
+
+
 def attitude_floor(fl: dict, r_model: np.ndarray, unit: np.ndarray, gravity: np.ndarray | None, n_free: int,
                    spikes: np.ndarray) -> dict:
     """The floor ``fl`` again from neighbours in attitude, for records whose consecutive attitudes are unrelated
@@ -265,14 +270,15 @@ def attitude_floor(fl: dict, r_model: np.ndarray, unit: np.ndarray, gravity: np.
     follows = abs(fl.get("floor_motion_z", 0.0)) > MOTION_Z or fl.get("floor_neighbour_z", 0.0) > MOTION_Z
     if follows or n - n_free < 10 * KNN_NEIGHBOURS:  # a reading mixed with its neighbours: no attitude fits it
         return fl
-    feats = [unit[keep]]
+    rows = np.flatnonzero(keep)[systematic_rows(n, ATTITUDE_FLOOR_ROWS)]
+    feats = [unit[rows]]
     if gravity is not None:
-        g = np.asarray(gravity, dtype=float)[keep]
+        g = np.asarray(gravity, dtype=float)[rows]
         norm_g = np.linalg.norm(g, axis=1, keepdims=True)
         if np.all(np.isfinite(g)) and np.all(norm_g > 0):
             feats.append(g / norm_g)
-    sigma = knn_floor(np.column_stack(feats), r_model[keep]) * float(np.sqrt(n / (n - n_free)))
-    se = _interval(sigma, int(INDEPENDENT_SHARE * n))[0]
+    sigma = knn_floor(np.column_stack(feats), r_model[rows]) * float(np.sqrt(n / (n - n_free)))
+    se = _interval(sigma, int(INDEPENDENT_SHARE * len(rows)))[0]
     out = dict(fl)
     out["floor_attitude_nT"] = float(sigma)
     if fl["noise_floor_nT"] - sigma <= LEAK_Z * np.hypot(fl["floor_se_nT"], se):
