@@ -26,7 +26,7 @@ checked before the fit (``reference_problems``): it is bad input, refused with e
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -369,14 +369,22 @@ class StepFit:
     """The best single step of a residual in time order (``best_step``): where, how much of the residual it
     explains beyond the whole-record directions (``gain``), what those directions explain (``base``), the
     residual's sum of squares (``total``) and the step's size (``jump``: the offsets' jump in nT, or the
-    residual's)."""
+    residual's; solved when asked, from the best split's system ``system`` and the columns' ``column_scale``:
+    most checks only ask whether the step dominates)."""
 
     index: int
     gain: float
     base: float
     total: float
-    jump: np.ndarray
     offsets: bool
+    system: tuple[np.ndarray, np.ndarray] = field(repr=False, compare=False)
+    column_scale: np.ndarray = field(repr=False, compare=False)
+
+    @property
+    def jump(self) -> np.ndarray:
+        matrix, rhs = self.system
+        with np.errstate(all="ignore"):
+            return np.linalg.solve(matrix, rhs) / self.column_scale
 
 
 def _sums_after(t: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -387,9 +395,12 @@ def _sums_after(t: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
     n, q = t.shape
     width = w.shape[1]
     if n * q * width <= 4_000_000:
-        prod = t[:, :, None] * w[:, None, :]
+        prod = (t[:, :, None] * w[:, None, :]).reshape(n, q * width)  # 2-D: the running sum runs along rows
         np.cumsum(prod, axis=0, out=prod)
-        return prod[-1] - prod[edges - 1]
+        m = len(edges)
+        consecutive = m and edges[-1] - edges[0] == m - 1  # a short record's every row: a slice, not a gather
+        before = prod[edges[0] - 1:edges[-1]] if consecutive else prod[edges - 1]
+        return (prod[-1] - before).reshape(m, q, width)
     bounds = np.concatenate([edges, [n]])
     sums = np.empty((len(edges), q, width))
     for j in range(len(edges)):
@@ -454,20 +465,22 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
         base = float(g @ g)
         t = full[:, tail] / scale[tail]
         pz = z.shape[1]
-        after = _sums_after(t, np.column_stack([z, t, ro - z @ g]), edges)  # (m, q, p' + q + 1)
-        e_t = np.ascontiguousarray(after[:, :, :pz])  # E_k^T
-        schur = after[:, :, pz:pz + q] - e_t @ np.ascontiguousarray(e_t.transpose(0, 2, 1))
+        w = np.empty((n, pz + q + 1))
+        w[:, :pz], w[:, pz:pz + q] = z, t
+        np.subtract(ro, z @ g, out=w[:, -1])
+        after = _sums_after(t, w, edges)  # (m, q, p' + q + 1)
+        e_t = after[:, :, :pz]  # E_k^T
+        schur = after[:, :, pz:pz + q] - np.matmul(e_t, e_t.transpose(0, 2, 1))
         c = after[:, :, -1]
         # each q x q system with a relative ridge of 1e-10 (a split whose step columns lie in the record's
         # span has S ~ 0 and c ~ 0 there, so that direction adds nothing)
-        ridge = 1e-10 * np.einsum("mii->m", schur) / q + 1e-300
+        ridge = 1e-10 * np.trace(schur, axis1=1, axis2=2) / q + 1e-300
         gain = _quadratic_forms(schur, ridge, c)
     gain = np.where(np.isfinite(gain), gain, -np.inf)
     best = int(np.argmax(gain))
-    with np.errstate(all="ignore"):
-        coef = np.linalg.solve(schur[best] + ridge[best] * np.eye(q), c[best])
     return StepFit(index=int(edges[best]), gain=float(gain[best]), base=base, total=float(ro @ ro),
-                   jump=coef / scale[tail], offsets=bool(offsets))
+                   offsets=bool(offsets), system=(schur[best] + ridge[best] * np.eye(q), c[best].copy()),
+                   column_scale=scale[tail])
 
 
 def _quadratic_forms(s: np.ndarray, ridge: np.ndarray, c: np.ndarray) -> np.ndarray:

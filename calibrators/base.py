@@ -351,23 +351,27 @@ class Calibrator(metaclass=_Sealed):
         MATLAB magcal's ``expmfs``; the overall gain then stays relative, see ``calibrators/inputs.py``),
         else the data's own (a Dataset's ``f_ref_nT``, a DataFrame's ``f_ref`` column).  With the model
         ``auto`` the candidate models are compared first (``calibrators/modelselect.py``)."""
-        self.check_param_values(self.get_params())
+        params = self.get_params()
+        self.check_param_values(params)
         dataset = as_dataset(data, f_ref_nT=f_ref_nT, field=field, units=units, model=self.model)
         if self.model == "auto":
             if not MODEL_CHOOSER:
                 raise InputError("model auto needs magbench.calibrators.modelselect, which installs the chooser")
             return MODEL_CHOOSER[0](self, dataset)
-        return self._fit_dataset(dataset)
+        return self._fit_dataset(dataset, params)
 
-    def _fit_dataset(self, dataset: Dataset) -> CalibrationResult:
+    def _fit_dataset(self, dataset: Dataset, params: dict | None = None) -> CalibrationResult:
         warnings = self.validate(dataset)
+        known = _DatasetCache.again(dataset)
+        field_nT = known.get("field_nT", lambda: median(dataset.f_ref_nT))
         if dataset.meta.get("reference_ignored") and "reference_estimated" not in dataset.meta:
             warnings.append(dataset.meta["reference_ignored"])
         model = self.model
         objective = ScalarObjective(dataset.raw_nT, dataset.f_ref_nT, model)
         budget = as_budget(self.budget)
         evaluator = Evaluator(objective, budget)
-        lower, upper = search_bounds(model, dataset.f_ref_nT, **self.search_box())
+        box = self.search_box()
+        lower, upper = search_bounds(model, field_nT, **box)
         x0 = identity_vector(model)
         rng = np.random.default_rng(self.seed)
         start = None if model == "angles" else partial(_algebraic_start, dataset.raw_nT, dataset.f_ref_nT, model)
@@ -400,7 +404,6 @@ class Calibrator(metaclass=_Sealed):
         runtime = time.perf_counter() - t0
 
         solver_x, bad_shape = _solver_point(out.x, len(x0))
-        known = _DatasetCache.again(dataset)
         f_start = known.get(("f_start", model), lambda: float(np.mean(objective.residuals(x0) ** 2)))
         with np.errstate(all="ignore"):  # one pass at the answer serves F and every acceptance check
             at = one_pass(objective, solver_x)
@@ -413,8 +416,7 @@ class Calibrator(metaclass=_Sealed):
             with np.errstate(all="ignore"):
                 at = one_pass(objective, x)
         warnings += self._solution_warnings(objective, x)
-        box = self.search_box()
-        physical = (lower, upper) if box == PHYSICAL_BOX else search_bounds(model, dataset.f_ref_nT, **PHYSICAL_BOX)
+        physical = (lower, upper) if box == PHYSICAL_BOX else search_bounds(model, field_nT, **PHYSICAL_BOX)
         info: dict = {}
         rejections, notes = assess(objective, x, improved=status != "worse_than_start", robust=self.robust,
                                    closed_form=self.closed_form, physical_box=physical, limits=self.acceptance,
@@ -437,7 +439,7 @@ class Calibrator(metaclass=_Sealed):
             n_function_evaluations=evaluator.n_function_evaluations, nit=int(out.nit),
             runtime_s=runtime, seed=self.seed, rms_before_nT=float(np.sqrt(f_start)),
             rms_after_nT=float(np.sqrt(f_x)), warnings=tuple(warnings),
-            hyperparameters=self.get_params(), trace=tuple(evaluator.trace),
+            hyperparameters=self.get_params() if params is None else params, trace=tuple(evaluator.trace),
             extra={**extra, **_stop_record(termination, stopped)},
             evaluation_mode="closed-form" if self.closed_form else "counted",
             solver_x=solver_x, solver_rms_nT=float(np.sqrt(f_solver)) if np.isfinite(f_solver) else float("nan"),

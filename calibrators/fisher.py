@@ -75,12 +75,14 @@ def std_from_information(information: np.ndarray, noise_nT: float) -> np.ndarray
 
 
 def _pinv_diagonal(a: np.ndarray) -> np.ndarray:
-    """The diagonal of ``np.linalg.pinv(a)`` from the same singular value decomposition and cut (pinv's default:
-    singular values below 1e-15 of the largest count as zero), without forming the whole inverse."""
-    u, s, vt = np.linalg.svd(a)
-    keep = s > 1e-15 * np.max(s, initial=0.0)
-    inv = np.divide(1.0, s, out=np.zeros_like(s), where=keep)
-    return np.einsum("ji,j,ij->i", vt, inv, u)
+    """The diagonal of ``np.linalg.pinv(a)`` for a symmetric ``a`` (an information matrix) with pinv's cut
+    (singular values below 1e-15 of the largest count as zero), without forming the whole inverse: from the
+    eigendecomposition, whose absolute eigenvalues are the singular values (``sum_j v_ij² / lambda_j`` over the
+    kept ones; a third of the SVD's time)."""
+    values, vectors = np.linalg.eigh(a)
+    keep = np.abs(values) > 1e-15 * np.max(np.abs(values), initial=0.0)
+    inv = np.divide(1.0, values, out=np.zeros_like(values), where=keep)
+    return (vectors * vectors) @ inv
 
 
 def fisher_information(objective: ScalarObjective, x: np.ndarray, noise_nT: float) -> np.ndarray:

@@ -1,6 +1,8 @@
-"""The independent blind check of the diagnosis: ``python -P tests/independent_blind_table.py --cases 96
+"""The independent blind checks of the diagnosis: ``python -P tests/independent_blind_table.py --cases 96
 --out results/diagnosis/independent_blind.md`` diagnoses records from tests/independent_forward.py (a forward
-model that shares no code with magbench) and writes the table, wrong names first, and every verdict."""
+model that shares no code with magbench), ``--generator 2`` from tests/independent_forward2.py (a second one,
+written later by another hand with its own schedules, sampling, noise and effects, shared with neither), and
+writes the table, wrong names first, and every verdict."""
 from __future__ import annotations
 
 import argparse
@@ -11,16 +13,19 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from independent_forward import make_case  # noqa: E402
+import independent_forward  # noqa: E402
+import independent_forward2  # noqa: E402
 from independent_scoring import score  # noqa: E402
 
 from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
 from magbench.errors import InputError  # noqa: E402
 from magbench.simulate.dataset import Dataset  # noqa: E402
 
+GENERATORS = {1: independent_forward.make_case, 2: independent_forward2.make_case}
 
-def verdict_of(index: int, root: int = 2026) -> dict:
-    case = make_case(index, root)
+
+def verdict_of(index: int, root: int = 2026, generator: int = 1) -> dict:
+    case = GENERATORS[generator](index, root)
     data = Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C)
     t0 = time.perf_counter()
     try:
@@ -36,11 +41,11 @@ def verdict_of(index: int, root: int = 2026) -> dict:
             "refusal": refusal, "seconds": time.perf_counter() - t0}
 
 
-def run(indices, jobs: int = 1, root: int = 2026) -> list[dict]:
+def run(indices, jobs: int = 1, root: int = 2026, generator: int = 1) -> list[dict]:
     if jobs <= 1:
-        return [verdict_of(i, root) for i in indices]
+        return [verdict_of(i, root, generator) for i in indices]
     with ProcessPoolExecutor(jobs) as pool:
-        return list(pool.map(verdict_of, indices, [root] * len(indices)))
+        return list(pool.map(verdict_of, indices, [root] * len(indices), [generator] * len(indices)))
 
 
 def cell(text: str) -> str:
@@ -62,35 +67,61 @@ def table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+HISTORY = {
+    1: ("Cases 0-2399 were developed on in rounds 1-2 of the naming work (round 1: 0-959 its development set, "
+        "960-2159 its held-out blocks until their wrong names were looked at, 2160-2399 its held-out figure; round 2: "
+        "0-1439 its development set, 1440-2399 the block every change was checked on). Cases 2400-2639 were held "
+        "out for round 2 and run once, with its final code (`--start 2400 --cases 240`, README). Round 3 developed on "
+        "0-1439 and checked every change on 1440-2639; cases 2640-2879 were held out for round 3 and run once, with "
+        "its final code (`--start 2640 --cases 240`). Round 4 developed on 0-2639; cases 2880-3359 were held out for "
+        "it and run once, with its final code (`--start 2880 --cases 480`)."),
+    2: ("Written after round 3 by another hand, from the physics only (it read neither the diagnosis nor the "
+        "first generator's effects), and never used for tuning the vector diagnosis. Round 4's fixed-sensor "
+        "changes looked at cases 0-479 (`--start 0 --cases 480`); cases 480-1439 are held out "
+        "(`--start 480 --cases 960`)."),
+}
+SPLITS = {1: "1440,2640,2880", 2: "480"}
+LABELS = {
+    1: ["developed on in rounds 1-4 (rounds 2-3's development set)",
+        "developed on in rounds 1-4 (round 3 checked every change on it; 2400-2639 was round 2's held-out block)",
+        "held out for round 3: run once, with its final code",
+        "held out for round 4: run once, with its final code"],
+    2: ["looked at by round 4's fixed-sensor changes", "held out"],
+}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
+    ap.add_argument("--generator", type=int, choices=(1, 2), default=1,
+                    help="1: tests/independent_forward.py; 2: tests/independent_forward2.py")
     ap.add_argument("--cases", type=int, default=96)
     ap.add_argument("--start", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", type=Path)
-    ap.add_argument("--split", type=str, default="1440,2640",
+    ap.add_argument("--split", type=str, default=None,
                     help="case indices where a new part begins (see the labels below)")
     args = ap.parse_args()
-    rows = run(range(args.start, args.start + args.cases), args.jobs)
-    text = ["# Independent blind check of the diagnosis", "",
-            f"{len(rows)} records from `tests/independent_forward.py` (cases {args.start}-{args.start + args.cases - 1}, "
-            "root seed 2026): a forward model written from the physics, sharing no code with `simulate/` or the "
-            "diagnosis, with effects outside the library that resemble library effects. Made by "
-            f"`python -P tests/independent_blind_table.py --cases {args.cases} --start {args.start}`.", "",
+    g = args.generator
+    rows = run(range(args.start, args.start + args.cases), args.jobs, generator=g)
+    source = "tests/independent_forward.py" if g == 1 else "tests/independent_forward2.py"
+    what = ("a forward model written from the physics, sharing no code with `simulate/` or the diagnosis, with effects "
+            "outside the library that resemble library effects" if g == 1 else
+            "a second forward model written from the physics, sharing no code with `simulate/`, the diagnosis or the "
+            "first generator, with its own schedules, sampling, noise and effect parametrisations and its own effects "
+            "outside the library")
+    text = ["# Independent blind check of the diagnosis" + ("" if g == 1 else ": the second generator"), "",
+            f"{len(rows)} records from `{source}` (cases {args.start}-{args.start + args.cases - 1}, root seed 2026): "
+            f"{what}. Made by `python -P tests/independent_blind_table.py --generator {g} --cases {args.cases} "
+            f"--start {args.start}`.", "",
             "A wrong name is an effect named that is not in the record (the headline: a user acts on it).", "",
-            "Cases 0-2399 were developed on in rounds 1-2 of the naming work (round 1: 0-959 its development set, "
-            "960-2159 its held-out blocks until their wrong names were looked at, 2160-2399 its held-out figure; round 2: "
-            "0-1439 its development set, 1440-2399 the block every change was checked on). Cases 2400-2639 were held "
-            "out for round 2 and run once, with its final code (`--start 2400 --cases 240`, README). Round 3 developed on "
-            "0-1439 and checked every change on 1440-2639; cases 2640-2879 were held out for round 3 and run once, with "
-            "its final code (`--start 2640 --cases 240`).", "",
-            "## All cases", "", table(rows), ""]
-    cuts = [args.start] + [int(c) for c in args.split.split(",") if c] + [args.start + args.cases]
-    labels = ["developed on in rounds 1-3 (rounds 2-3's development set)",
-              "developed on in rounds 1-3 (round 3 checked every change on it; 2400-2639 was round 2's held-out block)",
-              "held out for round 3: run once, with its final code"]
-    for (a, b), label in zip(zip(cuts[:-1], cuts[1:]), labels):
+            HISTORY[g], "", "## All cases", "", table(rows), ""]
+    split = SPLITS[g] if args.split is None else args.split
+    cuts = [args.start] + [int(c) for c in split.split(",") if c and args.start < int(c) < args.start + args.cases]
+    cuts.append(args.start + args.cases)
+    bounds = [0] + [int(c) for c in SPLITS[g].split(",")]
+    for a, b in zip(cuts[:-1], cuts[1:]):
         part = [r for r in rows if a <= r["index"] < b]
+        label = LABELS[g][max(i for i, lo in enumerate(bounds) if lo <= a)] if args.split is None else "part"
         if part:
             text += [f"## Cases {a}-{b - 1}: {label}", "", table(part), ""]
     text += ["## Every verdict", "", "| case | category | schedule | present | outside | verdict | wrong | score |",

@@ -262,3 +262,33 @@ def test_a_sampled_profile_test_states_its_precision():
     coverage = res.extra["acceptance_sampling"]["coverage"]  # the coverage check read a sample too
     assert coverage["rows"] <= fisher.COVERAGE_ROWS and coverage["of_rows"] == len(d)
     assert "acceptance_sampling" not in make("lsq").fit(get_scenario("vehicle9").build(0)).extra  # every row read
+
+
+def test_the_cramer_rao_diagonal_is_pinvs():
+    """``std_from_information`` (eigh, pinv's cut) gives pinv's diagonal, also for a singular information
+    matrix (negative control: without the cut the singular direction blows up)."""
+    d = get_scenario("sphere9").build(0)
+    obj = ScalarObjective(d.raw_nT, d.f_ref_nT, "nine")
+    x = make("lsq").fit(d).x
+    info = fisher.fisher_information(obj, x, 1.0)
+    assert np.allclose(fisher.std_from_information(info, 2.0), np.sqrt(np.diag(np.linalg.pinv(info / 4.0))),
+                       rtol=1e-8)
+    singular = info.copy()
+    singular[:, 8] = singular[8, :] = 0.0
+    want = np.sqrt(np.diag(np.linalg.pinv(singular)))
+    got = fisher.std_from_information(singular, 1.0)
+    assert np.allclose(got, want, rtol=1e-8) and got[8] == 0.0
+    with np.errstate(divide="ignore"):
+        assert not np.isfinite(np.sqrt(1.0 / np.linalg.eigvalsh(singular))).all()
+
+
+def test_the_step_states_the_jump_that_was_made():
+    d = get_scenario("tumble9").build(0)
+    raw = d.raw_nT.copy()
+    jump = np.array([300.0, -200.0, 100.0])
+    raw[len(raw) // 3:] += jump
+    obj = ScalarObjective(raw, d.f_ref_nT, "nine")
+    x = make("lsq").fit(Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s)).x
+    step = acceptance.best_step(obj, x, obj.residuals(x), np.argsort(d.t_s, kind="stable"))
+    assert step is not None and step.offsets
+    assert np.linalg.norm(step.jump) == pytest.approx(np.linalg.norm(jump), rel=0.1)

@@ -11,7 +11,12 @@ sys.path.insert(0, str(Path(__file__).parent))
 from independent_forward import make_case  # noqa: E402
 
 from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
-from magbench.benchmarks.diagnosis.floor import model_floor, neighbour_z, time_difference_floor  # noqa: E402
+from magbench.benchmarks.diagnosis.floor import (  # noqa: E402
+    attitude_floor,
+    model_floor,
+    neighbour_z,
+    time_difference_floor,
+)
 from magbench.benchmarks.diagnosis.naming import ROUGHNESS_MAX, roughness  # noqa: E402
 from magbench.simulate.dataset import Dataset  # noqa: E402
 
@@ -118,3 +123,47 @@ def test_a_residual_that_follows_the_neighbouring_readings_at_random_attitudes_i
     assert clean["verdict"] == "none" and "remainder_follows_neighbours" not in clean
     single = _run(22)
     assert single["verdict"] == "temperature"
+
+
+def _attitudes(n, rng):
+    """Random attitudes: the body-frame field and gravity directions of n uniformly drawn rotations."""
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    w, x, y, z = q.T
+    rot = np.stack([np.column_stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)]),
+                    np.column_stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)]),
+                    np.column_stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)])], axis=1)
+    b = np.einsum("nji,j->ni", rot, np.array([0.5, 0.0, 0.866]))
+    g = np.einsum("nji,j->ni", rot, np.array([0.0, 0.0, 1.0]))
+    return b, g
+
+
+def test_attitude_floor_cancels_a_field_that_follows_gravity_but_not_noise():
+    rng = np.random.default_rng(6)
+    n = 900
+    b, g = _attitudes(n, rng)
+    structure = 15.0 * g[:, 0] * g[:, 2] + 10.0 * b[:, 1] * g[:, 1]  # a smooth function of the attitude, ~7 nT RMS
+    r = structure + rng.normal(0, 2.0, n)
+    t = np.arange(float(n))
+    fl = time_difference_floor(r, t)  # random attitudes: the time differences hold the structure
+    assert fl["noise_floor_nT"] > 5.0
+    spikes = np.zeros(n, bool)
+    out = attitude_floor(fl, r, b, g, 20, spikes)
+    assert out["noise_floor_nT"] < 3.5 and "neighbours in attitude" in out["floor_method"]
+    # negative control: white noise alone keeps its floor (the attitude floor is no lower)
+    white = rng.normal(0, 2.0, n)
+    fl_white = time_difference_floor(white, t)
+    assert attitude_floor(fl_white, white, b, g, 20, spikes)["noise_floor_nT"] == fl_white["noise_floor_nT"]
+    # ... and a residual that follows the neighbouring readings keeps the floor it has
+    follows = dict(fl, floor_neighbour_z=5.0)
+    assert attitude_floor(follows, r, b, g, 20, spikes)["noise_floor_nT"] == fl["noise_floor_nT"]
+
+
+def test_body_fields_tied_to_gravity_at_random_attitudes_are_unexplained_not_none():
+    # sphere records with an accelerometer: a gravity-following body field, a heading (tilt) field, a gradient
+    # through a lever arm; the time floor held them (4-15 times the noise) and the verdict was none
+    for i in (520, 35, 640):
+        out = _run(i)
+        assert out["verdict"] == "unexplained", (i, out["verdict"])
+        assert "neighbours in attitude" in out["floor_method"]
+    assert _run(120)["verdict"] == "none"  # clean, sphere, with gravity

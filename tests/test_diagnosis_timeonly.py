@@ -53,7 +53,7 @@ def test_a_fixed_sensor_names_temperature_when_it_follows_the_temperature_beyond
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from independent_forward import make_case
 
-    for index, expected in ((33, "temperature"), (177, "temperature"), (21, "offset_drift|temperature"),
+    for index, expected in ((33, "temperature"), (177, "temperature"), (21, "offset_drift|temperature|field_drift"),
                             (69, "field_drift")):  # temperature, temperature, offset drift, field drift
         case = make_case(index, 2026)
         assert case.category == "fixed"
@@ -119,20 +119,25 @@ def drifting(across_nT=0.0, radial_nT=0.0, step=False, temp_follows=False, noise
     return Dataset(raw, f_ref_nT=np.full(n, F), t_s=t, temp_C=temp if logged else None)
 
 
-def test_a_drift_across_the_readings_is_an_offset_drift_and_along_them_a_field_drift():
+def test_a_drift_across_the_readings_cannot_be_told_from_a_turning_field_and_along_them_is_a_field_drift():
+    """Across: the offsets drift, or the field's direction changes (a scalar reference follows no direction),
+    or (the temperature following time) a temperature coefficient; the JSON says what would separate them."""
     r = diagnose(drifting(across_nT=30.0, radial_nT=5.0))
-    assert r["verdict"] == "offset_drift", r["time_only"]["drift_direction"]
+    assert r["verdict"] == "offset_drift|field_drift", r["time_only"]["drift_direction"]
+    assert r["confounded"][0]["alternatives"] == ["offset_drift", "field_drift"]
+    assert "vector reference" in r["confounded"][0]["separate_by"]
     r = diagnose(drifting(across_nT=30.0, radial_nT=5.0, temp_follows=True))  # a temperature coefficient as much
-    assert r["verdict"] == "offset_drift|temperature", r["time_only"]["drift_direction"]
+    assert r["verdict"] == "offset_drift|temperature|field_drift", r["time_only"]["drift_direction"]
+    assert "temperature changes independently of time" in r["confounded"][0]["separate_by"]
     r = diagnose(drifting(radial_nT=30.0))
-    assert r["verdict"] == "field_drift", r["time_only"]["drift_direction"]
+    assert r["verdict"] == "field_drift" and r["confounded"] == [], r["time_only"]["drift_direction"]
 
 
 def test_negative_controls_a_switch_and_a_radial_drift_that_follows_the_temperature():
     r = diagnose(drifting(across_nT=30.0, radial_nT=5.0, step=True, logged=False))  # a field switched on: not a drift
     assert r["verdict"] == "insufficient_data", r["time_only"]["drift_direction"]
     assert r["time_only"]["drift_direction"]["step_share"] > 0.9
-    assert diagnose(drifting(across_nT=30.0, radial_nT=5.0, logged=False))["verdict"] == "offset_drift"  # smooth: named
+    assert diagnose(drifting(across_nT=30.0, radial_nT=5.0, logged=False))["verdict"] == "offset_drift|field_drift"
     r = diagnose(drifting(radial_nT=30.0, temp_follows=True))  # the gains' temperature coefficient fits it as well
     assert r["verdict"] == "field_drift|temperature", r["time_only"]["drift_direction"]
     r = diagnose(drifting(across_nT=2.0, radial_nT=30.0))  # neither radial nor clearly across: no name
@@ -144,4 +149,51 @@ def test_the_text_report_says_which_way_a_fixed_sensor_drifts():
 
     text = diagnosis_text(diagnose(drifting(across_nT=30.0, radial_nT=5.0, logged=False)), "fixed.csv")
     assert "drift direction: the readings drift across their own direction" in text
-    assert "verdict: offset_drift" in text
+    assert "verdict: offset_drift|field_drift" in text and "to separate them: a vector reference" in text
+
+
+def test_a_field_change_the_reference_follows_is_not_a_drift():
+    """An observatory's scalar reference follows the field's magnitude: the readings' radial change that it
+    follows is the field's own (negative control: the same change with a constant reference is a drift)."""
+    n, F = 2000, 48000.0
+    rng = np.random.default_rng(5)
+    t = np.linspace(0.0, 86400.0, n)
+    change = 30.0 * np.sin(2 * np.pi * t / 86400.0)
+    b = np.array([0.3, 0.2, 0.93])
+    b /= np.linalg.norm(b)
+    raw = (F + change)[:, None] * b * 1.01 + np.array([120.0, -80.0, 40.0]) + rng.normal(0, 0.5, (n, 3))
+    follows = diagnose(Dataset(raw, f_ref_nT=F + change, t_s=t))
+    assert follows["verdict"] == "insufficient_data", follows["time_only"]["drift_direction"]
+    constant = diagnose(Dataset(raw, f_ref_nT=np.full(n, F), t_s=t))
+    assert constant["verdict"] == "field_drift", constant["time_only"]["drift_direction"]
+
+
+def test_two_wandering_series_do_not_make_a_temperature_effect():
+    """A temperature that wanders over tens of minutes and a sensor whose zero wanders in the same band under white
+    noise (1/f-like: a small lag-1 correlation, a long memory) correlate by chance; judged on their common memory
+    (Bartlett's effective samples) the temperature's z stays a standard normal's, so no temperature is named
+    (an AR(1) allowance from the lag-1 correlation gave z up to 6 on these seeds); control: the same temperature
+    driving the readings is named every time."""
+    n, F = 1500, 50000.0
+    t = np.linspace(0.0, 6 * 3600.0, n)
+    b = np.array([0.6, 0.0, 0.8])
+    freq = np.fft.rfftfreq(n, t[1] - t[0])
+
+    def band(rng):  # periods of 10 to 60 minutes
+        spec = np.fft.rfft(rng.standard_normal(n))
+        spec[(freq < 1 / 3600) | (freq > 1 / 600)] = 0
+        x = np.fft.irfft(spec, n)
+        return x / x.std()
+
+    null, driven = [], []
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        temp = 20 + 3 * t / t[-1] + 0.4 * band(rng)
+        wander = band(rng)
+        for drive, out in ((0.0, null), (2.0, driven)):
+            change = wander if drive == 0.0 else drive * (temp - temp.mean())
+            raw = F * b + change[:, None] * b + rng.normal(0, 1.5, (n, 3))
+            out.append(diagnose(Dataset(raw, f_ref_nT=np.full(n, F), t_s=t, temp_C=temp))["time_only"]["temperature"])
+    assert not any(c["named"] for c in null) and sum(c["beyond_smooth_time_z"] > 3 for c in null) <= 1, \
+        [round(c["beyond_smooth_time_z"], 1) for c in null]
+    assert all(c["named"] for c in driven)

@@ -28,7 +28,7 @@ MAD_SE = 1.166  # standard error of the MAD scale: 1.166 sigma / sqrt(m) for Gau
 INDEPENDENT_SHARE = 1.0 / 3.0  # overlapping second differences: about a third of them independent
 LEAK_Z = 3.0
 
-__all__ = ["KNN_NEIGHBOURS", "MOTION_Z", "knn_floor", "model_floor", "neighbour_z", "robust_sigma",
+__all__ = ["KNN_NEIGHBOURS", "MOTION_Z", "attitude_floor", "knn_floor", "model_floor", "neighbour_z", "robust_sigma",
            "second_difference_floor", "unit_span", "vector_floor",
            "time_difference_floor"]
 
@@ -242,4 +242,51 @@ def model_floor(fl: dict, r_model: np.ndarray, t_s: np.ndarray, raw_nT: np.ndarr
                 "floor_interval_nT": [float(max(sigma - 1.96 * se, 0.0)), float(sigma + 1.96 * se)],
                 "floor_method": "interpolation between time neighbours of the residual of the fit with every effect free "
                                 f"(the base residual's, {fl['noise_floor_nT']:.3g} nT, carries attitude structure)"})
+    return out
+
+
+ATTITUDE_FLOOR_ROWS = 50_000
+"""``attitude_floor`` reads a systematic sample of at most this many rows (its neighbours then a little farther
+apart, so the estimate stays an upper bound; the k-d tree of a million rows in six dimensions is not needed)."""
+
+
+def attitude_floor(fl: dict, r_model: np.ndarray, unit: np.ndarray, gravity: np.ndarray | None, n_free: int,
+                   spikes: np.ndarray) -> dict:
+    """The floor ``fl`` again from neighbours in attitude, for records whose consecutive attitudes are unrelated
+    (random attitudes), where time neighbours cancel nothing that depends on the attitude: the scatter of the
+    residual ``r_model`` of the fit with every effect free (spikes left out) about the mean of its KNN_NEIGHBOURS
+    nearest neighbours in attitude (the unit field direction, and the unit gravity direction when an accelerometer
+    gives it: the two fix the attitude), scaled by sqrt(n / (n - n_free)).  Structure that is a smooth function
+    of the attitude (a body field that follows gravity or heading, a gradient seen through a lever arm) cancels
+    between attitude neighbours; at random attitudes it does not cancel between time neighbours and the time
+    floor holds it, so that no remainder is ever seen.  It replaces the floor when lower by more than LEAK_Z
+    standard errors (both estimates are upper bounds of the noise: structure on scales below the neighbour
+    spacing stays in either); its standard error counts a third of the samples as independent, as for the
+    overlapping time differences.  Not when the residual follows the motion or the neighbouring readings
+    (``model_floor``'s tests): a reading mixed with its neighbours is no function of the attitude, and its square
+    would pass for a nonlinearity against a floor that no longer holds it."""
+    keep = ~spikes
+    n = int(keep.sum())
+    follows = abs(fl.get("floor_motion_z", 0.0)) > MOTION_Z or fl.get("floor_neighbour_z", 0.0) > MOTION_Z
+    if follows or n - n_free < 10 * KNN_NEIGHBOURS:  # a reading mixed with its neighbours: no attitude fits it
+        return fl
+    rows = np.flatnonzero(keep)[systematic_rows(n, ATTITUDE_FLOOR_ROWS)]
+    feats = [unit[rows]]
+    if gravity is not None:
+        g = np.asarray(gravity, dtype=float)[rows]
+        norm_g = np.linalg.norm(g, axis=1, keepdims=True)
+        if np.all(np.isfinite(g)) and np.all(norm_g > 0):
+            feats.append(g / norm_g)
+    sigma = knn_floor(np.column_stack(feats), r_model[rows]) * float(np.sqrt(n / (n - n_free)))
+    se = _interval(sigma, int(INDEPENDENT_SHARE * len(rows)))[0]
+    out = dict(fl)
+    out["floor_attitude_nT"] = float(sigma)
+    if fl["noise_floor_nT"] - sigma <= LEAK_Z * np.hypot(fl["floor_se_nT"], se):
+        return out
+    out.update({"noise_floor_nT": float(sigma), "floor_se_nT": float(se),
+                "floor_interval_nT": [float(max(sigma - 1.96 * se, 0.0)), float(sigma + 1.96 * se)],
+                "floor_method": f"scatter about the {KNN_NEIGHBOURS} nearest neighbours in attitude"
+                                f"{' (field and gravity directions)' if len(feats) > 1 else ' (field direction)'} of the "
+                                "residual of the fit with every effect free (random attitudes: the time floor, "
+                                f"{fl['noise_floor_nT']:.3g} nT, holds structure that depends on the attitude)"})
     return out

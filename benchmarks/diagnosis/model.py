@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from magbench.simulate.effects import Columns, Effect, Normalization, OutlierEffect, robust_sigma
+from magbench.simulate.effects import PPM, Columns, Effect, Normalization, OutlierEffect, robust_sigma
 from magbench.simulate.sensor import NEUTRAL, PARAM_NAMES, paper_matrix
 
 BLOCK_ROWS = 65536
@@ -35,6 +35,8 @@ BASE_FREE = {"angles": (0, 1, 2), "nine": tuple(range(9))}
 PART_INDEX = {"scale": (3, 4, 5), "offset": (6, 7, 8)}
 FIT_RIDGE = 1e-8  # relative ridge of the Gauss-Newton steps (near-degenerate directions stay put)
 RIDGE = 1e-10  # relative ridge on the scaled normal equations (columns without information)
+BASE_PRIOR_SD = {"angle": 0.05, "scale": 0.1}
+"""Standard deviations of the weak prior on the base correction (``ExtendedModel.set_prior``): rad, and relative."""
 
 
 def base_correction(x9: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -90,6 +92,38 @@ class ExtendedModel:
         self.names = names
         self.p = len(names)
         self.default = np.concatenate([np.asarray(NEUTRAL, dtype=float), np.zeros(self.p - 9)])
+        self.prior_w = np.zeros(self.p)  # ``set_prior``: weights of the pseudo-rows w (x - default), nT per unit
+
+    def set_prior(self, scale_nT: float) -> None:
+        """A weak prior on the base correction's angles and scales (BASE_PRIOR_SD about their neutral values),
+        as pseudo-rows of ``scale_nT`` times (x - neutral) / sd.  Physically a fluxgate's scale factors lie within
+        a few percent of 1 and its axes within a degree or so of orthogonal; the prior is millions of times weaker
+        than the data along every direction the attitudes determine, and holds only the directions they leave
+        free (a vehicle's band of directions: the common scale and the z axis's scale against its offset, which a
+        least-squares fit otherwise runs along to scales of 2 and offsets of 10^5 nT, shrinking the residual with
+        the scale).  The same holds for an effect's scale terms (``*_ppm_per_C``), which scale the noise down
+        over time along those directions: their prior is on the scale change over the temperature's range."""
+        w = np.zeros(self.p)
+        w[:3] = scale_nT / BASE_PRIOR_SD["angle"]
+        w[3:6] = scale_nT / BASE_PRIOR_SD["scale"]
+        # an effect's scale terms (ppm per degree of the logged temperature) move the scales along the same free
+        # directions: the same prior on the scale change they make over the record's temperature range
+        temp = self.d.extra.get("temp_eff_C", self.d.temp_C)
+        span = float(np.ptp(temp)) if temp is not None and len(temp) else 0.0
+        for i, name in enumerate(self.names):
+            if name.endswith("_ppm_per_C") and span > 0:
+                w[i] = scale_nT * PPM * span / BASE_PRIOR_SD["scale"]
+        self.prior_w = w
+
+    def prior_gram(self, x: np.ndarray) -> np.ndarray:
+        """The (p + 1)^2 Gram matrix of the prior's pseudo-rows [J, r] at x (zeros without a prior)."""
+        w = self.prior_w
+        rp = w * (x - self.default)
+        g = np.zeros((self.p + 1, self.p + 1))
+        g[:self.p, :self.p] = np.diag(w * w)
+        g[:self.p, self.p] = g[self.p, :self.p] = w * rp
+        g[self.p, self.p] = float(rp @ rp)
+        return g
 
     # -- rows ---------------------------------------------------------------------------------
     def blocks(self):
@@ -172,6 +206,11 @@ class ExtendedModel:
             a += jf.T @ jf
             bvec += jf.T @ r
             sse += float(r @ r)
+        if self.prior_w.any():  # the prior's pseudo-rows
+            g = self.prior_gram(x)
+            a += g[np.ix_(free, free)]
+            bvec += g[free, self.p]
+            sse += float(g[self.p, self.p])
         return sse, a, bvec
 
     def fit(self, x_start: np.ndarray, free: list[int], keep: np.ndarray | None = None, blocks=None,
@@ -253,6 +292,7 @@ class Tangent:
                 self._j.append(jac.astype(np.float32))
             jr = np.column_stack([jac, r])
             self.gram[f] += jr.T @ jr
+        self.prior = model.prior_gram(x)  # added to every fit's normal equations, never to a residual
         self.spikes = OutlierEffect.spike_mask(self.r) if spikes is None else spikes
         sp = np.flatnonzero(self.spikes)
         if len(sp):
@@ -283,7 +323,7 @@ class Tangent:
         deltas = np.zeros((self.k, len(free)))
         p = self.model.p
         for f in range(self.k):
-            g = tot - self.gram[f] + (self.gram_spk[f] if robust else 0.0)
+            g = tot - self.gram[f] + (self.gram_spk[f] if robust else 0.0) + self.prior
             jj, jr = g[:p, :p], g[:p, p]
             jfy = jr[free] + jj[free] @ c  # J_F^T y, y = r* + J c
             deltas[f] = -solve_normal(jj[np.ix_(free, free)], jfy)
@@ -309,7 +349,7 @@ class Tangent:
         free = self.model.free_indices(names)
         c = self._shift(free)
         ids = list(fold_ids)
-        g = self.gram[ids].sum(axis=0) - (self.gram_spk[ids].sum(axis=0) if robust else 0.0)
+        g = self.gram[ids].sum(axis=0) - (self.gram_spk[ids].sum(axis=0) if robust else 0.0) + self.prior
         p = self.model.p
         jj, jr = g[:p, :p], g[:p, p]
         delta = -solve_normal(jj[np.ix_(free, free)], jr[free] + jj[free] @ c)
@@ -331,7 +371,8 @@ class Tangent:
         p = self.model.p
         jj, jr, rr = g[:p, :p], g[:p, p], g[p, p]
         jfy = jr[free] + jj[free] @ c
-        delta = -solve_normal(jj[np.ix_(free, free)], jfy)
+        gp = g + self.prior  # the step with the prior; the sum of squares of the data alone
+        delta = -solve_normal(gp[np.ix_(free, free)], gp[free, p] + gp[free, :p] @ c)
         sse = rr + 2 * c @ jr + c @ jj @ c + 2 * delta @ jfy + delta @ jj[np.ix_(free, free)] @ delta
         return float(max(sse, 0.0))
 

@@ -32,11 +32,15 @@ An effect is therefore *named* only when all of these hold:
    (BULK_RATIO_MAX).
    In a record of held attitudes (the sensor set down in a few positions, each held for a while), a time
    effect must lower the residual *within* the holds: between them, each attitude was seen at one time
-   only, and a drift in time cannot be told from structure that depends on the attitude.
+   only, and a drift in time cannot be told from structure that depends on the attitude.  There the
+   attitude-blocked folds, which leave out whole holds whose levels the base correction cannot predict from the
+   other dozen directions, are not used for a time effect (the test within the holds replaces them), and the name
+   must remove at least DOMINANCE_UNBLOCKED times what is left beside it.
 5. **Not a by-product of a larger unexplained structure.**  When a significant remainder is left, every
    named effect must remove at least as much as is left (its own held-out contribution at least the
-   remainder's RMS above the floor): a flexible basis fits part of any structure it is offered, and a
-   name that explains less than what stays unexplained is more likely that part than a cause.  Spikes refused as
+   remainder's RMS above the floor; a time shift twice that, DOMINANCE_SHIFT): a flexible basis fits part of any
+   structure it is offered, and a name that explains less than what stays unexplained is more likely that part
+   than a cause.  Spikes refused as
    structure (below) make the remainder significant for this rule however heavy-tailed it is: the other names
    were selected with those peaks masked, and must remove at least what the peaks leave once unmasked.
 
@@ -83,6 +87,18 @@ LAG_SHIFT_SHARE = 0.5
 DOMINANCE = 1.0
 """Beside a significant remainder, a named effect's own held-out contribution must be at least this multiple
 of the remainder's RMS above the floor."""
+DOMINANCE_SHIFT = 2.0
+"""... and for a time shift (``shift_terms``) this multiple.  Its form is the first two terms of the Taylor series of
+a reading shifted by a sample or less, which converges fast: such a shift leaves only the readings' interpolation
+error, a fraction of what it removes.  A remainder more than half its own contribution means the series does not
+converge, i.e. the readings depend on their past over many samples (a field induced with a lag, a low-pass
+response), which the shift's terms fit in part (on the independent blind records, an axis read late left at most
+about half its contribution as a remainder, even on irregular sampling; an induced field lagging by many samples
+left 55 to 90 %)."""
+DOMINANCE_UNBLOCKED = 2.0
+"""... and for a time effect whose attitude-blocked family could not be used (held attitudes: ``confirm``) this
+multiple: the family that guards against a flexible time basis fitting part of an unmodelled structure is missing,
+so the name must dominate what is left more clearly."""
 SPIKE_TIMES_ALPHA = FAMILY_ALPHA
 """Level of the test that spike times are spread over the record like the samples (Kolmogorov-Smirnov)."""
 HOLD_ANGLE_RAD = 0.005
@@ -272,9 +288,17 @@ def spike_signature(spikes: np.ndarray, r: np.ndarray, t_s: np.ndarray | None, r
 
 def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: float,
             base_significant: bool, spikes_ok: tuple = (True, 0.0),
-            slow_attitude_r2: float | None = None, temp_time_r2: float | None = None) -> tuple[list[str], list[dict]]:
+            slow_attitude_r2: float | None = None, temp_time_r2: float | None = None,
+            hold_label: np.ndarray | None = None) -> tuple[list[str], list[dict]]:
     """Apply the naming rule.  ``heldout_by_family[family](names)`` returns the held-out residual of base +
-    ``names`` on that fold family.  Returns (named effects, in the selection's order; the evidence rows)."""
+    ``names`` on that fold family.  Returns (named effects, in the selection's order; the evidence rows).
+
+    ``hold_label``: the holds of a record of held attitudes (``holds``).  Its attitude-blocked folds leave out
+    whole holds, i.e. a few of its dozen or so directions, whose levels the base correction fitted on the others
+    cannot predict (nine parameters on as many directions): the family says nothing about a time effect there
+    (a drift's change within the left-out holds is too small to test, its levels are what the base cannot
+    predict), which is tested within the holds instead (``within_holds_z``, HOLD_Z: structure tied to each hold's
+    attitude does not change within it).  Its z is kept in the evidence (``attitude_blocked_not_used``)."""
     if not selected:
         return [], []
     evidence, pvalues = [], {}
@@ -285,7 +309,12 @@ def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: flo
             with_res, without = heldout(selected), heldout(rest)
             z = paired_z(without, with_res)
             own = float(np.sqrt(max(np.mean(without ** 2) - np.mean(with_res ** 2), 0.0)))
-            row["families"][family] = {"z": z, "own_rms_nT": own, "rms_heldout_nT": rms(with_res)}
+            entry = {"z": z, "own_rms_nT": own, "rms_heldout_nT": rms(with_res)}
+            if hold_label is not None and family == "attitude-blocked" and (name in TIME_EFFECTS or _is_thermal(name)):
+                row["attitude_blocked_not_used"] = {**entry, "why": "held attitudes: the folds leave out whole holds, whose "
+                                                    "levels the base correction cannot predict; tested within the holds"}
+                continue
+            row["families"][family] = entry
             if not EFFECTS[name].robust:
                 pvalues[(name, family)] = one_sided_p(z)
         evidence.append(row)
@@ -396,12 +425,15 @@ def holds(t_s: np.ndarray | None, unit: np.ndarray) -> np.ndarray | None:
     return label
 
 
+def hold_demeaned(r: np.ndarray, label: np.ndarray) -> np.ndarray:
+    """``r`` with each hold's mean removed."""
+    means = np.bincount(label, weights=r) / np.maximum(np.bincount(label), 1)
+    return r - means[label]
+
+
 def within_holds_z(without: np.ndarray, with_effect: np.ndarray, label: np.ndarray) -> float:
     """Paired z of the decrease of the squared residual within the holds (each hold's mean removed)."""
-    def demeaned(r: np.ndarray) -> np.ndarray:
-        means = np.bincount(label, weights=r) / np.maximum(np.bincount(label), 1)
-        return r - means[label]
-    return paired_z(demeaned(without), demeaned(with_effect))
+    return paired_z(hold_demeaned(without, label), hold_demeaned(with_effect, label))
 
 
 ROUGHNESS_MAX = 1.25
@@ -434,14 +466,20 @@ def own_rms(row: dict) -> float:
     return min(v["own_rms_nT"] for v in row["families"].values())
 
 
+def _dominance(name: str, row: dict | None = None) -> float:
+    if getattr(EFFECTS[name], "shift_terms", None):
+        return DOMINANCE_SHIFT
+    return DOMINANCE_UNBLOCKED if row is not None and "attitude_blocked_not_used" in row else DOMINANCE
+
+
 def undominated(evidence: list[dict], named: list[str], remainder_of, modelled: tuple[str, ...] = ()) -> list[str]:
     """Rule 5 of the module docstring: while a significant remainder is left (``remainder_of(names)``, the
     dict of ``scoring.remainder``), the named effect that removes least is dropped when it removes less than
     DOMINANCE times the remainder; its evidence row says why.  Spikes keep their count test.  ``modelled``:
     effects that passed the held-out tests but are not named for their signature (a time shift at random
-    attitudes, a drift folded into a temperature coefficient): the structure they fit is not unmodelled, the other effects' own
-    contributions were measured beside them, so the remainder is taken with them fitted (it stays unexplained
-    in the verdict)."""
+    attitudes, a drift folded into a temperature coefficient): the structure they fit is not unmodelled, the
+    other effects' own contributions were measured beside them, so the remainder is taken with them fitted (it
+    stays unexplained in the verdict)."""
     rows = {row["name"]: row for row in evidence}
     named = list(named)
     while True:
@@ -449,14 +487,17 @@ def undominated(evidence: list[dict], named: list[str], remainder_of, modelled: 
         if not rem["remainder_significant"]:
             return named
         weak = [(own_rms(rows[nm]), nm) for nm in named if not EFFECTS[nm].robust and nm in rows
-                and own_rms(rows[nm]) < DOMINANCE * rem["remainder_nT"]]
+                and own_rms(rows[nm]) < _dominance(nm, rows[nm]) * rem["remainder_nT"]]
         if not weak:
             return named
         own, name = min(weak)
         named.remove(name)
         rows[name]["named"] = False
-        rows[name]["why"] = (f"it removes {own:.3g} nT, less than the {rem['remainder_nT']:.3g} nT left unexplained beside it: "
-                             "more likely the part of an unmodelled structure that its form can fit than a cause")
+        left = rem["remainder_nT"]
+        factor = "" if _dominance(name, rows[name]) == 1.0 else f"{_dominance(name, rows[name]):g} times "
+        rows[name]["why"] = (f"it removes {own:.3g} nT, less than {factor}the {left:.3g} nT left "
+                             "unexplained beside it: more likely the part of an unmodelled structure that its form can fit "
+                             "than a cause")
 
 
 def fold_drift_into_temperature(evidence: list[dict], named: list[str], temp_r2: float | None) -> list[str]:

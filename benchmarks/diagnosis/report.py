@@ -81,6 +81,7 @@ def time_only_text(result: dict, source: str = "") -> str:
     direction = to.get("drift_direction") or {}
     if direction.get("why"):
         lines.append(f"  drift direction: {direction['why']}")
+    lines += [f"  {'|'.join(c['alternatives'])}: to separate them: {c['separate_by']}" for c in result.get("confounded", [])]
     lines += [f"  time verdict: {result['time_verdict']}; attitude part: insufficient_data ({result['attitude_reason']})",
               f"  verdict: {result['verdict']}"]
     return "\n".join(lines)
@@ -138,9 +139,8 @@ def _naming_lines(result: dict) -> list[str]:
     naming = result.get("naming") or {}
     lines = [f"    {row['name']}: not named: {row['why']}" for row in naming.get("evidence", []) if not row.get("named")]
     for pair in result.get("confounded", []):
-        a, b = pair["alternatives"]
-        lines.append(f"    {a}|{b}: the data cannot tell them apart ({pair['evidence']['statement']}); "
-                     f"to separate them: {pair['separate_by']}")
+        lines.append(f"    {'|'.join(pair['alternatives'])}: the data cannot tell them apart "
+                     f"({pair['evidence']['statement']}); to separate them: {pair['separate_by']}")
     return ["", "  the naming rule:", *lines] if lines else []
 
 

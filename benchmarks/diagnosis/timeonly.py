@@ -13,16 +13,20 @@ readings, a noise-like rest).  A temperature effect: ``|B| - F`` follows the log
 of time (the temperature's own changes, not only the time they share).
 
 A drift is named from the direction in which the *vector* readings move, which ``|B| - F`` alone cannot tell:
-the library's field drift changes the field's magnitude only, so it moves the readings along the direction
+a change of the field's magnitude that the reference does not follow moves the readings along the direction
 they point (radially: an offset error of up to a few thousand nT tilts that direction by at most a few
-hundredths of a radian), while a drift of the offsets moves them along a fixed direction of its own, in general
-across.  The smooth trend of the readings (a degree-TREND_DEGREE polynomial of time on each axis, spikes left
-out) is split into its radial part and its part across; both are tested against the readings' own scatter about
-the trend (an F test, its samples deflated for autocorrelation, at DRIFT_DIRECTION_ALPHA):
+hundredths of a radian), while a drift of the offsets moves them along a direction of its own, in general
+across.  So does a change of the field's *direction* (an observatory's daily variation is mostly in declination
+and horizontal intensity): a scalar reference follows no direction, so to these data it is a field drift that
+cannot be told from a drift of the offsets.  The smooth trend of the readings (a degree-TREND_DEGREE polynomial
+of time on each axis, spikes left out) is split into its radial part and its part across; both are tested
+against the readings' own scatter about the trend (an F test, its samples deflated for autocorrelation, at
+DRIFT_DIRECTION_ALPHA):
 
-* a significant part across at least ACROSS_MIN_RATIO of the radial part: the offsets drift, said with
-  ``temperature`` when the logged temperature follows time (a temperature coefficient of any smooth shape is
-  such a drift to these data), else ``offset_drift``;
+* a significant part across at least ACROSS_MIN_RATIO of the radial part: ``offset_drift|field_drift`` (the
+  offsets drift, or the field turns), with ``temperature`` among the alternatives when the logged temperature
+  follows time (a temperature coefficient of any smooth shape is such a drift to these data); ``confounded``
+  says what would separate them (a vector reference, or turning the sensor);
 * a significant radial part with the part across below RADIAL_MAX_RATIO of it: ``field_drift``, said with
   ``temperature`` when the logged temperature (through a first-order lag, as the library's temperature effect)
   fits the radial trend as well (the scale coefficients of the three axes changing together move the readings
@@ -77,6 +81,28 @@ def _effective_n(resid: np.ndarray) -> float:
     return max(n * (1 - rho) / (1 + rho), 2.0)
 
 
+def _autocorrelation(x: np.ndarray, lags: int) -> np.ndarray:
+    """The sample autocorrelation of ``x`` at lags 1..``lags`` (in sample order), by FFT."""
+    x = x - x.mean()
+    n = len(x)
+    spec = np.fft.rfft(x, 2 * n)
+    acov = np.fft.irfft(spec * np.conj(spec), 2 * n)[:lags + 1]
+    return acov[1:] / acov[0] if acov[0] > 0 else np.zeros(lags)
+
+
+def _bartlett_n(resid: np.ndarray, regressor: np.ndarray) -> float:
+    """Samples worth of independent information in the regression of an autocorrelated residual on an
+    autocorrelated regressor (Bartlett 1935): ``n / (1 + 2 sum_k rho_r(k) rho_x(k))`` over the lags up to a
+    quarter of the record.  Two slowly wandering series (a weather temperature and 1/f sensor noise) correlate
+    by chance far beyond an AR(1) residual's allowance; this counts their common memory."""
+    n = len(resid)
+    if n < 8 or np.var(resid) == 0 or np.var(regressor) == 0:
+        return float(n)
+    lags = n // 4
+    total = float(np.sum(_autocorrelation(resid, lags) * _autocorrelation(regressor, lags)))
+    return float(min(max(n / max(1.0 + 2.0 * total, 1e-9), 2.0), n))
+
+
 def _linear(design: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Least squares with standard errors inflated for autocorrelation: (coef, se, residual)."""
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
@@ -129,13 +155,22 @@ def time_only(data: Dataset, reason: str) -> dict:
             "significant": bool(abs(tcoef[2]) > DRIFT_Z * tse[2])}
         if trend_design is not None and n > 3 * TREND_DEGREE:  # beyond any smooth function of time: its own signature
             sdesign = np.column_stack([trend_design, temp - temp.mean()])
-            scoef, sse, _ = _linear(sdesign[keep], r[keep])
-            z = float(abs(scoef[-1]) / sse[-1]) if sse[-1] > 0 else 0.0
+            scoef, sse, sres = _linear(sdesign[keep], r[keep])
+            # the temperature's own changes (what the smooth trend leaves of it) against the residual: their common
+            # memory, not the residual's alone, sets how far they can correlate by chance
+            # (under the null: the residual of the smooth trend alone, not the one the temperature was fitted into)
+            td, rk, tk = trend_design[keep], r[keep], temp[keep] - temp[keep].mean()
+            t_own = tk - td @ np.linalg.lstsq(td, tk, rcond=None)[0]
+            bartlett = _bartlett_n(rk - td @ np.linalg.lstsq(td, rk, rcond=None)[0], t_own)
+            se_t = float(sse[-1]) * np.sqrt(max(_effective_n(sres) / bartlett, 1.0))
+            z = float(abs(scoef[-1]) / se_t) if se_t > 0 else 0.0
             out["time_only"]["temperature"].update({
                 "beyond_smooth_time_nT_per_C": float(scoef[-1]), "beyond_smooth_time_z": z,
+                "beyond_smooth_time_effective_n": bartlett,
                 "named": bool(z > TEMPERATURE_NAME_Z),
                 "named_rule": f"the coefficient with a degree-{TREND_DEGREE} polynomial of time fitted beside it, beyond "
-                              f"{TEMPERATURE_NAME_Z:g} standard errors (inflated for autocorrelation): |B| - F follows the "
+                              f"{TEMPERATURE_NAME_Z:g} standard errors (inflated for the residual's and the temperature's "
+                              "common autocorrelation, Bartlett's effective samples): |B| - F follows the "
                               "logged temperature's own changes, not only the time they share"})
     named = [name for name, part in (("drift", drift), ("temperature", out["time_only"].get("temperature", {})))
              if part.get("significant")]
@@ -143,13 +178,32 @@ def time_only(data: Dataset, reason: str) -> dict:
     named = outliers + named
     temperature_named = bool(out["time_only"].get("temperature", {}).get("named"))
     direction = _drift_direction(raw[order], t, keep, None if data.temp_C is None else np.asarray(data.temp_C, float)[order],
-                                 data.t_s is not None)
+                                 data.t_s is not None, f[order])
     out["time_only"]["drift_direction"] = direction
     drifts = [] if temperature_named or direction.get("named") is None else [direction["named"]]
+    out["confounded"] = [_alternatives(name, direction) for name in drifts if "|" in name]
     verdict = outliers + (["temperature"] if temperature_named else []) + drifts
     out["verdict"] = "+".join(verdict) if verdict else "insufficient_data"
     out["time_verdict"] = "+".join(named) if named else "constant"
     return out
+
+
+def _alternatives(name: str, direction: dict) -> dict:
+    """The ``confounded`` entry of a fixed sensor's drift named ``a|b[|c]`` (the vector path's form: the
+    alternatives, the evidence and the measurement that would separate them)."""
+    parts = name.split("|")
+    separate = []
+    if "field_drift" in parts:
+        separate.append("a vector reference beside the sensor (an observatory's vector data), or turning the sensor, "
+                        "tells a field that turns or changes from offsets that drift")
+    if "temperature" in parts:
+        separate.append("a record in which the temperature changes independently of time tells a temperature "
+                        "coefficient from a drift in time")
+    return {"alternatives": parts,
+            "evidence": {key: direction[key] for key in ("radial_trend_rms_nT", "across_trend_rms_nT",
+                                                          "temperature_follows_time_r2") if key in direction}
+            | {"statement": direction.get("why", "")},
+            "separate_by": "; ".join(separate)}
 
 
 def _spikes(r: np.ndarray, design: np.ndarray | None, t: np.ndarray, raw_nT: np.ndarray) -> tuple[np.ndarray, dict]:
@@ -197,9 +251,13 @@ def _step_sse(y: np.ndarray) -> float:
     return float(sse.min()) if len(sse) else np.inf
 
 
-def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.ndarray | None, timed: bool) -> dict:
+def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.ndarray | None, timed: bool,
+                     f_ref: np.ndarray | None = None) -> dict:
     """The direction in which the vector readings drift (module docstring): the RMS of the radial trend and of
-    the trend across, their F tests, and the name they give (None for none)."""
+    the trend across, their F tests, and the name they give (None for none).  ``f_ref``: the reference in the
+    same order; where it varies (an observatory's scalar magnetometer), the readings' radial change that it
+    follows (a fitted multiple of its change: the sensor's gain along its direction) is the field's own, not a
+    drift, and is taken out first."""
     n = int(keep.sum())
     span = float(np.ptp(t))
     if not timed or span <= 0 or n <= 3 * TREND_DEGREE:
@@ -212,6 +270,10 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
     e2 = np.cross(m, e1)
     design = legendre.legvander(2 * (tk - t[0]) / span - 1, TREND_DEGREE)
     y = x @ np.column_stack([m, e1, e2])  # radial, across, across
+    if f_ref is not None and np.ptp(f_ref[keep]) > 0:  # the field's magnitude as the reference follows it
+        fk = f_ref[keep] - f_ref[keep].mean()
+        gain = float(fk @ (y[:, 0] - y[:, 0].mean()) / (fk @ fk))
+        y[:, 0] -= gain * fk
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     resid = y - design @ coef
     trend = design @ coef
@@ -251,10 +313,11 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
         return out
     if across_drift:
         thermal = follows is not None and follows >= TEMPERATURE_FOLLOWS_TIME_R2
-        out["named"] = "offset_drift|temperature" if thermal else "offset_drift"
+        out["named"] = "offset_drift|temperature|field_drift" if thermal else "offset_drift|field_drift"
         out["why"] = (f"the readings drift across their own direction (RMS {across:.3g} nT against {radial:.3g} nT "
                       "along it): the offsets drift" + (", or a temperature coefficient (the logged temperature "
-                                                         "follows time)" if thermal else ""))
+                                                         "follows time)" if thermal else "") +
+                      ", or the field's direction changes (a scalar reference follows no direction)")
         return out
     out["named"] = "field_drift"
     out["why"] = (f"the readings drift along their own direction only (RMS {radial:.3g} nT, {across:.3g} nT across): "

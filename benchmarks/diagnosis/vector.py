@@ -27,16 +27,18 @@ import numpy as np
 from numpy.polynomial import legendre
 
 from magbench.calibrators import make
+from magbench.calibrators.core.objective import ScalarObjective, identity_vector
+from magbench.calibrators.fisher import coverage
 from magbench.calibrators.registry import get
 from magbench.errors import InputError
 from magbench.numerics import systematic_rows
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.effects import EFFECTS, SPIKE_SIGMA, Columns, Normalization, OutlierEffect, robust_sigma
-from magbench.simulate.sensor import MODELS, PARAM_NAMES
+from magbench.simulate.sensor import MODELS, NEUTRAL, PARAM_NAMES
 
-from .floor import MOTION_Z, model_floor, vector_floor
+from .floor import MOTION_Z, attitude_floor, model_floor, vector_floor
 from .localize import folds, localize, tails
-from .model import BASE_FREE, ExtendedModel, Tangent
+from .model import BASE_FREE, BASE_PRIOR_SD, ExtendedModel, Tangent, base_correction
 from .naming import (
     BODY_DRIFTS,
     FAMILY_ALPHA,
@@ -100,6 +102,20 @@ ROBUST_START = "ransac"  # the robust base start, where it estimates the base mo
 TANGENT_TOLERANCE = 0.05  # a later tangent point must reproduce the base fit's RMS within 5 %
 SHRINK_FLAG = ("above 100 %: the held-out RMS with the effect is below the noise-floor estimate, so the floor "
                "(its interval is given) is too high for these data or the remainder is smaller than its error")
+
+
+PRIOR_MIN_SCALE_NT = 0.1
+"""The weak prior's pseudo-rows are scaled by the noise floor (nT), at least this."""
+IMPLAUSIBLE_SD = 3.0
+"""A base fit whose scales or angles lie further than this many prior standard deviations from neutral is fitted
+again with the prior: attitudes that leave directions of the base model free (a vehicle's band) let least
+squares run along them."""
+
+
+def plausible_base(x9: np.ndarray) -> bool:
+    """Whether the base nine-vector's angles and scales lie within IMPLAUSIBLE_SD prior standard deviations."""
+    return bool(np.all(np.abs(x9[:3]) <= IMPLAUSIBLE_SD * BASE_PRIOR_SD["angle"])
+                and np.all(np.abs(x9[3:6] - 1.0) <= IMPLAUSIBLE_SD * BASE_PRIOR_SD["scale"]))
 
 
 class Progress:
@@ -166,6 +182,27 @@ class Diagnosis:
                        *fit.params.offset_nT], dtype=float)
         return x9, res, corrected / np.linalg.norm(corrected, axis=1)[:, None]
 
+    def _ill_conditioned(self) -> bool:
+        """Whether the attitudes leave some direction of the base model poorly determined (``fisher.coverage``'s
+        warning: a vehicle's band of directions, a level turntable).  Only there is an implausible base fit a
+        valley the data leave free; elsewhere it is a large structure pulling the fit (a lag at random attitudes),
+        which a prior would only hide."""
+        d = self.columns
+        report = coverage(ScalarObjective(d.raw_nT, d.f_ref_nT, self.base), identity_vector(self.base))
+        return bool(report["warning"] or report["refusal"])
+
+    def _base_with_prior(self, x9: np.ndarray, scale_nT: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The base correction fitted again (trimmed Levenberg-Marquardt) with the weak prior on its angles and
+        scales (``ExtendedModel.set_prior``), from ``x9``; (nine-vector, scalar residual, corrected directions)."""
+        model = ExtendedModel(self.base, [], self.columns, self.norm, x9[6:9])
+        model.set_prior(scale_nT)
+        start = x9.copy()  # from neutral angles and scales: the valley is long and ill-conditioned from its far end
+        start[:6] = NEUTRAL[:6]
+        x, _ = model.fit_robust(start, model.free_indices([]))
+        m_mat, o = base_correction(x)
+        corrected = (self.columns.raw_nT - o) @ m_mat.T
+        return x, model.residuals(x), corrected / np.linalg.norm(corrected, axis=1)[:, None]
+
     def _scalar_residual(self, fit) -> np.ndarray:
         return np.linalg.norm(fit.correct(self.columns.raw_nT), axis=1) - self.columns.f_ref_nT
 
@@ -175,15 +212,29 @@ class Diagnosis:
     def run(self) -> dict:
         d, n, k = self.columns, len(self.columns), self.k
         x9, r_all, unit = self.base_residual()
+        fl = vector_floor(unit, d, r_all, self.rows_in_time_order)
+        # the prior's rows outweigh the n sigma^2 (1 - 1/k^2) that a scalar fit gains by scaling the noise down
+        # along a direction the attitudes leave free: the floor times sqrt(n)
+        prior_scale = max(fl["noise_floor_nT"], PRIOR_MIN_SCALE_NT) * float(np.sqrt(n))
+        implausible = not plausible_base(x9) and self._ill_conditioned()
+        if implausible:  # a degenerate valley of the attitudes: the fit again, with the weak prior
+            refit = self._base_with_prior(x9, prior_scale)
+            if plausible_base(refit[0]):  # else the data pull it out anyway (clipping, a large structure): as it was
+                x9, r_all, unit = refit
+                self.base_method += " + weak prior (implausible scales or angles)"
+                fl = vector_floor(unit, d, r_all, self.rows_in_time_order)
+            else:
+                implausible = False
         self.r_all = r_all
         self.unit = unit
         self.progress.step("base calibration")
-        fl = vector_floor(unit, d, r_all, self.rows_in_time_order)
         n_base = len(BASE_FREE[self.base])
         effects_ok, untested, not_applicable = testable(self.base, d, unit, n_base, k)
         self.effect_info = {cls.name: cls.prepare(d, self.norm, r_all, unit) for cls in effects_ok}
         self.progress.step("noise floor")
         model = self.model = ExtendedModel(self.base, effects_ok, d, self.norm, x9[6:9], self.effect_info)
+        if implausible:  # kept in every fit (a plausible base fit needs none: the data determine it)
+            model.set_prior(prior_scale)
         x_lin = np.concatenate([x9, np.zeros(model.p - 9)])
         every = [cls.name for cls in effects_ok]
         n_train = n * (k - 1) // k
@@ -322,7 +373,7 @@ class Diagnosis:
         temp_r2 = temperature_follows_time(d.t_s, d.temp_C)
         spikes_ok = spike_signature(tangent.spikes, tangent.r, d.t_s, d.raw_nT, d.raw_nT)
         named, evidence = confirm(heldout, selected, floor, mde, bool(base_rem["remainder_significant"]),
-                                  spikes_ok, slow, temp_r2)
+                                  spikes_ok, slow, temp_r2, hold_label=holds(d.t_s, self.unit))
         confirmed = list(named)
         if any(s in BODY_DRIFTS for s in named):  # a switch is not a slow drift
             drift_res = np.nan_to_num(self.model_residuals(named))
@@ -433,6 +484,7 @@ class Diagnosis:
         info2 = dict(self.effect_info)
         info2.update({nm: EFFECTS[nm].prepare(d2, self.norm, self.r_all, self.unit, spikes) for nm in thermal})
         model2 = ExtendedModel(self.base, self.model.effects, d2, self.norm, self.model.o0, info2)
+        model2.prior_w = self.model.prior_w
         free = self.model.free_indices(named)
         rows = np.flatnonzero(~spikes)
         rows = rows[np.argsort(d.t_s[rows], kind="stable")]
@@ -502,7 +554,12 @@ class Diagnosis:
         d = self.columns
         if x is None or d.t_s is None or np.ptp(d.t_s) <= 0:
             return fl
-        return model_floor(fl, model.residuals(x), d.t_s, d.raw_nT, n_free, spikes)
+        r_model = model.residuals(x)
+        fl = model_floor(fl, r_model, d.t_s, d.raw_nT, n_free, spikes)
+        rough = roughness(d.t_s, d.raw_nT)
+        if rough is not None and rough > ROUGHNESS_MAX:  # random attitudes: attitude neighbours, not time ones
+            fl = attitude_floor(fl, r_model, self.unit, self.gravity, n_free, spikes)
+        return fl
 
     @staticmethod
     def _spikes(model: ExtendedModel, x_lin: np.ndarray, every: list[str]) -> tuple[np.ndarray, np.ndarray | None, int]:

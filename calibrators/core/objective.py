@@ -7,6 +7,8 @@ budget and the convergence trace are measured the same way for every calibrator,
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from magbench.simulate.sensor import FREE, PARAM_NAMES, ErrorParams, embed
@@ -17,6 +19,12 @@ def n_params(model: str) -> int:
 
 
 def identity_vector(model: str) -> np.ndarray:
+    """The parameters of no calibration (zero angles and offsets, unit scales) for ``model``: a new array."""
+    return _identity(model).copy()
+
+
+@functools.cache
+def _identity(model: str) -> np.ndarray:
     return ErrorParams().to_vector(model)
 
 

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from magbench.numerics import median
 from magbench.simulate.dataset import readonly_copy
 from magbench.simulate.sensor import FREE
 
@@ -122,11 +123,16 @@ def search_bounds(model: str, f_ref_nT, angle_range_rad: float, scale_min: float
 
     Angles +-``angle_range_rad`` (seed 000, section 2.2 step 1: 0.1 rad), scales in [``scale_min``,
     ``scale_max``] and offsets +-``offset_range_nT`` (default ``offset_fraction`` times the median reference
-    magnitude), for the entries the model estimates.  Each calibrator names its box in ``search_box()``."""
+    magnitude; ``f_ref_nT`` may be that median already, a number), for the entries the model estimates.  Each
+    calibrator names its box in ``search_box()``."""
     lo = [-angle_range_rad] * 3
     hi = [angle_range_rad] * 3
     if model != "angles":
-        offset = offset_fraction * float(np.median(f_ref_nT)) if offset_range_nT is None else offset_range_nT
+        if offset_range_nT is None:
+            typical = float(f_ref_nT) if np.ndim(f_ref_nT) == 0 else median(f_ref_nT)
+            offset = offset_fraction * typical
+        else:
+            offset = offset_range_nT
         lo += [scale_min] * 3 + [-offset] * 3
         hi += [scale_max] * 3 + [offset] * 3
         free = list(FREE[model])

@@ -26,7 +26,10 @@ parameters, eq. 7); the return value is ``(mean G, max G)`` of the current gener
 from __future__ import annotations
 
 import functools
+import itertools
 import math
+from collections.abc import Mapping
+from types import MappingProxyType
 
 import numpy as np
 
@@ -44,7 +47,8 @@ def adaptive_probability(f: np.ndarray, f_max: float, f_avg: float, p1: float, p
     return np.where(f >= f_avg, p1 - (p1 - p2) * (f - f_avg) / spread, p1)
 
 
-def uniform_layout(m: int, length: int, per_bit: bool) -> dict[str, slice]:
+@functools.lru_cache(maxsize=64)
+def uniform_layout(m: int, length: int, per_bit: bool) -> Mapping[str, slice]:
     """Which of a generation's uniforms each step uses (m individuals, ``length`` bits per string):
     roulette spins (step 3), per pair a crossover draw and a cut draw (step 4), and for mutation
     (step 5) per individual a draw and the bit it flips (``single_bit``) or one draw per bit
@@ -59,7 +63,7 @@ def uniform_layout(m: int, length: int, per_bit: bool) -> dict[str, slice]:
     else:
         parts["mutate"] = slice(mut, mut + m)
         parts["bit"] = slice(mut + m, mut + 2 * m)
-    return parts
+    return MappingProxyType(parts)  # cached (one per run's shape, asked every generation): read-only
 
 
 def uniforms_needed(m: int, length: int, per_bit: bool) -> int:
@@ -382,8 +386,9 @@ BLX, SCATTERED = 0, 1
 NONUNIFORM, GAUSSIAN = 0, 1
 
 
+@functools.lru_cache(maxsize=64)
 def real_uniform_layout(m: int, p: int, selection: int, tournament: int, crossover: int,
-                        mutation: int) -> dict[str, slice]:
+                        mutation: int) -> Mapping[str, slice]:
     """Which of a generation's uniforms each step uses (m individuals of p genes; half = ceil(m/2) pairs
     of parents, the second child of the last pair dropped when m is odd): selection (TOURNAMENT: k
     contestants for each of the 2 half parents; RANK_SUS: the pointers' offset and one sort key per
@@ -399,7 +404,7 @@ def real_uniform_layout(m: int, p: int, selection: int, tournament: int, crossov
     for name, size in sizes.items():
         parts[name] = slice(start, start + size)
         start += size
-    return parts
+    return MappingProxyType(parts)  # cached (one per run's shape, asked every generation): read-only
 
 
 def real_uniforms_needed(m: int, p: int, selection: int, tournament: int, crossover: int, mutation: int) -> int:
@@ -410,7 +415,7 @@ def real_uniforms_needed(m: int, p: int, selection: int, tournament: int, crosso
 def _pow_each(r: np.ndarray, e: float) -> np.ndarray:
     """``r ** e`` element by element with the C library's ``pow`` (as the compiled loops call it; numpy's
     own vectorized power may differ in the last bit)."""
-    return np.array([math.pow(v, e) for v in r.tolist()], dtype=float)
+    return np.fromiter(map(math.pow, r.tolist(), itertools.repeat(e, r.size)), dtype=float, count=r.size)
 
 
 def real_generation_numpy(f, pop, u, z, selection, tournament, crossover, alpha, pc, mutation, pm, shrink,
