@@ -56,6 +56,12 @@ MIN_TEMPERATURE_SPAN_C = 1.0
 """Least temperature range (max - min) that makes a temperature effect identifiable."""
 CLIP_MIN_REPEATS = 3
 """An axis is clipped when its largest (or smallest) reading occurs at least this many times exactly."""
+HOLD_ANGLE_RAD = 0.005
+"""Consecutive samples (in time) whose field directions differ by less than this belong to one hold."""
+HOLD_MIN_SAMPLES = 10
+HOLD_SHARE = 0.8
+"""A record is one of held attitudes when at least this share of its samples lie in holds of at least
+HOLD_MIN_SAMPLES samples."""
 MIN_SPAN_S = 1e-9
 """Least time span used as a divisor (a record at one instant)."""
 FD_STEP = 1e-3
@@ -109,6 +115,25 @@ def clipped(raw_nT: np.ndarray) -> np.ndarray:
             if at.sum() >= CLIP_MIN_REPEATS:
                 out |= at
     return out
+
+
+def holds(t_s: np.ndarray | None, unit: np.ndarray) -> np.ndarray | None:
+    """The hold of each sample (labels in the samples' order) when the record is one of held attitudes (at least
+    HOLD_SHARE of the samples in runs of at least HOLD_MIN_SAMPLES whose consecutive directions differ by less
+    than HOLD_ANGLE_RAD), else None."""
+    n = len(unit)
+    if t_s is None or n < 2 * HOLD_MIN_SAMPLES:
+        return None
+    order = np.argsort(t_s, kind="stable")
+    u = unit[order]
+    step = np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1.0, 1.0))
+    seg = np.concatenate([[0], np.cumsum(step > HOLD_ANGLE_RAD)])
+    sizes = np.bincount(seg)
+    if np.sum(sizes[sizes >= HOLD_MIN_SAMPLES]) < HOLD_SHARE * n:
+        return None
+    label = np.empty(n, dtype=int)
+    label[order] = seg
+    return label
 
 
 def _f_test_p(sse_small: float, sse_big: float, extra: int, dof: int) -> float:
@@ -644,7 +669,11 @@ class TemperatureEffect(Effect):
             return best, cache[best][1]
 
         best, temp = thermal_lag(6)  # offsets and scales
-        p_align = cls._alignment_p(d, norm, unit, r_base, keep, temp, lin)
+        # held attitudes (a few positions, each held while the temperature moves on): each direction is seen over one
+        # stretch of temperature only, and a change of the alignment with temperature cannot be told from structure
+        # tied to each hold that settles in time (an induced field relaxing after each move)
+        held = timed and holds(d.t_s, unit) is not None
+        p_align = 1.0 if held else cls._alignment_p(d, norm, unit, r_base, keep, temp, lin)
         aligned = bool(p_align < cls.ALIGNMENT_P)
         if aligned:  # the time constant again, with the alignment coefficients
             best, temp = thermal_lag(len(cls.fit_params))

@@ -60,9 +60,9 @@ def test_a_temperature_dependent_alignment_is_named_temperature_without_unexplai
 
 @pytest.mark.parametrize("index", [1226, 2338])  # offsets and gains that follow temperature, 12 held attitudes
 def test_negative_control_held_attitudes_keep_the_offset_and_scale_form(index):
-    """Twelve held attitudes, each seen at one temperature: the alignment coefficients have no leverage, and
-    three more free coefficients made the attitude-blocked folds extrapolate wildly (the record came back
-    'unexplained' when they were always fitted)."""
+    """Twelve held attitudes, each seen over one stretch of temperature: the alignment coefficients have no
+    leverage (they cannot be told from structure tied to each hold), and three more free coefficients made the
+    attitude-blocked folds extrapolate wildly (the record came back 'unexplained' when they were always fitted)."""
     result, case = run_case(index)
     assert case.present == ("temperature",) and case.schedule == "steps"
     info = result["effect_info"]["temperature"]
@@ -71,8 +71,9 @@ def test_negative_control_held_attitudes_keep_the_offset_and_scale_form(index):
     assert result["verdict"] == "temperature"
 
 
-@pytest.mark.parametrize("index", [2095, 1599, 534])  # nonlinearity beside a field drift; a lag and a nonlinearity;
-# spikes beside readings clipped at a range limit on a turntable
+@pytest.mark.parametrize("index", [2095, 1599, 534, 426])  # nonlinearity beside a field drift; a lag and a
+# nonlinearity; spikes beside readings clipped at a range limit on a turntable; spikes beside a lagged soft iron on
+# held attitudes
 def test_negative_control_other_structure_does_not_buy_alignment_coefficients(index):
     """A static response to the attitude, a drift in time or a time shift of the axes is not a change of the
     alignment with temperature: the F test is made beside their forms (and without clipped readings), and no
@@ -107,3 +108,19 @@ def test_temperature_beside_a_structure_a_refused_time_shift_fits_is_named_with_
     lag = next(r for r in result["naming"]["evidence"] if r["name"] == "lag")
     assert not lag["named"] and "roughness" in lag
     assert result["verdict"] == "temperature+unexplained"
+
+
+def test_a_drift_folded_into_temperature_is_modelled_only_while_the_temperature_effect_is_named():
+    """Case 2093 (clipping on held attitudes): the offset drift folded into the temperature effect made the remainder
+    small while the temperature effect itself was dropped, and a field drift was named for the clipping."""
+    def row(name, own, **extra):
+        return {"name": name, "named": True, **extra,
+                "families": {f: {"own_rms_nT": own, "z": 9.0} for f in ("random", "time-blocked")}}
+
+    def remainder_of(names):
+        return {"remainder_nT": 4.4 if "offset_drift" in names else 103.0, "remainder_significant": True}
+
+    evidence = [row("field_drift", 20.0), row("temperature", 3.5), row("offset_drift", 10.0, folded_into="temperature")]
+    evidence[2]["named"] = False
+    assert undominated(evidence, ["field_drift", "temperature"], remainder_of, modelled=("offset_drift",)) == []
+    assert "left unexplained" in evidence[0]["why"] and "left unexplained" in evidence[1]["why"]

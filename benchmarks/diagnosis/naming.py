@@ -67,7 +67,15 @@ import numpy as np
 from numpy.polynomial import legendre
 from scipy.stats import kstest, norm
 
-from magbench.simulate.effects import CLIP_MIN_REPEATS, EFFECTS, clipped  # noqa: F401  (clipped: re-exported)
+from magbench.simulate.effects import (  # noqa: F401  (clipped, holds and their constants: re-exported)
+    CLIP_MIN_REPEATS,
+    EFFECTS,
+    HOLD_ANGLE_RAD,
+    HOLD_MIN_SAMPLES,
+    HOLD_SHARE,
+    clipped,
+    holds,
+)
 
 from .scoring import paired_z, rms
 
@@ -101,12 +109,6 @@ multiple: the family that guards against a flexible time basis fitting part of a
 so the name must dominate what is left more clearly."""
 SPIKE_TIMES_ALPHA = FAMILY_ALPHA
 """Level of the test that spike times are spread over the record like the samples (Kolmogorov-Smirnov)."""
-HOLD_ANGLE_RAD = 0.005
-"""Consecutive samples (in time) whose field directions differ by less than this belong to one hold."""
-HOLD_MIN_SAMPLES = 10
-HOLD_SHARE = 0.8
-"""A record is one of held attitudes when at least this share of its samples lie in holds of at least
-HOLD_MIN_SAMPLES samples."""
 HOLD_Z = 3.0
 """A time effect in a record of held attitudes must lower the residual within the holds by this many
 standard errors (paired, on the held-out residuals with each hold's mean removed)."""
@@ -407,24 +409,6 @@ def step_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_d
     return {"time_s": best[1], "size_nT": float(np.linalg.norm(best[2])), "sse_step": best[0], "sse_drift": sse_drift}
 
 
-def holds(t_s: np.ndarray | None, unit: np.ndarray) -> np.ndarray | None:
-    """The hold of each sample (labels in the samples' order) when the record is one of held attitudes
-    (module docstring), else None."""
-    n = len(unit)
-    if t_s is None or n < 2 * HOLD_MIN_SAMPLES:
-        return None
-    order = np.argsort(t_s, kind="stable")
-    u = unit[order]
-    step = np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1.0, 1.0))
-    seg = np.concatenate([[0], np.cumsum(step > HOLD_ANGLE_RAD)])
-    sizes = np.bincount(seg)
-    if np.sum(sizes[sizes >= HOLD_MIN_SAMPLES]) < HOLD_SHARE * n:
-        return None
-    label = np.empty(n, dtype=int)
-    label[order] = seg
-    return label
-
-
 def hold_demeaned(r: np.ndarray, label: np.ndarray) -> np.ndarray:
     """``r`` with each hold's mean removed."""
     means = np.bincount(label, weights=r) / np.maximum(np.bincount(label), 1)
@@ -483,7 +467,9 @@ def undominated(evidence: list[dict], named: list[str], remainder_of, modelled: 
     rows = {row["name"]: row for row in evidence}
     named = list(named)
     while True:
-        rem = remainder_of(named + [m for m in modelled if m not in named])
+        # a drift folded into a temperature effect is modelled only while that effect is named
+        fitted = [m for m in modelled if m not in named and rows.get(m, {}).get("folded_into", "") in ("", *named)]
+        rem = remainder_of(named + fitted)
         if not rem["remainder_significant"]:
             return named
         weak = [(own_rms(rows[nm]), nm) for nm in named if not EFFECTS[nm].robust and nm in rows
@@ -508,6 +494,7 @@ def fold_drift_into_temperature(evidence: list[dict], named: list[str], temp_r2:
     for row in evidence:
         if row["name"] in BODY_DRIFTS and row["name"] in named:
             row["named"] = False
+            row["folded_into"] = next(nm for nm in named if _is_thermal(nm))
             row["why"] = (f"the logged temperature follows time (R² {temp_r2:.2f}): an offset drift beside the temperature "
                           "effect is as much a temperature coefficient of another shape; what it removed is left as a remainder")
     return [nm for nm in named if nm not in BODY_DRIFTS]
