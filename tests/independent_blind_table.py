@@ -75,10 +75,11 @@ HISTORY = {
         "0-1439 and checked every change on 1440-2639; cases 2640-2879 were held out for round 3 and run once, with "
         "its final code (`--start 2640 --cases 240`). Round 4 developed on 0-2639; cases 2880-3359 were held out for "
         "it and run once, with its final code (`--start 2880 --cases 480`)."),
-    2: ("Written after round 3 by another hand, from the physics only (it read neither the diagnosis nor the "
-        "first generator's effects), and never used for tuning the vector diagnosis. Round 4's fixed-sensor "
-        "changes looked at cases 0-479 (`--start 0 --cases 480`); cases 480-1439 are held out "
-        "(`--start 480 --cases 960`)."),
+    2: ("Written during round 4 by another hand, from the physics only (it read neither the diagnosis nor the "
+        "first generator's effects). Round 4 looked at cases 0-479 (`--start 0 --cases 480`): the fixed-sensor "
+        "changes were made on them, and the round's branches were compared there. Cases 480-1439 "
+        "(`--start 480 --cases 960`) are held out: they were run twice before the final code, with main and with the "
+        "temperature branch, to decide that branch's merge (nothing was tuned on them), and once with the final code."),
 }
 SPLITS = {1: "1440,2640,2880", 2: "480"}
 LABELS = {

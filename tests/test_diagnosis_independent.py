@@ -15,9 +15,11 @@ from independent_scoring import parse, score  # noqa: E402
 CASES = 240
 
 
-@pytest.fixture(scope="module")
-def verdicts():
-    return run(range(CASES), jobs=2)
+@pytest.fixture(scope="module", params=[1, 2], ids=["generator1", "generator2"])
+def verdicts(request):
+    """The first 240 records of each independent generator (tests/independent_forward.py and the second one,
+    tests/independent_forward2.py, written later by another hand)."""
+    return run(range(CASES), jobs=2, generator=request.param)
 
 
 def test_at_most_one_wrong_name_per_24_records(verdicts):
