@@ -74,7 +74,8 @@ HISTORY = {
         "out for round 2 and run once, with its final code (`--start 2400 --cases 240`, README). Round 3 developed on "
         "0-1439 and checked every change on 1440-2639; cases 2640-2879 were held out for round 3 and run once, with "
         "its final code (`--start 2640 --cases 240`). Round 4 developed on 0-2639; cases 2880-3359 were held out for "
-        "it and run once, with its final code (`--start 2880 --cases 480`)."),
+        "it (`--start 2880 --cases 480`): each of its two branches ran them at its end, and one change (a false lag "
+        "on case 3268) was made after seeing them, so they are not fully blind."),
     2: ("Written during round 4 by another hand, from the physics only (it read neither the diagnosis nor the "
         "first generator's effects). Round 4 looked at cases 0-479 (`--start 0 --cases 480`): the fixed-sensor "
         "changes were made on them, and the round's branches were compared there. Cases 480-1439 "
@@ -86,8 +87,9 @@ LABELS = {
     1: ["developed on in rounds 1-4 (rounds 2-3's development set)",
         "developed on in rounds 1-4 (round 3 checked every change on it; 2400-2639 was round 2's held-out block)",
         "held out for round 3: run once, with its final code",
-        "held out for round 4: run once, with its final code"],
-    2: ["looked at by round 4's fixed-sensor changes", "held out"],
+        "held out for round 4 (one change was made after seeing them)"],
+    2: ["looked at in round 4 (its fixed-sensor changes were made on them)",
+        "held out (run twice before the final code to decide a merge, nothing tuned)"],
 }
 
 
