@@ -4,6 +4,7 @@ import contextlib
 import io
 import json
 import re
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
@@ -17,12 +18,14 @@ from magbench.simulate.effects import (
     EFFECTS,
     Columns,
     Effect,
-    Normalization,
     effect_names,
     register_effect,
     unregister_effect,
 )
 from magbench.simulate.scenarios import get_scenario
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from effect_records import OFFSET_NT, sphere_record  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -116,13 +119,9 @@ def test_the_fitted_form_undoes_the_forward_model(name):
     cls = EFFECTS[name]
     rng = np.random.default_rng(3)
     n = 200
-    o = np.array([120.0, -80.0, 40.0])
-    b = rng.normal(size=(n, 3))
-    lin = 50000.0 * b / np.linalg.norm(b, axis=1, keepdims=True) + o
-    d = Columns(lin, np.full(n, 50000.0), t_s=np.linspace(0.0, 600.0, n), temp_C=np.linspace(10.0, 35.0, n))
-    norm = Normalization.of(d)
+    lin, d, norm, ctx = sphere_record(rng, n)
+    o = OFFSET_NT
     forward = cls.random(rng, 1.0)
-    ctx = {"t_s": d.t_s, "temp_C": d.temp_C, "offset_nT": tuple(o), "f_nT": norm.f0_nT}
     raw = forward.readings(lin, ctx, rng)
     assert not np.allclose(raw, lin)
     dd = Columns(raw, d.f_ref_nT, d.t_s, d.temp_C)

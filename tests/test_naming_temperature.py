@@ -12,13 +12,14 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from effect_records import OFFSET_NT, sphere_record  # noqa: E402
 from independent_forward import make_case  # noqa: E402
 from independent_scoring import score  # noqa: E402
 
 from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
 from magbench.benchmarks.diagnosis.naming import undominated  # noqa: E402
 from magbench.simulate.dataset import Dataset  # noqa: E402
-from magbench.simulate.effects import Columns, Normalization, TemperatureEffect  # noqa: E402
+from magbench.simulate.effects import TemperatureEffect  # noqa: E402
 
 
 def run_case(index: int) -> tuple[dict, object]:
@@ -31,14 +32,9 @@ def test_the_alignment_form_undoes_a_temperature_dependent_alignment():
     """Readings whose axes' mutual angles change with temperature, corrected with the fitted form (its
     alignment columns beside the base's offsets and scales), give back the readings without the effect."""
     rng = np.random.default_rng(5)
-    n = 300
-    o = np.array([120.0, -80.0, 40.0])
-    b = rng.normal(size=(n, 3))
-    lin = 50000.0 * b / np.linalg.norm(b, axis=1, keepdims=True) + o
-    d = Columns(lin, np.full(n, 50000.0), t_s=np.linspace(0.0, 600.0, n), temp_C=np.linspace(10.0, 35.0, n))
-    norm = Normalization.of(d)
+    lin, d, norm, ctx = sphere_record(rng, 300)
+    o = OFFSET_NT
     forward = TemperatureEffect((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (40.0, -25.0, 30.0), ref_C=norm.temp0_C)
-    ctx = {"t_s": d.t_s, "temp_C": d.temp_C, "offset_nT": tuple(o), "f_nT": norm.f0_nT}
     raw = forward.readings(lin, ctx, rng)
     assert np.sqrt(np.mean((raw - lin) ** 2)) > 5.0
     g = TemperatureEffect._columns_for(raw - o, d.temp_C - norm.temp0_C)
