@@ -56,3 +56,46 @@ def test_held_samples_are_left_out_of_the_floor():
     from magbench.benchmarks.diagnosis.floor import time_difference_floor
 
     assert time_difference_floor(r, t)["noise_floor_nT"] < 1.8
+
+
+def test_the_noise_spectrum_tells_white_noise_from_1_over_f_noise_and_a_drift():
+    """Allan deviations over windows of 1, 2, 4, ... samples: white noise averages down as 1/sqrt(m); 1/f noise
+    flattens; a drift rises over the longest windows."""
+    from magbench.benchmarks.diagnosis.floor import noise_spectrum
+
+    rng = np.random.default_rng(0)
+    n = 2000
+    white = rng.normal(0, 1, n)
+    spec = np.fft.rfft(rng.standard_normal(n))
+    f = np.arange(len(spec), dtype=float)
+    f[0] = 1.0
+    pink = np.fft.irfft(spec / np.sqrt(f), n)
+    pink /= pink.std()
+    assert noise_spectrum(white)["kind"] == "white"
+    flicker = noise_spectrum(white + 2 * pink)
+    assert flicker["kind"] == "flicker (1/f)" and "not a drift" in flicker["statement"]
+    assert noise_spectrum(white + np.linspace(0, 5, n))["kind"].startswith("wander")
+    assert noise_spectrum(white[:20])["kind"] == "too short"
+
+
+def test_a_diagnosis_reports_how_its_residual_averages_down():
+    """The vector path reports the spectrum of what the fit with every effect free leaves; the fixed-sensor path
+    that of what the smooth trend leaves; both say it in the text report."""
+    import json
+
+    from magbench.benchmarks.diagnosis import diagnose, diagnosis_text
+    from magbench.simulate import simulate
+    from magbench.simulate.dataset import Dataset
+
+    d = simulate("tumble9", 0)
+    r = diagnose(d)
+    assert r["noise_spectrum"]["kind"] in ("white", "flicker (1/f)", "wander (a drift or slow structure)")
+    json.dumps(r["noise_spectrum"])
+    assert "noise over time scales" in diagnosis_text(r, "tumble9")
+    n = 1500
+    rng = np.random.default_rng(2)
+    raw = np.array([30000.0, 5000.0, 40000.0]) + rng.normal(0, 1.0, (n, 3))
+    fixed = diagnose(Dataset(raw, f_ref_nT=np.full(n, float(np.linalg.norm(raw.mean(axis=0)))),
+                             t_s=np.arange(n, dtype=float)))
+    assert fixed["time_only"]["drift"]["noise_spectrum"]["kind"] == "white"
+    assert "noise over time scales" in diagnosis_text(fixed, "fixed")

@@ -203,6 +203,50 @@ def neighbour_z(r: np.ndarray, raw_nT: np.ndarray) -> float:
     return float(norm.isf(max(p, 1e-300)))
 
 
+ALLAN_MIN_WINDOWS = 8
+"""The longest averaging window of ``noise_spectrum`` leaves at least this many windows (its Allan deviation then
+has a relative standard error of about 0.27)."""
+NON_WHITE_EXCESS = 2.0
+"""The residual averaged over the longest window is called non-white when its Allan deviation is more than this
+many times what white noise of the one-sample deviation gives there."""
+
+
+def noise_spectrum(r: np.ndarray) -> dict:
+    """How the residual ``r`` (in time order) averages down: its Allan deviation over windows of 1, 2, 4, ...
+    samples (non-overlapping means; at least ALLAN_MIN_WINDOWS windows), against white noise's 1/sqrt(m) from the
+    one-sample value.  White noise keeps the ratio at 1 (slope -1/2 in log-log); 1/f noise flattens (slope 0) and a
+    drift or other slow structure rises.  The floor is the white part: this says whether slow wander of the size
+    seen over long windows is what the noise itself does."""
+    r = np.asarray(r, dtype=float)
+    n = len(r)
+    sizes, adev = [], []
+    m = 1
+    while n // m >= ALLAN_MIN_WINDOWS:
+        k = n // m
+        means = r[:k * m].reshape(k, m).mean(axis=1)
+        sizes.append(m)
+        adev.append(float(np.sqrt(0.5 * np.mean(np.diff(means) ** 2))))
+        m *= 2
+    if len(sizes) < 3 or adev[0] <= 0:
+        return {"kind": "too short", "averaging_samples": sizes, "allan_deviation_nT": adev}
+    white = adev[0] / np.sqrt(np.asarray(sizes, dtype=float))
+    # the slope over the three longest windows, where the slow part shows (at short ones the white part rules)
+    slope = float(np.polyfit(np.log(sizes[-3:]), np.log(np.maximum(adev[-3:], 1e-300)), 1)[0])
+    excess = float(adev[-1] / white[-1])
+    if excess <= NON_WHITE_EXCESS:
+        kind, statement = "white", "it averages down like white noise: the floor describes it at every time scale"
+    else:
+        kind = "flicker (1/f)" if slope <= 0.15 else "wander (a drift or slow structure)"
+        statement = (f"over {sizes[-1]} samples it averages to {adev[-1]:.3g} nT, {excess:.3g} times white noise's "
+                     f"{white[-1]:.3g} nT (log-log slope over the longest windows {slope:.2f}: white -0.5, 1/f 0, a drift "
+                     "above): the floor is its "
+                     "white part" + (", and slow wander of this size is what the noise itself does, not a drift"
+                                     if kind.startswith("flicker") else ""))
+    return {"kind": kind, "averaging_samples": sizes, "allan_deviation_nT": adev,
+            "white_allan_deviation_nT": [float(w) for w in white], "log_slope": slope,
+            "excess_at_longest": excess, "statement": statement}
+
+
 def model_floor(fl: dict, r_model: np.ndarray, t_s: np.ndarray, raw_nT: np.ndarray, n_free: int,
                 spikes: np.ndarray) -> dict:
     """The floor ``fl`` (``vector_floor``, from the base residual) again from the residual ``r_model`` of the fit
@@ -235,6 +279,7 @@ def model_floor(fl: dict, r_model: np.ndarray, t_s: np.ndarray, raw_nT: np.ndarr
     scale = float(np.sqrt(n / (n - n_free)))
     sigma, se = alt["noise_floor_nT"] * scale, alt["floor_se_nT"] * scale
     out["floor_model_nT"] = float(sigma)
+    out["noise_spectrum"] = noise_spectrum(rk)  # what the fit with every effect free leaves, over time scales
     follows = abs(out["floor_motion_z"]) > MOTION_Z or out["floor_neighbour_z"] > MOTION_Z
     if follows or fl["noise_floor_nT"] - sigma <= LEAK_Z * np.hypot(fl["floor_se_nT"], se):
         return out

@@ -29,6 +29,9 @@ def _table(result: dict, source: str) -> list[str]:
     if "floor_interval_nT" in result:
         lo, hi = result["floor_interval_nT"]
         lines.append(f"  noise floor interval {lo:.3f} .. {hi:.3f} nT ({result['floor_method']})")
+    spectrum = result.get("noise_spectrum") or {}
+    if spectrum.get("statement"):
+        lines.append(f"  noise over time scales (what the fit with every effect free leaves): {spectrum['statement']}")
     lines += ["", f"  {'effect':<14}{'held-out RMS nT':>16}{'shrink %':>10}{'interval %':>16}{'z':>8}  selected"]
     for e in result["effects"]:
         iv = e.get("shrink_interval_pct")
@@ -74,6 +77,9 @@ def time_only_text(result: dict, source: str = "") -> str:
              f"  drift: {dr['drift_nT_per_h']:.4g} +- {dr['drift_se_nT_per_h']:.2g} nT/h"
              f" ({'significant' if dr['significant'] else 'not significant'})",
              f"  noise floor {to['noise_floor_nT']:.3f} nT ({to['floor_method']})"]
+    spectrum = dr.get("noise_spectrum") or {}
+    if spectrum.get("statement"):
+        lines.append(f"  noise over time scales (what the smooth trend leaves): {spectrum['statement']}")
     if "temperature" in to:
         tc = to["temperature"]
         lines.append(f"  temperature: {tc['temperature_nT_per_C']:.4g} +- {tc['temperature_se_nT_per_C']:.2g} nT/°C "

@@ -45,7 +45,7 @@ from numpy.polynomial import legendre
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.effects import OutlierEffect, first_order_lag
 
-from .floor import time_difference_floor
+from .floor import noise_spectrum, time_difference_floor
 from .naming import STEP_SHARE, spike_signature
 from .scoring import rms
 
@@ -132,12 +132,13 @@ def time_only(data: Dataset, reason: str) -> dict:
     floor = time_difference_floor(r[keep], t[keep] if data.t_s is not None else None)
     design = np.column_stack([np.ones(n), hours - hours.mean()])
     coef, se, resid = _linear(design[keep], r[keep])
-    drift = {"drift_nT_per_h": float(coef[1]), "drift_se_nT_per_h": float(se[1]),
+    drift: dict = {"drift_nT_per_h": float(coef[1]), "drift_se_nT_per_h": float(se[1]),
              "significant": bool(abs(coef[1]) > DRIFT_Z * se[1]) if np.ptp(hours) > 0 else False}
     if trend_design is not None and n > 3 * TREND_DEGREE:
         trend = trend_design @ np.linalg.lstsq(trend_design[keep], r[keep], rcond=None)[0]
         drift["trend_range_nT"] = float(np.ptp(trend))
         drift["rms_after_trend_nT"] = rms((r - trend)[keep])
+        drift["noise_spectrum"] = noise_spectrum((r - trend)[keep])  # what the smooth trend leaves, over time scales
     out["time_only"] = {
         "constant_nT": float(np.median(r)), "mean_nT": float(np.mean(r[keep])), "rms_nT": rms(r[keep]),
         "spikes": spike_info,
