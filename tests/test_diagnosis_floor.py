@@ -74,6 +74,9 @@ def test_the_noise_spectrum_tells_white_noise_from_1_over_f_noise_and_a_drift():
     assert noise_spectrum(white)["kind"] == "white"
     flicker = noise_spectrum(white + 2 * pink)
     assert flicker["kind"] == "flicker (1/f)" and "not a drift" in flicker["statement"]
+    t = np.arange(n)
+    periodic = noise_spectrum(white + 3 * np.sin(2 * np.pi * t / 20))  # structure well inside the longest windows
+    assert periodic["kind"] == "correlated at shorter time scales" and "not a drift" not in periodic["statement"]
     assert noise_spectrum(white + np.linspace(0, 5, n))["kind"].startswith("wander")
     assert noise_spectrum(white[:20])["kind"] == "too short"
 
@@ -89,7 +92,8 @@ def test_a_diagnosis_reports_how_its_residual_averages_down():
 
     d = simulate("tumble9", 0)
     r = diagnose(d)
-    assert r["noise_spectrum"]["kind"] in ("white", "flicker (1/f)", "wander (a drift or slow structure)")
+    assert r["noise_spectrum"]["kind"] in ("white", "flicker (1/f)", "wander (a drift or slow structure)",
+                                           "correlated at shorter time scales")
     json.dumps(r["noise_spectrum"])
     assert "noise over time scales" in diagnosis_text(r, "tumble9")
     n = 1500

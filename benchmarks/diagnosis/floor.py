@@ -206,6 +206,9 @@ def neighbour_z(r: np.ndarray, raw_nT: np.ndarray) -> float:
 ALLAN_MIN_WINDOWS = 8
 """The longest averaging window of ``noise_spectrum`` leaves at least this many windows (its Allan deviation then
 has a relative standard error of about 0.27)."""
+FLICKER_SLOPES = (-0.25, 0.15)
+"""The log-log slope of the Allan deviation over the three longest windows that counts as level (1/f noise's is 0,
+white noise's -1/2, a linear drift's +1)."""
 NON_WHITE_EXCESS = 2.0
 """The residual averaged over the longest window is called non-white when its Allan deviation is more than this
 many times what white noise of the one-sample deviation gives there."""
@@ -236,12 +239,17 @@ def noise_spectrum(r: np.ndarray) -> dict:
     if excess <= NON_WHITE_EXCESS:
         kind, statement = "white", "it averages down like white noise: the floor describes it at every time scale"
     else:
-        kind = "flicker (1/f)" if slope <= 0.15 else "wander (a drift or slow structure)"
+        if slope > FLICKER_SLOPES[1]:
+            kind, meaning = "wander (a drift or slow structure)", "it grows over the longest windows"
+        elif slope >= FLICKER_SLOPES[0]:
+            kind, meaning = "flicker (1/f)", ("it stays level over the longest windows: slow wander of this size is "
+                                              "what 1/f noise does, not a drift")
+        else:
+            kind, meaning = "correlated at shorter time scales", ("it averages down over the longest windows but from "
+                                                                 "above white noise: a periodic or coloured component")
         statement = (f"over {sizes[-1]} samples it averages to {adev[-1]:.3g} nT, {excess:.3g} times white noise's "
-                     f"{white[-1]:.3g} nT (log-log slope over the longest windows {slope:.2f}: white -0.5, 1/f 0, a drift "
-                     "above): the floor is its "
-                     "white part" + (", and slow wander of this size is what the noise itself does, not a drift"
-                                     if kind.startswith("flicker") else ""))
+                     f"{white[-1]:.3g} nT (log-log slope over the longest windows {slope:.2f}; white -0.5, 1/f 0): "
+                     f"{meaning}; the floor is its white part")
     return {"kind": kind, "averaging_samples": sizes, "allan_deviation_nT": adev,
             "white_allan_deviation_nT": [float(w) for w in white], "log_slope": slope,
             "excess_at_longest": excess, "statement": statement}
