@@ -46,7 +46,7 @@ from magbench.simulate.dataset import Dataset
 from magbench.simulate.effects import OutlierEffect, first_order_lag
 
 from .floor import noise_spectrum, time_difference_floor
-from .naming import STEP_SHARE, spike_signature
+from .naming import STEP_SHARE, TEMPERATURE_FOLLOWS_TIME_R2, spike_signature, temperature_follows_time
 from .scoring import rms
 
 SECONDS_PER_HOUR = 3600.0
@@ -65,7 +65,6 @@ the radial direction by 0.05 rad)."""
 THERMAL_LAG_OF_SPAN = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0)
 """First-order thermal time constants tried (shares of the record's span) when asking whether the logged
 temperature fits a radial trend as well as the smooth trend does."""
-TEMPERATURE_FOLLOWS_TIME_R2 = 0.9
 TEMPERATURE_NAME_Z = 4.0
 """A fixed sensor's temperature effect is named when |B| - F follows the logged temperature beyond a smooth
 function of time by this many standard errors."""
@@ -134,11 +133,13 @@ def time_only(data: Dataset, reason: str) -> dict:
     coef, se, resid = _linear(design[keep], r[keep])
     drift: dict = {"drift_nT_per_h": float(coef[1]), "drift_se_nT_per_h": float(se[1]),
              "significant": bool(abs(coef[1]) > DRIFT_Z * se[1]) if np.ptp(hours) > 0 else False}
+    left = None  # what the smooth trend of |B| - F leaves on the kept samples
     if trend_design is not None and n > 3 * TREND_DEGREE:
         trend = trend_design @ np.linalg.lstsq(trend_design[keep], r[keep], rcond=None)[0]
+        left = (r - trend)[keep]
         drift["trend_range_nT"] = float(np.ptp(trend))
-        drift["rms_after_trend_nT"] = rms((r - trend)[keep])
-        drift["noise_spectrum"] = noise_spectrum((r - trend)[keep])  # what the smooth trend leaves, over time scales
+        drift["rms_after_trend_nT"] = rms(left)
+        drift["noise_spectrum"] = noise_spectrum(left)  # over time scales
     out["time_only"] = {
         "constant_nT": float(np.median(r)), "mean_nT": float(np.mean(r[keep])), "rms_nT": rms(r[keep]),
         "spikes": spike_info,
@@ -154,15 +155,15 @@ def time_only(data: Dataset, reason: str) -> dict:
             "temperature_nT_per_C": float(tcoef[2]), "temperature_se_nT_per_C": float(tse[2]),
             "beyond_time": "the coefficient with a linear drift in time fitted beside it",
             "significant": bool(abs(tcoef[2]) > DRIFT_Z * tse[2])}
-        if trend_design is not None and n > 3 * TREND_DEGREE:  # beyond any smooth function of time: its own signature
+        if left is not None and trend_design is not None:  # beyond any smooth function of time: its own signature
             sdesign = np.column_stack([trend_design, temp - temp.mean()])
             scoef, sse, sres = _linear(sdesign[keep], r[keep])
             # the temperature's own changes (what the smooth trend leaves of it) against the residual: their common
             # memory, not the residual's alone, sets how far they can correlate by chance
             # (under the null: the residual of the smooth trend alone, not the one the temperature was fitted into)
-            td, rk, tk = trend_design[keep], r[keep], temp[keep] - temp[keep].mean()
+            td, tk = trend_design[keep], temp[keep] - temp[keep].mean()
             t_own = tk - td @ np.linalg.lstsq(td, tk, rcond=None)[0]
-            bartlett = _bartlett_n(rk - td @ np.linalg.lstsq(td, rk, rcond=None)[0], t_own)
+            bartlett = _bartlett_n(left, t_own)
             se_t = float(sse[-1]) * np.sqrt(max(_effective_n(sres) / bartlett, 1.0))
             z = float(abs(scoef[-1]) / se_t) if se_t > 0 else 0.0
             out["time_only"]["temperature"].update({
@@ -290,12 +291,8 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
     ratio = across / radial if radial > 0 else np.inf
     out: dict = {"radial_trend_rms_nT": radial, "across_trend_rms_nT": across, "across_over_radial": float(ratio),
                  "radial_p": p_radial, "across_p": p_across, "named": None}
-    follows = None
-    if temp is not None and np.ptp(temp) > 0:
-        tt = temp[keep]
-        fit = legendre.legvander(2 * (tk - t[0]) / span - 1, 4)
-        res_t = tt - fit @ np.linalg.lstsq(fit, tt, rcond=None)[0]
-        follows = float(1.0 - np.var(res_t) / np.var(tt))
+    follows = temperature_follows_time(tk, None if temp is None else temp[keep])
+    if follows is not None:
         out["temperature_follows_time_r2"] = follows
     across_drift = p_across < DRIFT_DIRECTION_ALPHA and ratio >= ACROSS_MIN_RATIO
     radial_drift = p_radial < DRIFT_DIRECTION_ALPHA and ratio <= RADIAL_MAX_RATIO
