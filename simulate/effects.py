@@ -136,7 +136,7 @@ def holds(t_s: np.ndarray | None, unit: np.ndarray) -> np.ndarray | None:
     return label
 
 
-def _f_test_p(sse_small: float, sse_big: float, extra: int, dof: int) -> float:
+def f_test_p(sse_small: float, sse_big: float, extra: int, dof: float) -> float:
     """p-value of the F test that ``extra`` more columns (residual sum of squares ``sse_big`` with ``dof``
     degrees of freedom left, against ``sse_small`` without them) explain nothing."""
     from scipy.stats import f as f_dist
@@ -706,7 +706,7 @@ class TemperatureEffect(Effect):
         x = np.column_stack([c.reshape(len(rows), -1) for c in cols])
         sse_without = _lstsq_sse(np.delete(x, [6, 7, 8], axis=1), r_base[rows])  # without the alignment columns
         sse_with = _lstsq_sse(x, r_base[rows])
-        return _f_test_p(sse_without, sse_with, 3, len(rows) - x.shape[1])
+        return f_test_p(sse_without, sse_with, 3, len(rows) - x.shape[1])
 
     @classmethod
     def fit_columns(cls, u0, d, norm):

@@ -43,7 +43,7 @@ import numpy as np
 from numpy.polynomial import legendre
 
 from magbench.simulate.dataset import Dataset
-from magbench.simulate.effects import OutlierEffect, first_order_lag
+from magbench.simulate.effects import OutlierEffect, f_test_p, first_order_lag
 
 from .floor import noise_spectrum, time_difference_floor
 from .naming import STEP_SHARE, TEMPERATURE_FOLLOWS_TIME_R2, spike_signature, temperature_follows_time
@@ -230,15 +230,11 @@ def _spikes(r: np.ndarray, design: np.ndarray | None, t: np.ndarray, raw_nT: np.
 
 
 def _f_p(sse0: float, sse1: float, extra: int, n_eff: float, n_params: int) -> float:
-    """p-value of the F test of ``extra`` columns lowering the sum of squares from sse0 to sse1, the samples
-    deflated to ``n_eff`` for autocorrelation."""
-    from scipy.stats import f as f_dist
-
-    dof = max(n_eff - n_params, 1.0)
+    """p-value of the F test of ``extra`` columns lowering the sum of squares from sse0 to sse1
+    (``effects.f_test_p``), the samples deflated to ``n_eff`` for autocorrelation; 0 for an exact fit."""
     if sse1 <= 0:
         return 0.0
-    stat = (max(sse0 - sse1, 0.0) / extra) / (sse1 / dof)
-    return float(f_dist.sf(stat, extra, dof))
+    return f_test_p(sse0, sse1, extra, max(n_eff - n_params, 1.0))
 
 
 def _step_sse(y: np.ndarray) -> float:

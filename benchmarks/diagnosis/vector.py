@@ -19,6 +19,7 @@
 """
 from __future__ import annotations
 
+import functools
 import sys
 import time
 from dataclasses import replace
@@ -301,6 +302,18 @@ class Diagnosis:
                 out["resimulation"] = rs
         return out
 
+    @functools.cached_property
+    def roughness(self) -> float | None:
+        """``naming.roughness`` of the record (how unrelated consecutive readings are), computed once: the floor,
+        the remainder test and the time-shift signature all read it."""
+        return roughness(self.columns.t_s, self.columns.raw_nT)
+
+    @functools.cached_property
+    def hold_labels(self) -> np.ndarray | None:
+        """``holds`` of the record (the hold of each sample, or None), computed once: the naming rule's held-out
+        families and its test within the holds both read it."""
+        return holds(self.columns.t_s, self.unit)
+
     def _follows_neighbours(self, fl: dict) -> bool:
         """Whether the residual of the fit with every effect free depends on the neighbouring readings
         (``floor.neighbour_z`` above MOTION_Z) on a record whose consecutive attitudes are as unrelated as random
@@ -309,7 +322,7 @@ class Diagnosis:
         does not depend on the neighbouring readings, so such a residual is structure the named effects leave
         (outside the library, or a lag no fit of the library removes at random attitudes): the remainder is
         significant.  On smooth schedules neighbouring readings are nearly the current one and the test says nothing."""
-        rough = roughness(self.columns.t_s, self.columns.raw_nT)
+        rough = self.roughness
         return bool(rough is not None and rough > ROUGHNESS_MAX and fl.get("floor_neighbour_z", 0.0) > MOTION_Z)
 
     def _tangent_untrusted(self, r_all, rms_base, floor, floor_se, n) -> dict | None:
@@ -373,7 +386,7 @@ class Diagnosis:
         temp_r2 = temperature_follows_time(d.t_s, d.temp_C)
         spikes_ok = spike_signature(tangent.spikes, tangent.r, d.t_s, d.raw_nT, d.raw_nT)
         named, evidence = confirm(heldout, selected, floor, mde, bool(base_rem["remainder_significant"]),
-                                  spikes_ok, slow, temp_r2, hold_label=holds(d.t_s, self.unit))
+                                  spikes_ok, slow, temp_r2, hold_label=self.hold_labels)
         confirmed = list(named)
         if any(s in BODY_DRIFTS for s in named):  # a switch is not a slow drift
             drift_res = np.nan_to_num(self.model_residuals(named))
@@ -433,7 +446,7 @@ class Diagnosis:
         named only when those terms alone give at least LAG_SHIFT_SHARE of the effect's in-sample gain."""
         model, tangent = self.model, self.tangent
         robust = "outliers" in named
-        rough = roughness(self.columns.t_s, self.columns.raw_nT)
+        rough = self.roughness
         for name in list(named):
             terms = getattr(EFFECTS[name], "shift_terms", None)
             if not terms:
@@ -499,7 +512,7 @@ class Diagnosis:
     def _within_holds(self, evidence: list[dict], named: list[str], heldout) -> list[str]:
         """Rule 4 for time effects in a record of held attitudes: named only when they lower the held-out
         residual within the holds (HOLD_Z)."""
-        label = holds(self.columns.t_s, self.unit)
+        label = self.hold_labels
         if label is None:
             return named
         with_all = heldout(named)
@@ -556,7 +569,7 @@ class Diagnosis:
             return fl
         r_model = model.residuals(x)
         fl = model_floor(fl, r_model, d.t_s, d.raw_nT, n_free, spikes)
-        rough = roughness(d.t_s, d.raw_nT)
+        rough = self.roughness
         if rough is not None and rough > ROUGHNESS_MAX:  # random attitudes: attitude neighbours, not time ones
             fl = attitude_floor(fl, r_model, self.unit, self.gravity, n_free, spikes)
         return fl
