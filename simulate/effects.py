@@ -567,13 +567,13 @@ class TemperatureEffect(Effect):
     """Thermal time constants tried, as shares of the record's time span (the best on the whole record)."""
     LAG_REFINE_ROWS: ClassVar[int] = 200_000
     ALIGNMENT_P: ClassVar[float] = 1e-3
-    ALIGNMENT_ROWS: ClassVar[int] = 50_000
-    """The alignment test uses a systematic sample of at most this many rows (at this size a coefficient that
-    matters is far beyond the level)."""
     """The alignment coefficients a_T are fitted only when they explain the base residual beside the offset and
     scale coefficients on the whole record (an F test of the three, at this level, in ``prepare``): a record
     whose attitudes are a few held positions, visited each at one temperature, gives them no leverage, and
     three free coefficients there only make the form extrapolate wildly to directions it did not see."""
+    ALIGNMENT_ROWS: ClassVar[int] = 50_000
+    """The alignment test uses a systematic sample of at most this many rows (at this size a coefficient that
+    matters is far beyond the level)."""
     RAMP_RATE: ClassVar[float] = 3.0  # warm-up time constant: a third of the record
     RIPPLE_C: ClassVar[float] = 1.5
     RIPPLE_CYCLES: ClassVar[float] = 2.3

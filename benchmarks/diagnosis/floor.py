@@ -17,11 +17,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import lfilter
 from scipy.spatial import cKDTree
-from scipy.stats import f as f_dist
 from scipy.stats import norm, spearmanr
 
 from magbench.numerics import systematic_rows
-from magbench.simulate.effects import SPIKE_SIGMA, Columns, robust_sigma
+from magbench.simulate.effects import SPIKE_SIGMA, Columns, f_test_p, robust_sigma
 
 KNN_NEIGHBOURS = 6
 MAD_SE = 1.166  # standard error of the MAD scale: 1.166 sigma / sqrt(m) for Gaussian data
@@ -199,8 +198,7 @@ def neighbour_z(r: np.ndarray, raw_nT: np.ndarray) -> float:
     q, dof = design.shape[1] - 1, len(y) - design.shape[1]
     if rss1 <= 0 or dof <= 0:
         return 0.0
-    p = float(f_dist.sf((rss0 - rss1) / q / (rss1 / dof), q, dof))
-    return float(norm.isf(max(p, 1e-300)))
+    return float(norm.isf(max(f_test_p(rss0, rss1, q, dof), 1e-300)))
 
 
 ALLAN_MIN_WINDOWS = 8
