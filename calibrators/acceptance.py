@@ -606,7 +606,7 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     info = {} if info is None else info
     rejections: list[str] = []
     warnings: list[str] = []
-    field_nT = median(objective.f_ref_nT)
+    field_nT = median(objective.f_ref_nT) if memo is None else memo("field_nT", lambda: median(objective.f_ref_nT))
     if not improved:
         rejections.append("the calibration is no better than none (the solver's answer was worse than the start)")
     if at is None or not np.array_equal(at.x, x):
