@@ -122,3 +122,33 @@ def test_budgets_expand_iterative_methods_and_force_clears_the_comparison(tmp_pa
     assert stale.is_file()  # --force clears only what the campaign writes
     assert main(["compare", "--scenarios", "sphere9", "--methods", "lsq", "--budgets", "0", "--trials", "2",
                  "--out", str(tmp_path / "d")]) == 2
+
+
+@pytest.mark.parametrize("kind", ["continuous", "ties", "zeros", "large"])
+def test_signed_rank_p_is_scipys_wilcoxon_with_split_zeros(kind):
+    """The paired tests' own signed-rank p-value equals scipy.stats.wilcoxon(zero_method='zsplit') in each of
+    its regimes: exact (no ties, n <= 50), exact over sign flips (ties or zeros, n <= 13), normal."""
+    from scipy.stats import wilcoxon
+
+    rng = np.random.default_rng({"continuous": 1, "ties": 2, "zeros": 3, "large": 4}[kind])
+    for n in (1, 2, 5, 9, 13, 14, 20, 50, 51, 80):
+        for _ in range(6):
+            d = rng.standard_normal(n) + rng.normal() * 0.7
+            if kind == "ties":
+                d = np.round(d * 2) / 2
+            elif kind == "zeros":
+                d = rng.integers(-2, 3, n).astype(float)
+            elif kind == "large":
+                d = d * 1e-3 + 0.05
+            if not np.any(d != 0):
+                continue
+            for alternative in ("two-sided", "greater", "less"):
+                expected = float(wilcoxon(d, zero_method="zsplit", alternative=alternative).pvalue)
+                assert cmp.signed_rank_p(d, alternative) == pytest.approx(expected, rel=1e-12, abs=1e-300), \
+                    (n, alternative, d)
+
+
+def test_signed_rank_p_rejects_an_unknown_alternative_and_is_nan_without_data():
+    with pytest.raises(ValueError, match="alternative"):
+        cmp.signed_rank_p(np.array([1.0, -2.0]), "bigger")
+    assert math.isnan(cmp.signed_rank_p(np.array([])))
