@@ -388,25 +388,26 @@ class StepFit:
 
 
 def _sums_after(t: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """For each split row ``edges[k]`` (sorted, >= 1) the sum over the rows from it on of ``t_i w_i^T``
-    (m, q, w).  Short records from the per-row products summed in one vectorized pass; long ones block by
-    block between the split rows (at most ``STEP_CANDIDATES`` blocks), so that memory stays a fraction of the
+    """For each split row ``edges[k]`` (sorted, >= 1) the sum over the rows from it on of ``t_i w_i^T``, as
+    (q, w, m): one contiguous row of m per entry, so that the systems built from them are vectors.  Short
+    records from the per-row products summed from the end in one vectorized pass; long ones block by block
+    between the split rows (at most ``STEP_CANDIDATES`` blocks), so that memory stays a fraction of the
     record's."""
     n, q = t.shape
     width = w.shape[1]
     if n * q * width <= 4_000_000:
-        prod = (t[:, :, None] * w[:, None, :]).reshape(n, q * width)  # 2-D: the running sum runs along rows
-        np.cumsum(prod, axis=0, out=prod)
+        prod = np.ascontiguousarray(t.T)[:, None, :] * np.ascontiguousarray(w.T)[None, :, :]  # (q, width, n)
+        from_end = np.cumsum(prod[:, :, ::-1], axis=2)  # [..., j]: the sum over the last j + 1 rows
         m = len(edges)
-        consecutive = m and edges[-1] - edges[0] == m - 1  # a short record's every row: a slice, not a gather
-        before = prod[edges[0] - 1:edges[-1]] if consecutive else prod[edges - 1]
-        return (prod[-1] - before).reshape(m, q, width)
+        if m and edges[-1] - edges[0] == m - 1:  # a short record's every row: a slice, not a gather
+            return from_end[:, :, n - 1 - edges[-1]:n - edges[0]][:, :, ::-1]
+        return from_end[:, :, n - 1 - edges]
     bounds = np.concatenate([edges, [n]])
     sums = np.empty((len(edges), q, width))
     for j in range(len(edges)):
         rows = slice(bounds[j], bounds[j + 1])
         sums[j] = t[rows].T @ w[rows]
-    return np.cumsum(sums[::-1], axis=0)[::-1]
+    return np.cumsum(sums[::-1], axis=0)[::-1].transpose(1, 2, 0)
 
 
 def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: np.ndarray,
@@ -468,13 +469,14 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
         w = np.empty((n, pz + q + 1))
         w[:, :pz], w[:, pz:pz + q] = z, t
         np.subtract(ro, z @ g, out=w[:, -1])
-        after = _sums_after(t, w, edges)  # (m, q, p' + q + 1)
-        e_t = after[:, :, :pz]  # E_k^T
-        schur = after[:, :, pz:pz + q] - np.matmul(e_t, e_t.transpose(0, 2, 1))
-        c = after[:, :, -1]
+        after = _sums_after(t, w, edges)  # (q, p' + q + 1, m)
+        e_t = after[:, :pz]  # E_k^T, (q, p', m)
+        # the systems as (m, q, q) views of (q, q, m): each entry a contiguous vector over the splits
+        schur = (after[:, pz:pz + q] - np.einsum("ajm,bjm->abm", e_t, e_t)).transpose(2, 0, 1)
+        c = after[:, -1].T
         # each q x q system with a relative ridge of 1e-10 (a split whose step columns lie in the record's
         # span has S ~ 0 and c ~ 0 there, so that direction adds nothing)
-        ridge = 1e-10 * np.trace(schur, axis1=1, axis2=2) / q + 1e-300
+        ridge = 1e-10 * schur.diagonal(axis1=1, axis2=2).sum(axis=1) / q + 1e-300
         gain = _quadratic_forms(schur, ridge, c)
     gain = np.where(np.isfinite(gain), gain, -np.inf)
     best = int(np.argmax(gain))
