@@ -400,7 +400,7 @@ def _sums_after(t: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
         from_end = np.cumsum(prod[:, :, ::-1], axis=2)  # [..., j]: the sum over the last j + 1 rows
         m = len(edges)
         if m and edges[-1] - edges[0] == m - 1:  # a short record's every row: a slice, not a gather
-            return from_end[:, :, n - 1 - edges[-1]:n - edges[0]][:, :, ::-1]
+            return np.ascontiguousarray(from_end[:, :, n - 1 - edges[-1]:n - edges[0]][:, :, ::-1])
         return from_end[:, :, n - 1 - edges]
     bounds = np.concatenate([edges, [n]])
     sums = np.empty((len(edges), q, width))
