@@ -197,3 +197,27 @@ def test_two_wandering_series_do_not_make_a_temperature_effect():
     assert not any(c["named"] for c in null) and sum(c["beyond_smooth_time_z"] > 3 for c in null) <= 1, \
         [round(c["beyond_smooth_time_z"], 1) for c in null]
     assert all(c["named"] for c in driven)
+
+
+def test_a_field_that_varies_turns_and_its_turning_is_not_named_a_drift():
+    """An observatory's daily variation changes the field's magnitude (which the scalar reference follows) and
+    its direction by about as much: a fixed sensor's readings then turn across their direction, which is the
+    field's own turning, reported (``field_turning_nT``) and not named.  Negative control: the same turning
+    with a reference that varies ten times less exceeds what that variation explains, and is named."""
+    n, F = 2000, 48000.0
+    rng = np.random.default_rng(11)
+    t = np.linspace(0.0, 86400.0, n)
+    wave = np.sin(2 * np.pi * t / 86400.0)
+    b = np.array([0.3, 0.2, 0.93])
+    b /= np.linalg.norm(b)
+    side = np.cross(b, [1.0, 0.0, 0.0])
+    side /= np.linalg.norm(side)
+    field = (F + 20.0 * wave)[:, None] * b + (30.0 * wave)[:, None] * side  # 20 nT in magnitude, 30 nT across
+    raw = field * 1.01 + np.array([120.0, -80.0, 40.0]) + rng.normal(0, 0.5, (n, 3))
+    varies = diagnose(Dataset(raw, f_ref_nT=np.linalg.norm(field, axis=1), t_s=t))
+    direction = varies["time_only"]["drift_direction"]
+    assert varies["verdict"] == "insufficient_data", direction
+    assert direction["across_trend_rms_nT"] < direction["field_turning_nT"] and "turning" in direction["why"]
+    quiet = np.linalg.norm(field, axis=1).mean() + 2.0 * wave  # a reference varying by 2 nT only
+    named = diagnose(Dataset(raw, f_ref_nT=quiet, t_s=t))
+    assert named["verdict"] == "offset_drift|field_drift", named["time_only"]["drift_direction"]

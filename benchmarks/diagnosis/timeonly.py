@@ -23,8 +23,10 @@ of time on each axis, spikes left out) is split into its radial part and its par
 against the readings' own scatter about the trend (an F test, its samples deflated for autocorrelation, at
 DRIFT_DIRECTION_ALPHA):
 
-* a significant part across at least ACROSS_MIN_RATIO of the radial part: ``offset_drift|field_drift`` (the
-  offsets drift, or the field turns), with ``temperature`` among the alternatives when the logged temperature
+* a significant part across at least ACROSS_MIN_RATIO of the radial part, beyond the turning the field's own
+  variation gives where the reference varies (TURN_FACTOR times its RMS: a field that changes also turns, and
+  a scalar reference follows its magnitude only): ``offset_drift|field_drift`` (the offsets drift, or the field
+  turns beyond its followed variation), with ``temperature`` among the alternatives when the logged temperature
   follows time (a temperature coefficient of any smooth shape is such a drift to these data); ``confounded``
   says what would separate them (a vector reference, or turning the sensor);
 * a significant radial part with the part across below RADIAL_MAX_RATIO of it: ``field_drift``, said with
@@ -62,6 +64,13 @@ RADIAL_MAX_RATIO = 0.05
 """The RMS of the trend across over that of the radial trend: at least ACROSS_MIN_RATIO for a drift of the offsets,
 at most RADIAL_MAX_RATIO for a change of the field's magnitude (an offset error of 2500 nT in a 50,000 nT field tilts
 the radial direction by 0.05 rad)."""
+TURN_FACTOR = 3.0
+"""Where the reference varies, the field is changing, and a changing field turns: a geomagnetic variation moves
+the field's direction by about as much as its magnitude (the daily variation and a storm's ring current change
+the horizontal intensity, the declination and the vertical intensity together, by amounts of the same order).
+An across trend of the readings up to TURN_FACTOR times the RMS of the reference's own variation is therefore
+the field's own turning, which a scalar reference follows in magnitude but not in direction: it is reported,
+not named (a drift of the offsets beneath it cannot be told without a vector reference)."""
 THERMAL_LAG_OF_SPAN = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0)
 """First-order thermal time constants tried (shares of the record's span) when asking whether the logged
 temperature fits a radial trend as well as the smooth trend does."""
@@ -268,8 +277,10 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
     e2 = np.cross(m, e1)
     design = legendre.legvander(2 * (tk - t[0]) / span - 1, TREND_DEGREE)
     y = x @ np.column_stack([m, e1, e2])  # radial, across, across
+    turning = 0.0  # the across trend the field's own turning can give (TURN_FACTOR)
     if f_ref is not None and np.ptp(f_ref[keep]) > 0:  # the field's magnitude as the reference follows it
         fk = f_ref[keep] - f_ref[keep].mean()
+        turning = TURN_FACTOR * float(np.sqrt(np.mean(fk ** 2)))
         gain = float(fk @ (y[:, 0] - y[:, 0].mean()) / (fk @ fk))
         y[:, 0] -= gain * fk
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
@@ -292,6 +303,14 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
         out["temperature_follows_time_r2"] = follows
     across_drift = p_across < DRIFT_DIRECTION_ALPHA and ratio >= ACROSS_MIN_RATIO
     radial_drift = p_radial < DRIFT_DIRECTION_ALPHA and ratio <= RADIAL_MAX_RATIO
+    if turning > 0:
+        out["field_turning_nT"] = turning
+    if across_drift and across <= turning:
+        out["why"] = (f"the readings turn across their own direction (RMS {across:.3g} nT) no more than the field's own "
+                      f"turning gives: the reference varies (RMS {turning / TURN_FACTOR:.3g} nT), so the field changes, "
+                      "and a changing field turns by about as much; a scalar reference follows no direction, so a "
+                      "drift of the offsets beneath it cannot be told without a vector reference")
+        return out
     if not (across_drift or radial_drift):
         out["why"] = ("no significant drift" if min(p_radial, p_across) >= DRIFT_DIRECTION_ALPHA else
                       "the drift is neither along the readings' direction nor clearly across it")
