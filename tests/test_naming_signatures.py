@@ -268,3 +268,47 @@ def test_negative_control_on_held_attitudes_a_time_effect_must_dominate_what_is_
     row = evidence_row(result, "temperature")
     assert not row["named"] and "2 times" in row["why"]
     assert result["verdict"] == "unexplained"
+
+
+def test_a_temperature_followed_only_in_its_smooth_part_is_said_with_a_drift():
+    """Where the logged temperature changes on its own (it does not follow time), the readings must follow those
+    changes (beyond-time z above TEMPERATURE_BEYOND_Z) for the temperature to be named alone; else a drift in
+    time that explains the residual alone is its equal (the pair), and the pair is not said when the readings
+    do follow the temperature's own changes (control)."""
+    from magbench.benchmarks.diagnosis.naming import TEMPERATURE_BEYOND_Z, only_smooth_temperature
+
+    assert only_smooth_temperature(0.4, TEMPERATURE_BEYOND_Z - 0.5)
+    assert not only_smooth_temperature(0.4, TEMPERATURE_BEYOND_Z + 0.5)  # follows its own changes
+    assert not only_smooth_temperature(0.95, 1.0)  # follows time: the other rule (the pair always)
+    assert not only_smooth_temperature(0.4, None) and not only_smooth_temperature(None, 1.0)
+    noise = np.random.default_rng(3).normal(0.0, 1.0, 400)
+
+    def heldout(names):  # either explanation removes the same structure
+        return noise * (1.0 if {"temperature", "offset_drift"} & set(names) else 3.0)
+
+    families = {"random": heldout, "time-blocked": heldout}
+    pair = confounded_pairs(families, ["temperature"], ["temperature", "offset_drift"], temp_r2=0.4,
+                            temperature_beyond_time_z=1.0)
+    assert [p["alternatives"] for p in pair] == [["temperature", "offset_drift"]]
+    assert "smooth part in time" in pair[0]["evidence"]["statement"]
+    assert confounded_pairs(families, ["temperature"], ["temperature", "offset_drift"], temp_r2=0.4,
+                            temperature_beyond_time_z=TEMPERATURE_BEYOND_Z + 2) == []
+
+
+def test_a_drift_is_not_named_temperature_when_the_readings_miss_the_temperatures_own_changes():
+    """The second generator's case 447 (an offset drift and a lag on a pendulum, a logged temperature that
+    changes on its own): the temperature effect fitted the drift's smooth shape only, so it is not named alone.
+    Control: case 130 (a temperature effect under such a temperature) is named temperature."""
+    import independent_forward2
+
+    def run2(index):
+        case = independent_forward2.make_case(index, 2026)
+        data = Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C)
+        return diagnose(data, gravity=case.gravity), case
+
+    result, case = run2(447)
+    assert case.present == ("offset_drift", "lag") and result["naming"]["temperature_follows_time_r2"] < 0.9
+    assert "temperature" not in [g for g in result["verdict"].split("+")], result["verdict"]
+    control, case = run2(130)
+    assert case.present == ("temperature",) and control["verdict"] == "temperature"
+    assert control["naming"]["temperature_beyond_time_z"] > 10

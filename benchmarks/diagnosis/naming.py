@@ -87,6 +87,11 @@ told from time by these data."""
 TEMPERATURE_SMOOTH_DEGREE = 6
 """A temperature effect is told from a drift in time when the fit with the logged temperature beats the fit
 with the temperature replaced by this degree of polynomial in time by SWAP_Z standard errors (paired)."""
+TEMPERATURE_BEYOND_Z = 4.0
+"""Where the logged temperature does not follow time (its own changes are large), a temperature effect is named
+only when the readings follow those changes: the fit with the logged temperature beats the fit with its smooth
+function of time (TEMPERATURE_SMOOTH_DEGREE) by this many standard errors (paired), the threshold the fixed
+sensor's temperature test uses.  Otherwise what it removed is what a drift in time removes as well."""
 SWAP_Z = 3.0
 """Two explanations are equivalent when each alone is significant on every fold family and replacing one by
 the other changes the held-out residual by less than this many standard errors (paired) on every family."""
@@ -506,15 +511,28 @@ def _pair(a: str, b: str, temp_r2: float, statement: str, evidence: dict) -> dic
                            "more than once, or hold it at a constant temperature for part of it)"}
 
 
+def only_smooth_temperature(temp_r2: float | None, temperature_beyond_time_z: float | None) -> bool:
+    """The logged temperature changes on its own (it does not follow time), yet the readings follow only the part
+    of it that a smooth function of time gives (TEMPERATURE_BEYOND_Z): the temperature's own signature fails."""
+    return (temp_r2 is not None and temp_r2 < TEMPERATURE_FOLLOWS_TIME_R2 and temperature_beyond_time_z is not None
+            and temperature_beyond_time_z <= TEMPERATURE_BEYOND_Z)
+
+
 def confounded_pairs(heldout_by_family: dict, named: list[str], candidates: list[str],
                      temp_r2: float | None, temperature_beyond_time_z: float | None = None) -> list[dict]:
     """Pairs the data cannot tell apart when the temperature follows time (module docstring): an offset drift
     and a temperature effect always; a temperature effect and a field drift when swapping one for the other
-    changes no fold family's held-out residual by more than SWAP_Z standard errors."""
-    if temp_r2 is None or temp_r2 < TEMPERATURE_FOLLOWS_TIME_R2:
+    changes no fold family's held-out residual by more than SWAP_Z standard errors.  The same holds for a
+    temperature effect whose readings follow only the smooth part in time of a temperature that changes on its
+    own (``only_smooth_temperature``): to these data it is a drift in time."""
+    smooth_only = only_smooth_temperature(temp_r2, temperature_beyond_time_z)
+    if temp_r2 is None or (temp_r2 < TEMPERATURE_FOLLOWS_TIME_R2 and not smooth_only):
         return []
     thermal = [c for c in candidates if _is_thermal(c)]
     out = []
+    cause = (f"the readings follow only the smooth part in time of the logged temperature (beyond-time z "
+             f"{temperature_beyond_time_z:.2g}, at most {TEMPERATURE_BEYOND_Z:g})" if smooth_only else
+             f"the logged temperature follows time (R² {temp_r2:.2f} on a smooth function of time)")
 
     def alone_z(a: str, b: str) -> dict:
         rest = [s for s in named if s != a]
@@ -523,21 +541,19 @@ def confounded_pairs(heldout_by_family: dict, named: list[str], candidates: list
     for a in named:
         if a in BODY_DRIFTS and thermal and thermal[0] not in named:
             b = thermal[0]
-            out.append(_pair(a, b, temp_r2, f"the logged temperature follows time (R² {temp_r2:.2f} on a smooth function "
-                             "of time): a drift of the offsets and a temperature coefficient of any smooth shape are the "
-                             "same to these data", {f"{b}_alone_z_by_fold_family": alone_z(a, b)}))
+            out.append(_pair(a, b, temp_r2, f"{cause}: a drift of the offsets and a temperature coefficient of any "
+                             "smooth shape are the same to these data", {f"{b}_alone_z_by_fold_family": alone_z(a, b)}))
             continue
         if _is_thermal(a):
-            if temperature_beyond_time_z is not None and temperature_beyond_time_z > SWAP_Z:
+            if not smooth_only and temperature_beyond_time_z is not None and temperature_beyond_time_z > SWAP_Z:
                 continue  # the readings follow the temperature's own changes: no drift in time can stand in for it
             drifts = [c for c in BODY_DRIFTS if c in candidates and c not in named]
             zs = {c: alone_z(a, c) for c in drifts}
             strong = [c for c in drifts if zs[c]["random"] > SWAP_Z]
             if strong:
                 b = strong[0]
-                out.append(_pair(a, b, temp_r2, f"the logged temperature follows time (R² {temp_r2:.2f} on a smooth "
-                                 f"function of time), and {b} alone explains the residual significantly: a temperature "
-                                 "coefficient and a drift of the offsets are the same to these data",
+                out.append(_pair(a, b, temp_r2, f"{cause}, and {b} alone explains the residual significantly: a "
+                                 "temperature coefficient and a drift of the offsets are the same to these data",
                                  {f"{b}_alone_z_by_fold_family": zs[b]}))
                 continue
             others = [c for c in TIME_EFFECTS if c in candidates and c not in named and c not in BODY_DRIFTS]
@@ -553,9 +569,8 @@ def confounded_pairs(heldout_by_family: dict, named: list[str], candidates: list
                 zs_swap[family] = paired_z(heldout(swapped), heldout(named))
                 alone[family] = paired_z(heldout(rest), heldout(swapped))
             if all(abs(z) < SWAP_Z for z in zs_swap.values()) and alone["random"] > SWAP_Z:
-                out.append(_pair(a, b, temp_r2, f"the logged temperature follows time (R² {temp_r2:.2f} on a smooth "
-                                 f"function of time), and {b} in place of {a} leaves every fold family's held-out "
-                                 f"residual within {SWAP_Z:g} standard errors",
+                out.append(_pair(a, b, temp_r2, f"{cause}, and {b} in place of {a} leaves every fold family's "
+                                 f"held-out residual within {SWAP_Z:g} standard errors",
                                  {"swap_z_by_fold_family": zs_swap, f"{b}_alone_z_by_fold_family": alone}))
                 break
     return out

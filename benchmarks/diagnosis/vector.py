@@ -46,7 +46,7 @@ from .naming import (
     HOLD_Z,
     LAG_SHIFT_SHARE,
     ROUGHNESS_MAX,
-    TEMPERATURE_FOLLOWS_TIME_R2,
+    TEMPERATURE_BEYOND_Z,
     TEMPERATURE_SMOOTH_DEGREE,
     TIME_EFFECTS,
     _is_thermal,
@@ -56,6 +56,7 @@ from .naming import (
     confounded_pairs,
     fold_drift_into_temperature,
     holds,
+    only_smooth_temperature,
     roughness,
     shift_share,
     spike_signature,
@@ -427,10 +428,20 @@ class Diagnosis:
         named = undominated(evidence, named, remainder_of, modelled)
         if named != selected:
             current = heldout["random"](named)
-        follows = temp_r2 is not None and temp_r2 >= TEMPERATURE_FOLLOWS_TIME_R2
-        beyond = self._temperature_beyond_time(named) if follows else None
+        beyond = self._temperature_beyond_time(named)  # None without a thermal effect named
         confounded = (confounded_pairs(heldout, named, every, temp_r2, temperature_beyond_time_z=beyond)
                       + attitude_confounds(evidence, slow))
+        if only_smooth_temperature(temp_r2, beyond):  # the temperature's own signature fails
+            paired = {pair["alternatives"][0] for pair in confounded}
+            for row in evidence:
+                if row["name"] in named and _is_thermal(row["name"]) and row["name"] not in paired:
+                    named.remove(row["name"])
+                    row["named"] = False
+                    row["why"] = (f"the readings follow only the part of the logged temperature that a smooth function "
+                                  f"of time gives (beyond-time z {beyond:.2g}, at most {TEMPERATURE_BEYOND_Z:g}), while "
+                                  "the temperature changes on its own: what it removed is what a drift in time removes, "
+                                  "and no drift of the library explains it alone")
+                    current = heldout["random"](named)
         naming = {"rule": "named only when significant on random, time-blocked and attitude-blocked folds (Holm, "
                           f"family-wise {FAMILY_ALPHA:g}), with the base residual above the floor and the effect's own "
                           "contribution above the minimum detectable effect",
