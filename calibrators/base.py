@@ -373,15 +373,14 @@ class Calibrator(metaclass=_Sealed):
         box = self.search_box()
         lower, upper = search_bounds(model, field_nT, **box)
         x0 = identity_vector(model)
-        rng = np.random.default_rng(self.seed)
         start = None if model == "angles" else partial(_algebraic_start, dataset.raw_nT, dataset.f_ref_nT, model)
         termination = self.termination(budget)
         problem: Problem
         if self.closed_form:
-            problem = ReadingsProblem(evaluator, model, x0, lower, upper, rng, self.seed, dataset.raw_nT,
+            problem = ReadingsProblem(evaluator, model, x0, lower, upper, None, self.seed, dataset.raw_nT,
                                       dataset.f_ref_nT, termination)
         else:
-            problem = Problem(evaluator, model, x0, lower, upper, rng, self.seed, termination)
+            problem = Problem(evaluator, model, x0, lower, upper, None, self.seed, termination)  # its rng made when asked
         stopped: Stopped | None = None  # how the strategy's search ended (None: no strategy ran)
         t0 = time.perf_counter()
         try:

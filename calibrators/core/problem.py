@@ -24,16 +24,16 @@ class Problem:
     evaluates, counts and tells.
     """
 
-    __slots__ = ("model", "x0", "lower", "upper", "rng", "seed", "termination", "_evaluator")
+    __slots__ = ("model", "x0", "lower", "upper", "_rng", "seed", "termination", "_evaluator")
 
     def __init__(self, evaluator: Evaluator, model: str, x0: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                 rng: np.random.Generator, seed: int | None, termination: Termination | None = None):
+                 rng: np.random.Generator | None, seed: int | None, termination: Termination | None = None):
         self._evaluator = evaluator
         self.model = model
         self.x0 = readonly_copy(x0)
         self.lower = readonly_copy(lower)
         self.upper = readonly_copy(upper)
-        self.rng = rng
+        self._rng = rng
         self.seed = seed
         self.termination = termination if termination is not None else Termination(budget=evaluator.budget)
 
@@ -43,6 +43,14 @@ class Problem:
                                  f"framework, e.g. `f = yield loop.{_ASKED_NOW[name]}` (calibrators.core.loop; "
                                  "README, 'Your own calibrator')")
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    @property
+    def rng(self) -> np.random.Generator:
+        """The run's generator: the one given, else ``np.random.default_rng(seed)`` made when first asked for (a
+        deterministic method never pays for it)."""
+        if self._rng is None:
+            self._rng = np.random.default_rng(self.seed)
+        return self._rng
 
     @property
     def n_points(self) -> int:
