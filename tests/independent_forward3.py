@@ -439,6 +439,8 @@ class _Record:
         self.nat_p, self.nat_ph = rng.uniform(0.5, 2.0) * self.dur, rng.uniform(0, 2 * np.pi)
         self.follow = 1.0
         self.mains_hz, self.alias_hz = 50.0, 0.0
+        self.with_eddy = False
+        self.follow_decided = False
         self.gain: dict[str, float] = {}
         self.par: dict[str, dict] = {}
         self.form: dict[str, str] = {}
@@ -688,16 +690,17 @@ class _Record:
         def field_vector() -> np.ndarray:  # a field change with a good part along the field (seen by |B|)
             if self.fixed:
                 return _unit(rng)
-            v = rng.choice([-1.0, 1.0]) * bdir * rng.uniform(0.5, 1.0) + _unit(rng) * rng.uniform(0.0, 1.0)
+            u = _unit(rng)
+            u -= (u @ bdir) * bdir
+            v = rng.choice([-1.0, 1.0]) * bdir * rng.uniform(0.6, 1.0) + u / np.linalg.norm(u) * rng.uniform(0.0, 0.8)
             return v / np.linalg.norm(v)
 
         if name == "temperature":
             f = str(rng.choice(["offset_gain", "offset_gain_axes", "core_lag"]))
             e = rng.normal(0.0, 5e-6, (3, 3)) * (1.0 - np.eye(3)) if f != "offset_gain" else np.zeros((3, 3))
             self.par[name] = {"c": rng.normal(0.0, 1.0, 3), "k": rng.normal(0.0, 20e-6, 3), "E": e}
-            if f == "core_lag":
-                self.par[name]["tau_th"] = rng.uniform(0.03, 0.15) * span
-                self.set_thermal_lag(self.par[name]["tau_th"])
+            self.par[name]["tau_th"] = rng.uniform(0.03, 0.15) * span if f == "core_lag" else 0.0
+            self.set_thermal_lag(self.par[name]["tau_th"])
         elif name == "field_drift":
             forms = ["bay", "pulsation", "trend"] + (["anomaly"] if self.schedule == "ship" else [])
             f = str(rng.choice(forms))
@@ -705,10 +708,13 @@ class _Record:
                               "v2": field_vector(), "cycles": rng.uniform(1.5, 4.0), "ph": rng.uniform(0, 2 * np.pi),
                               "cs": rng.uniform(0.1, 0.9, 3), "ws": rng.uniform(0.03, 0.1, 3),
                               "vs": [field_vector() for _ in range(3)]}
-            if self.fixed:
+            if self.follow_decided:
+                pass
+            elif self.fixed:
                 self.follow = float(rng.choice([0.0, rng.uniform(0.2, 0.7), 1.0]))
             else:  # a rotating sensor sees only the part of |B| that the reference does not follow
                 self.follow = 0.0 if rng.random() < 0.4 else rng.uniform(0.2, 0.7)
+            self.follow_decided = True
             if self.follow == 0.0:
                 self.ref_kind = "model"
             elif self.ref_kind == "model":
@@ -726,7 +732,7 @@ class _Record:
             tau = rng.uniform(0.01, 0.3) if f == "log_creep" else rng.uniform(0.2, 1.0)
             self.par[name] = {"span": span, "tau": tau, "d": d, "d2": _unit(rng) * rng.uniform(0.0, 0.7)}
         elif name == "lag":
-            f = "mux" if "eddy_housing" in self.form else str(rng.choice(["mux", "rc", "sinc3"]))
+            f = "mux" if self.with_eddy else str(rng.choice(["mux", "rc", "sinc3"]))  # (nested filters: slow)
             w = np.ones(3)
             w[rng.integers(3)] = rng.uniform(1.5, 2.5)
             self.par[name] = {"skew": rng.permutation([0.0, 1.0, 2.0]) * 1e-3, "tau": rng.uniform(0.5, 1.5, 3) * 1e-3,
@@ -877,6 +883,29 @@ class _Record:
         """RMS of an effect after the calibration and every library effect's model together."""
         return self.size(_remainder(self.signature((name,)), self.q_union))
 
+    def implausible(self, name: str) -> str:
+        """Why the effect's size, as scaled, is not physically plausible ('' when it is).  Every effect must move
+        the readings by at most 1 % of the field (RMS about its mean); a delay must stay within half a sample
+        period (and 0.5 s), an eddy-current time constant within 50 ms, a core's saturation field above twice
+        the field."""
+        g, p, f = self.gain[name], self.par[name], self.form[name]
+        if name == "lag":
+            key = {"mux": "skew", "rc": "tau", "sinc3": "W"}[f]
+            delay = g * float(np.max(p[key])) * (1.5 if f == "sinc3" else 1.0)
+            if delay > min(0.5, 0.5 / self.fs):
+                return f"delay {delay:.3g} s"
+        if name == "temperature" and (g * np.max(np.abs(p["c"])) > 30.0 or g * np.max(np.abs(p["k"])) > 300e-6):
+            return "temperature coefficient"  # above 30 nT/degC or 300 ppm/degC
+        if name == "eddy_housing" and g * p["tau"] > 0.05:
+            return "eddy time constant"
+        if name == "nonlinearity" and f == "tanh" and g > (float(np.min(p["X"])) / (2 * self.F0)) ** 2:
+            return "saturation field"
+        if name == "outliers":
+            return ""
+        change = self.electronics(self.t, frozenset([name])) - self.raw0
+        size = self.size(change - change.mean(axis=0))
+        return f"reading change {size:.0f} nT" if size > 0.01 * self.F0 else ""
+
     def scale_to(self, name: str, target: float, metric) -> float:
         v = metric(name)
         for _ in range(4):
@@ -968,6 +997,18 @@ def make_case(index: int, root: int = 2026) -> Case:
     category, present, outside, schedule = _choose(index, rng)
     if category == "too_short":
         return _too_short(index, rng, schedule)
+    for _ in range(8):
+        case = _build(index, rng, category, present, outside, schedule)
+        if case is not None:
+            return case
+        if schedule != "fixed":  # the effects could not be made visible at a plausible size: another platform
+            choices = FAST if "eddy_housing" in outside else SCHEDULES
+            schedule = choices[int(rng.integers(len(choices)))]
+    raise RuntimeError(f"case {index}: no plausible record")
+
+
+def _build(index: int, rng: np.random.Generator, category: str, present: tuple[str, ...], outside: tuple[str, ...],
+           schedule: str) -> Case | None:
     n = int(np.exp(rng.uniform(np.log(300), np.log(20000)))) if schedule != "fixed" else int(rng.integers(300, 12000))
     rec = _Record(rng, schedule, n)
     if "mains_alias" in outside:  # a sample rate just off a sub-multiple of the mains: a slow beat
@@ -987,39 +1028,40 @@ def make_case(index: int, root: int = 2026) -> Case:
     if logged:
         rec.make_temperature(strong=needs_temp)
     rec.raw0 = rec.electronics(rec.t, frozenset())  # (used to orient a fixed sensor's offset drift)
-    for name in present:
-        rec.add(name)
-    for name in outside:
-        rec.add(name)
+    rec.with_eddy = "eddy_housing" in outside
+    if "field_drift" in present:  # decides the reference (a model value has no natural variation to follow)
+        rec.add("field_drift")
+        rec.raw0 = rec.electronics(rec.t, frozenset())
     temp_log = rec.logged_temperature() if logged else None
     rec.prepare(temp_log)
     noise = rec.noise()
     visible: dict[str, float] = {}
     physical: dict[str, float] = {}
     for name in present:
+        rec.add(name)
         if name == "outliers":
             continue
         target = np.exp(rng.uniform(np.log(4.0), np.log(20.0))) * noise
-        visible[name] = rec.scale_to(name, target, rec.visible) / noise
+        for attempt in range(3):
+            if attempt:
+                rec.add(name)  # another shape: this one needed an implausible size to be seen
+            visible[name] = rec.scale_to(name, target, rec.visible) / noise
+            if not rec.implausible(name):
+                break
+        else:
+            return None
     remainder: dict[str, float] = {}
     for name in outside:
         target = np.exp(rng.uniform(np.log(4.0), np.log(15.0))) * noise
-        best = None
-        for attempt in range(4):
-            if attempt:
-                rec.add(name)  # another shape: this one was mostly explained by library effects
+        for _ in range(4):
+            rec.add(name)
             rem = rec.scale_to(name, target, rec.beyond_library)
             tot = rec.visible(name)
-            if best is None or tot / rem < best[0] or (name == "eddy_housing" and best[0] == np.inf):
-                ok = name != "eddy_housing" or rec.gain[name] * rec.par[name]["tau"] <= 0.05
-                best = (tot / rem if ok else np.inf, rec.gain[name], dict(rec.par[name]), rem, tot)
-            plausible = name != "eddy_housing" or rec.gain[name] * rec.par[name]["tau"] <= 0.05
-            if not plausible:
-                continue
-            if tot / rem < 10.0:
+            # a shape mostly explained by library effects, or needing an implausible size, is drawn again
+            if tot / rem <= 10.0 and not rec.implausible(name):
                 break
-        assert best is not None
-        _, rec.gain[name], rec.par[name], rem, tot = best
+        else:
+            return None
         remainder[name], visible[name] = rem / noise, tot / noise
     confound = sorted(rec.confoundable(present, noise))
     on = frozenset(present + outside)
