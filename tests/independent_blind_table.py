@@ -118,6 +118,9 @@ def main() -> None:
     source = {1: "tests/independent_forward.py", 2: "tests/independent_forward2.py", 3: "tests/independent_forward3.py"}[g]
     what = ("a forward model written from the physics, sharing no code with `simulate/` or the diagnosis, with effects "
             "outside the library that resemble library effects" if g == 1 else
+            "a third forward model written from the physics in round 5, sharing no code with `simulate/`, the diagnosis "
+            "or the first two generators, with its own sensor, schedules, sampling and effect forms and twelve effects "
+            "outside the library" if g == 3 else
             "a second forward model written from the physics, sharing no code with `simulate/`, the diagnosis or the "
             "first generator, with its own schedules, sampling, noise and effect parametrisations and its own effects "
             "outside the library")
