@@ -76,7 +76,12 @@ perfect calibration fit (a least-squares fit of the nine calibration directions 
 linearised about the truth) has an RMS of 4-20 times the noise (``VISIBLE`` = 3 is the floor checked by the
 tests).  For a fixed sensor the same is done on the vector readings about their mean.  Outliers are built
 spike by spike: each spike moves the scalar residual (a fixed sensor's reading) by at least 10 times the noise,
-and there are at least five.  An outside effect is scaled so that what remains of it after the calibration and
+and there are at least five.  Sizes stay physically plausible (``_Record.implausible``): no effect moves the
+readings by more than 1 % of the field (RMS), a delay stays within half a sample period, a temperature
+coefficient within 30 nT/degC and 300 ppm/degC, an eddy-current time constant within 50 ms, a saturation field
+above twice the field; an effect that cannot be seen at a plausible size is drawn again with another shape, and
+failing that the record is rebuilt on another platform (a slow car cannot show an eddy current).
+An outside effect is scaled so that what remains of it after the calibration and
 every library effect's model together (the union of their linearised bases) is 4-15 times the noise: then a
 remainder the library cannot explain is there to see, and ``expect_unexplained`` is honest.  Two library
 effects are ``confoundable`` in a record when what remains of the present one after the calibration and the
