@@ -1,7 +1,8 @@
 """The independent blind checks of the diagnosis: ``python -P tests/independent_blind_table.py --cases 96
 --out results/diagnosis/independent_blind.md`` diagnoses records from tests/independent_forward.py (a forward
 model that shares no code with magbench), ``--generator 2`` from tests/independent_forward2.py (a second one,
-written later by another hand with its own schedules, sampling, noise and effects, shared with neither), and
+written later by another hand with its own schedules, sampling, noise and effects, shared with neither),
+``--generator 3`` from tests/independent_forward3.py (a third, held-out one, written in round 5 the same way), and
 writes the table, wrong names first, and every verdict."""
 from __future__ import annotations
 
@@ -15,13 +16,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import independent_forward  # noqa: E402
 import independent_forward2  # noqa: E402
+import independent_forward3  # noqa: E402
 from independent_scoring import score  # noqa: E402
 
 from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
 from magbench.errors import InputError  # noqa: E402
 from magbench.simulate.dataset import Dataset  # noqa: E402
 
-GENERATORS = {1: independent_forward.make_case, 2: independent_forward2.make_case}
+GENERATORS = {1: independent_forward.make_case, 2: independent_forward2.make_case, 3: independent_forward3.make_case}
 
 
 def verdict_of(index: int, root: int = 2026, generator: int = 1) -> dict:
@@ -81,8 +83,14 @@ HISTORY = {
         "changes were made on them, and the round's branches were compared there. Cases 480-1439 "
         "(`--start 480 --cases 960`) are held out: they were run twice before the final code, with main and with the "
         "temperature branch, to decide that branch's merge (nothing was tuned on them), and once with the final code."),
+    3: ("Written in round 5 by another hand, from the physics only (it read neither the diagnosis, the simulator, "
+        "the calibrators nor the first two generators' effects and schedules): its own sensor parametrisation, "
+        "schedules (a ship in a seaway, a quadcopter hover with yaw spins, a car on a closed circuit, a hand-rotated "
+        "dance with pauses, a free tumble, a moored buoy, a fixed sensor), effect forms and twelve effects outside the "
+        "library. Before this table nobody had run the diagnosis on it, except cases 0-1 once as a plumbing smoke "
+        "test; it is held out, to be run once with the final code."),
 }
-SPLITS = {1: "1440,2640,2880", 2: "480"}
+SPLITS = {1: "1440,2640,2880", 2: "480", 3: ""}
 LABELS = {
     1: ["developed on in rounds 1-4 (rounds 2-3's development set)",
         "developed on in rounds 1-4 (round 3 checked every change on it; 2400-2639 was round 2's held-out block)",
@@ -90,13 +98,14 @@ LABELS = {
         "held out for round 4 (one change was made after seeing them)"],
     2: ["looked at in round 4 (its fixed-sensor changes were made on them)",
         "held out (run twice before the final code to decide a merge, nothing tuned)"],
+    3: ["held out: written in round 5 from the physics only, never run before (cases 0-1 once as a smoke test)"],
 }
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--generator", type=int, choices=(1, 2), default=1,
-                    help="1: tests/independent_forward.py; 2: tests/independent_forward2.py")
+    ap.add_argument("--generator", type=int, choices=(1, 2, 3), default=1,
+                    help="1: tests/independent_forward.py; 2: tests/independent_forward2.py; 3: tests/independent_forward3.py")
     ap.add_argument("--cases", type=int, default=96)
     ap.add_argument("--start", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=2)
@@ -106,13 +115,17 @@ def main() -> None:
     args = ap.parse_args()
     g = args.generator
     rows = run(range(args.start, args.start + args.cases), args.jobs, generator=g)
-    source = "tests/independent_forward.py" if g == 1 else "tests/independent_forward2.py"
+    source = {1: "tests/independent_forward.py", 2: "tests/independent_forward2.py", 3: "tests/independent_forward3.py"}[g]
     what = ("a forward model written from the physics, sharing no code with `simulate/` or the diagnosis, with effects "
             "outside the library that resemble library effects" if g == 1 else
+            "a third forward model written from the physics in round 5, sharing no code with `simulate/`, the diagnosis "
+            "or the first two generators, with its own sensor, schedules, sampling and effect forms and twelve effects "
+            "outside the library" if g == 3 else
             "a second forward model written from the physics, sharing no code with `simulate/`, the diagnosis or the "
             "first generator, with its own schedules, sampling, noise and effect parametrisations and its own effects "
             "outside the library")
-    text = ["# Independent blind check of the diagnosis" + ("" if g == 1 else ": the second generator"), "",
+    title = {1: "", 2: ": the second generator", 3: ": the third generator"}[g]
+    text = ["# Independent blind check of the diagnosis" + title, "",
             f"{len(rows)} records from `{source}` (cases {args.start}-{args.start + args.cases - 1}, root seed 2026): "
             f"{what}. Made by `python -P tests/independent_blind_table.py --generator {g} --cases {args.cases} "
             f"--start {args.start}`.", "",
@@ -121,7 +134,7 @@ def main() -> None:
     split = SPLITS[g] if args.split is None else args.split
     cuts = [args.start] + [int(c) for c in split.split(",") if c and args.start < int(c) < args.start + args.cases]
     cuts.append(args.start + args.cases)
-    bounds = [0] + [int(c) for c in SPLITS[g].split(",")]
+    bounds = [0] + [int(c) for c in SPLITS[g].split(",") if c]
     for a, b in zip(cuts[:-1], cuts[1:]):
         part = [r for r in rows if a <= r["index"] < b]
         label = LABELS[g][max(i for i, lo in enumerate(bounds) if lo <= a)] if args.split is None else "part"
