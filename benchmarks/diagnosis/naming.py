@@ -141,8 +141,20 @@ def time_blocks(t_s: np.ndarray | None, n: int, k: int) -> np.ndarray:
     return label
 
 
-def attitude_blocks(unit: np.ndarray, k: int, seed: int) -> np.ndarray:
-    """Fold label of each sample: k regions of field directions (k-means on the unit readings, seeded)."""
+ATTITUDE_BLOCK_CYCLES = 4
+"""Each attitude-blocked fold is this many regions of field directions (k-means with k ATTITUDE_BLOCK_CYCLES
+centres, assigned to the folds in turn), as each time-blocked fold is TIME_BLOCK_CYCLES stretches of time."""
+
+
+def attitude_blocks(unit: np.ndarray, k: int, seed: int, cycles: int = ATTITUDE_BLOCK_CYCLES) -> np.ndarray:
+    """Fold label of each sample: k folds of ``cycles`` regions of field directions each (k-means on the unit
+    readings, seeded)."""
+    label = _kmeans_regions(unit, k * cycles, seed) if len(unit) >= k * cycles else _kmeans_regions(unit, k, seed)
+    return label % k
+
+
+def _kmeans_regions(unit: np.ndarray, k: int, seed: int) -> np.ndarray:
+    """Region label of each sample: k regions of field directions (k-means on the unit readings, seeded)."""
     rng = np.random.default_rng(seed)
     n = len(unit)
     centres = unit[rng.choice(n, size=k, replace=False)]
