@@ -27,9 +27,9 @@ An effect is therefore *named* only when all of these hold:
    are differences of unrelated readings, which fit any structure tied to the neighbouring samples (eddy
    currents, hysteresis, a reading mixed with the previous one); a nonlinearity named beside such lag terms is
    dropped with it (the square of a mixed reading depends on the attitude).  Spikes (``outliers``) are glitches at random times
-   on top of the noise: isolated, not where the readings change fastest, spread over the record like the
-   samples, not readings clipped at a range limit, and the rest of the residual noise-like
-   (BULK_RATIO_MAX).
+   on top of the noise: isolated or in short abrupt bursts (``glitch_bursts``), not where the readings change
+   fastest, spread over the record like the samples (one time per burst), not readings clipped at a range
+   limit, and the rest of the residual noise-like (BULK_RATIO_MAX).
    In a record of held attitudes (the sensor set down in a few positions, each held for a while), a time
    effect must lower the residual *within* the holds: between them, each attitude was seen at one time
    only, and a drift in time cannot be told from structure that depends on the attitude.  There the
@@ -141,20 +141,8 @@ def time_blocks(t_s: np.ndarray | None, n: int, k: int) -> np.ndarray:
     return label
 
 
-ATTITUDE_BLOCK_CYCLES = 4
-"""Each attitude-blocked fold is this many regions of field directions (k-means with k ATTITUDE_BLOCK_CYCLES
-centres, assigned to the folds in turn), as each time-blocked fold is TIME_BLOCK_CYCLES stretches of time."""
-
-
-def attitude_blocks(unit: np.ndarray, k: int, seed: int, cycles: int = ATTITUDE_BLOCK_CYCLES) -> np.ndarray:
-    """Fold label of each sample: k folds of ``cycles`` regions of field directions each (k-means on the unit
-    readings, seeded)."""
-    label = _kmeans_regions(unit, k * cycles, seed) if len(unit) >= k * cycles else _kmeans_regions(unit, k, seed)
-    return label % k
-
-
-def _kmeans_regions(unit: np.ndarray, k: int, seed: int) -> np.ndarray:
-    """Region label of each sample: k regions of field directions (k-means on the unit readings, seeded)."""
+def attitude_blocks(unit: np.ndarray, k: int, seed: int) -> np.ndarray:
+    """Fold label of each sample: k regions of field directions (k-means on the unit readings, seeded)."""
     rng = np.random.default_rng(seed)
     n = len(unit)
     centres = unit[rng.choice(n, size=k, replace=False)]
