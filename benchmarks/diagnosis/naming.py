@@ -27,9 +27,9 @@ An effect is therefore *named* only when all of these hold:
    are differences of unrelated readings, which fit any structure tied to the neighbouring samples (eddy
    currents, hysteresis, a reading mixed with the previous one); a nonlinearity named beside such lag terms is
    dropped with it (the square of a mixed reading depends on the attitude).  Spikes (``outliers``) are glitches at random times
-   on top of the noise: isolated, not where the readings change fastest, spread over the record like the
-   samples, not readings clipped at a range limit, and the rest of the residual noise-like
-   (BULK_RATIO_MAX).
+   on top of the noise: isolated or in short abrupt bursts (``glitch_bursts``), not where the readings change
+   fastest, spread over the record like the samples (one time per burst), not readings clipped at a range
+   limit, and the rest of the residual noise-like (BULK_RATIO_MAX).
    In a record of held attitudes (the sensor set down in a few positions, each held for a while), a time
    effect must lower the residual *within* the holds: between them, each attitude was seen at one time
    only, and a drift in time cannot be told from structure that depends on the attitude.  There the
@@ -254,11 +254,68 @@ def bulk_ratio(r: np.ndarray, spikes: np.ndarray) -> float:
     return float(np.quantile(dev, 0.9) / mid / GAUSSIAN_Q90_OVER_Q50) if mid > 0 else 1.0
 
 
-def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None,
-                    raw_nT: np.ndarray | None = None) -> tuple[bool, float]:
-    """Whether the spike samples are isolated outliers: not in runs in time, not concentrated where the
-    readings change fastest, and spread over the record like the samples (a step that switches on mid-record
-    puts every large residual after it); and the share of them that has a spike as a time neighbour."""
+BURST_MAX_SAMPLES = 8
+"""Glitches may come in bursts (an interference event, a garbled packet spans a few consecutive samples): a run
+of consecutive spikes is one glitch event when it is at most this many samples long (longer, it is a state of
+the sensor, such as saturation or a switched gain, not a glitch)."""
+BURST_EDGE_SHARE = 0.25
+"""... and when it starts and ends abruptly: the samples just before and after it deviate from the median residual
+by at most this share of the run's own peak deviation (a run at either end of the record, whose onset or end
+is not seen, is not a burst).  The peaks of a structured residual (a lag where the
+readings change fastest, a slewing or settling response) rise and fall through their neighbours."""
+BURST_MIN_EVENTS = 2
+"""Runs of spikes are judged as bursts only when there are at least this many of them (one long event says
+nothing of random times)."""
+EXTREME_QUANTILE = 0.03
+BURST_CLIPPED_SHARE_MAX = 0.5
+"""... and not readings held at a range limit: at most this share of the events are clip-like, their peak a
+magnitude too small (a negative residual) where some axis reads at least as much, in absolute value, as all but
+EXTREME_QUANTILE of the other samples (saturation limits an axis where it reads most, so the magnitude comes out
+short there; ``clipped`` finds exactly repeated limits, this one a limit seen through noise).  A glitch at a random
+time has either sign, and the readings of a fixed sensor that a glitch pushes outward give a positive residual."""
+
+
+def spike_runs(s: np.ndarray) -> list[tuple[int, int]]:
+    """(start, stop) of the runs of True in ``s`` (in its order)."""
+    edges = np.diff(np.concatenate([[0], s.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist()))
+
+
+def glitch_bursts(s: np.ndarray, r: np.ndarray, x: np.ndarray | None) -> bool:
+    """Whether the runs of spikes ``s`` (in time order; ``r`` the residual and ``x`` the readings in the same
+    order) are bursts of glitches: at least BURST_MIN_EVENTS runs, each at most BURST_MAX_SAMPLES long, starting
+    and ending abruptly (BURST_EDGE_SHARE), and not clip-like (BURST_CLIPPED_SHARE_MAX)."""
+    runs = spike_runs(s)
+    if len(runs) < BURST_MIN_EVENTS or (~s).sum() < 10:
+        return False
+    dev = np.abs(r - np.median(r[~s]))
+    n = len(s)
+    for a, b in runs:
+        if b - a > BURST_MAX_SAMPLES:
+            return False
+        if a == 0 or b == n:  # its onset or its end is not in the record: whether it is abrupt cannot be seen
+            return False
+        if max(dev[a - 1], dev[b]) > BURST_EDGE_SHARE * dev[a:b].max():
+            return False
+    if x is not None:
+        ax = np.abs(x)
+        top = np.quantile(ax[~s], 1.0 - EXTREME_QUANTILE, axis=0)
+        centred = r - np.median(r[~s])
+        peaks = [a + int(np.argmax(dev[a:b])) for a, b in runs]
+        clip_like = [centred[p] < 0 and bool(np.any(ax[p] >= top)) for p in peaks]
+        if np.mean(clip_like) > BURST_CLIPPED_SHARE_MAX:
+            return False
+    return True
+
+
+def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None, raw_nT: np.ndarray | None = None,
+                    r: np.ndarray | None = None, readings: np.ndarray | None = None) -> tuple[bool, float]:
+    """Whether the spike samples are glitches: isolated in time or in short abrupt bursts (``glitch_bursts``,
+    judged when the residual ``r`` is given), not concentrated where the readings change fastest, and spread over
+    the record like the samples (a step that switches on mid-record puts every large residual after it; each run
+    of consecutive spikes is one event there); and the share of them that has a spike as a time neighbour.
+    ``raw_nT``: the readings whose rate of change is judged; ``readings``: those whose extremes are (``raw_nT``
+    when not given)."""
     order = np.arange(len(spikes)) if t_s is None else np.argsort(t_s, kind="stable")
     s = spikes[order]
     if s.sum() == 0:
@@ -267,6 +324,10 @@ def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None,
     neighbour[1:] |= s[:-1]
     neighbour[:-1] |= s[1:]
     share = float((s & neighbour).sum() / s.sum())
+    runs_ok = share <= RUN_FRACTION_MAX
+    if not runs_ok and r is not None:
+        x_all = raw_nT if readings is None else readings
+        runs_ok = glitch_bursts(s, np.asarray(r, dtype=float)[order], None if x_all is None else x_all[order])
     fast_ok = True
     if raw_nT is not None and len(s) > 10:
         x = raw_nT[order]
@@ -275,10 +336,12 @@ def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None,
         fast = rate >= np.quantile(rate, FAST_QUANTILE)
         fast_ok = float((s & fast).sum() / s.sum()) <= FAST_SHARE_MAX
     spread_ok = True
-    if t_s is not None and s.sum() >= 3 and np.ptp(t_s) > 0:  # glitches come at random times
+    if t_s is not None and np.ptp(t_s) > 0:  # glitches come at random times: one time per event
         ts = np.sort(t_s)
-        spread_ok = kstest(t_s[spikes], lambda x: np.searchsorted(ts, x, side="right") / len(ts)).pvalue > SPIKE_TIMES_ALPHA
-    return share <= RUN_FRACTION_MAX and fast_ok and spread_ok, share
+        events = ts[[a for a, _ in spike_runs(s)]]
+        if len(events) >= 3:
+            spread_ok = kstest(events, lambda x: np.searchsorted(ts, x, side="right") / len(ts)).pvalue > SPIKE_TIMES_ALPHA
+    return runs_ok and fast_ok and spread_ok, share
 
 
 def spike_signature(spikes: np.ndarray, r: np.ndarray, t_s: np.ndarray | None, raw_nT: np.ndarray,
@@ -287,7 +350,7 @@ def spike_signature(spikes: np.ndarray, r: np.ndarray, t_s: np.ndarray | None, r
     (``spikes_isolated``, not where ``rate_readings`` change fastest when given), on a noise-like rest
     (``bulk_ratio``) and not readings clipped at a range limit (``clipped_share``); with the neighbour share,
     the tail ratio and the clipped share, in the form ``confirm`` takes as ``spikes_ok``."""
-    isolated, share = spikes_isolated(spikes, t_s, rate_readings)
+    isolated, share = spikes_isolated(spikes, t_s, rate_readings, r, raw_nT)
     ratio = bulk_ratio(r, spikes)
     clip = clipped_share(spikes, raw_nT)
     return isolated and ratio <= BULK_RATIO_MAX and clip <= CLIPPED_SHARE_MAX, share, ratio, clip

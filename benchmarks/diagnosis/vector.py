@@ -34,7 +34,15 @@ from magbench.calibrators.registry import get
 from magbench.errors import InputError
 from magbench.numerics import systematic_rows
 from magbench.simulate.dataset import Dataset
-from magbench.simulate.effects import EFFECTS, SPIKE_SIGMA, Columns, Normalization, OutlierEffect, robust_sigma
+from magbench.simulate.effects import (
+    EFFECTS,
+    SPIKE_SIGMA,
+    Columns,
+    FieldDriftEffect,
+    Normalization,
+    OutlierEffect,
+    robust_sigma,
+)
 from magbench.simulate.sensor import MODELS, NEUTRAL, PARAM_NAMES
 
 from .floor import MOTION_Z, attitude_floor, model_floor, vector_floor
@@ -86,6 +94,9 @@ from .scoring import (
 )
 from .verdict import verdict
 
+FINER_DRIFT_DEGREE = FieldDriftEffect.DEGREE
+"""The degree of the finer shape in time an offset drift named beside a remainder may take (``_finer_drift``): the
+field drift's resolution in time."""
 BEYOND_TIME_ROWS = 50_000
 """The temperature-beyond-time test fits on a systematic sample of at most this many rows (its z grows with the
 square root of the rows: at this size an effect that matters is far beyond the threshold)."""
@@ -258,6 +269,11 @@ class Diagnosis:
 
         n_params = len(self.tangent.model.free_indices(selected))
         rem = remainder(current, floor, floor_se, n_params, n_train, robust="outliers" in selected)
+        if rem["remainder_significant"] and any(nm in BODY_DRIFTS for nm in order):
+            finer = self._finer_drift(current, floor, floor_se, n_params, n_train, "outliers" in selected)
+            rem["remainder_finer_drift"] = finer
+            if not finer["remainder_significant"]:  # what is left is the named drift's finer shape, not another cause
+                rem["remainder_significant"] = False
         if not selected and naming["base_significant"]:  # nothing named, the base residual above the floor
             rem["remainder_significant"] = True
         shifted = any(getattr(EFFECTS[nm], "shift_terms", None) for nm in order)  # a lag named: its own peaks
@@ -341,6 +357,30 @@ class Diagnosis:
                 "statement": "the held-out residual of the base model is far below its in-sample residual: the tangent "
                              "space does not describe the fit (parameters at a bound), the held-out tests cannot be "
                              "trusted, and the in-sample residual is significantly above the noise floor"}
+
+    def _finer_drift(self, current, floor, floor_se, n_params, n_train, robust) -> dict:
+        """The remainder once the named offset drift may take a finer shape in time: the held-out residual
+        ``current`` (random folds) fitted again, fold by fold on the others, with each axis's offset a Legendre
+        series of time up to the field drift's degree (FINER_DRIFT_DEGREE) instead of the cubic the naming tests
+        use.  Offsets wander (a random walk, a 1/f drift of the electronics or of a magnetized part): such an offset
+        is still an offset drift, and its cubic leaves its finer wiggles as a remainder that is no other cause.  The
+        names are not touched: only whether a remainder is said beside them (``remainder_finer_drift``)."""
+        d, k = self.columns, self.k
+        tau = self.norm.tau(d.t_s)
+        slow = legendre.legvander(tau, FINER_DRIFT_DEGREE)[:, 1:]
+        x = np.column_stack([self.unit[:, a:a + 1] * slow for a in range(3)])
+        fold = self.tangent.fold
+        use = current != 0.0 if robust else np.ones(len(current), bool)  # spikes explained away are 0
+        out = current.copy()
+        for f in range(k):
+            train, test = use & (fold != f), use & (fold == f)
+            if train.sum() <= x.shape[1] or not test.any():
+                continue
+            coef = np.linalg.lstsq(x[train], current[train], rcond=None)[0]
+            out[test] = current[test] - x[test] @ coef
+        rem = remainder(out, floor, floor_se, n_params + x.shape[1], n_train, robust=robust)
+        rem["degree"] = FINER_DRIFT_DEGREE
+        return rem
 
     def _passes(self, x_lin, every, spikes, r_all, floor):
         """Forward selection in the tangent space at the base fit, then again at the selected model's fit
