@@ -1,0 +1,86 @@
+"""Naming ``lag`` and ``field_drift`` on moving records: a time shift is a shift of the sensor's axes (the reference is
+not shifted: a term that shifts a changing reference is, at any size the data can see, a free function of time), and
+a name must describe the model it names (the model fitted without linearization leaves what the held-out tests'
+linearization predicts).  Each rule with a control that must still be named.  Records come from the second
+independent forward model (tests/independent_forward2.py, development cases 0-479), which shares no code with the
+diagnosis."""
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from independent_forward2 import make_case  # noqa: E402
+from independent_scoring import parse  # noqa: E402
+
+from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
+from magbench.benchmarks.diagnosis.vector import NONLINEAR_RMS_RATIO_MAX  # noqa: E402
+from magbench.simulate.dataset import Dataset  # noqa: E402
+from magbench.simulate.effects import Columns, LagEffect, Normalization  # noqa: E402
+
+
+def run_case(index: int) -> tuple[dict, object]:
+    case = make_case(index, 2026)
+    data = Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C)
+    return diagnose(data, gravity=case.gravity), case
+
+
+def names(verdict: str) -> set[str]:
+    groups, _, _ = parse(verdict)
+    return {n for g in groups for n in g}
+
+
+def evidence_row(result: dict, name: str) -> dict:
+    return next(r for r in result["naming"]["evidence"] if r["name"] == name)
+
+
+def test_the_lag_form_shifts_the_axes_and_not_the_reference():
+    rng = np.random.default_rng(3)
+    t = np.arange(400) * 0.1
+    raw = np.column_stack([np.cos(t), np.sin(t), 0.3 * np.ones_like(t)]) * 50000.0 + rng.normal(0, 1, (400, 3))
+    forms = []
+    for f_ref in (np.full(400, 50000.0), 50000.0 + 40.0 * np.sin(t / 30.0)):  # a constant and a changing reference
+        d = Columns.of(Dataset(raw, f_ref_nT=f_ref, t_s=t))
+        forms.append(LagEffect.fit_columns(raw, d, Normalization.of(d)))
+    assert "lag_ref_s" not in LagEffect.fit_params and set(LagEffect.shift_terms) <= set(LagEffect.fit_params)
+    (g0, h0), (g1, h1) = forms
+    assert h0 is None and h1 is None and np.array_equal(g0, g1)
+
+
+@pytest.mark.parametrize("index", [66, 479])  # remanence beside an offset drift; a battery load (figure-eight, handheld)
+def test_slow_structure_beside_a_changing_reference_is_neither_lag_nor_field_drift(index):
+    # the reference changes by tens of nT; the shift term of the reference fitted it as a lag of 10^6 samples, and
+    # with field_drift's time basis the pair explained what neither is
+    result, case = run_case(index)
+    assert np.ptp(case.f_ref_nT) > 10 and not {"lag", "field_drift"} & set(case.present)
+    assert not {"lag", "field_drift"} & names(result["verdict"]), result["verdict"]
+    assert result["verdict"].endswith("unexplained")
+
+
+@pytest.mark.parametrize("index", [169, 457])  # gimbal, figure-eight
+def test_negative_control_a_true_lag_beside_a_changing_reference_is_named(index):
+    result, case = run_case(index)
+    assert case.present == ("lag",) and np.ptp(case.f_ref_nT) > 10
+    assert evidence_row(result, "lag")["named"] and result["verdict"] == "lag"
+
+
+def test_a_name_whose_fit_its_linearization_does_not_describe_is_dropped():
+    # a gain that switches mid-record on a band of attitudes: the base fit already has scales of 1.5, and field_drift's
+    # linear step slides further (offsets of 10^5 nT); the model cannot follow and leaves twice what the step predicts
+    result, case = run_case(424)
+    assert case.outside == ("gain_switch",) and not case.present
+    row = evidence_row(result, "field_drift")
+    check = row["tangent_check"]
+    assert not row["named"] and check["rms_model_nT"] > NONLINEAR_RMS_RATIO_MAX * check["rms_tangent_nT"]
+    assert result["verdict"] == "unexplained"
+
+
+@pytest.mark.parametrize("index", [51, 73])  # field drift with a nonlinearity on a band of attitudes; alone on a gimbal
+def test_negative_control_a_field_drift_its_linearization_describes_is_named(index):
+    result, case = run_case(index)
+    assert "field_drift" in case.present
+    check = result["naming"]["tangent_check"]
+    assert check["rms_model_nT"] <= 1.05 * check["rms_tangent_nT"]
+    assert "field_drift" in result["verdict"].split("+")
