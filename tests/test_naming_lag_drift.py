@@ -84,3 +84,23 @@ def test_negative_control_a_field_drift_its_linearization_describes_is_named(ind
     check = result["naming"]["tangent_check"]
     assert check["rms_model_nT"] <= 1.05 * check["rms_tangent_nT"]
     assert "field_drift" in result["verdict"].split("+")
+
+
+@pytest.mark.parametrize("index", [129, 417])  # fixed sensors with spikes only, the reference changing by 20-75 nT
+def test_a_fixed_sensor_turning_no_more_than_its_reference_changes_names_no_drift(index):
+    # the field the reference measures changed; it turned as it changed (a few nT across the readings)
+    result, case = run_case(index)
+    assert case.category == "fixed" and case.present == ("outliers",) and np.ptp(case.f_ref_nT) > 10
+    direction = result["time_only"]["drift_direction"]
+    assert direction["named"] is None and direction["across_trend_rms_nT"] <= direction["reference_change_rms_nT"]
+    assert not {"offset_drift", "field_drift", "temperature"} & names(result["verdict"]), result["verdict"]
+
+
+@pytest.mark.parametrize("index", [249, 465])  # offset drifts on fixed sensors whose reference changes
+def test_negative_control_a_fixed_sensor_drifting_across_beyond_its_reference_change_is_named(index):
+    result, case = run_case(index)
+    assert case.category == "fixed" and case.present == ("offset_drift",) and np.ptp(case.f_ref_nT) > 0
+    direction = result["time_only"]["drift_direction"]
+    f = case.f_ref_nT - case.f_ref_nT.mean()
+    assert direction["across_trend_rms_nT"] > np.sqrt(np.mean(f ** 2))
+    assert direction["named"] == "offset_drift|field_drift" and result["verdict"] == "offset_drift|field_drift"

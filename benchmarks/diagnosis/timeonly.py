@@ -32,6 +32,8 @@ DRIFT_DIRECTION_ALPHA):
   fits the radial trend as well (the scale coefficients of the three axes changing together move the readings
   radially too); the gains of the three axes drifting together in time (outside the library) would look the
   same;
+* a trend across no larger than the reference's own change, where the reference changes: no name (the field the
+  reference measures changed, and turned as it changed: ACROSS_OF_REFERENCE_MIN);
 * in between, or when a single step (a field switched on near the sensor) explains the trend as well as the
   smooth drift does (STEP_SHARE): no name; the drift stays in ``time_only``.
 
@@ -57,6 +59,11 @@ TREND_DEGREE = 6
 DRIFT_DIRECTION_ALPHA = 1e-6
 """Level of the F tests of the radial trend and of the trend across (a drift of tens of noise sigmas is far
 beyond it; a record without drift is far from it)."""
+ACROSS_OF_REFERENCE_MIN = 1.0
+"""Where the reference changes, the field it measures changed, and a field that changes turns as well (a disturbance
+of the field has no reason to lie along it: the daily variation is mostly in declination and horizontal intensity).  A
+trend across the readings no larger than this multiple of the reference's own change (RMS about its mean) is as
+likely that turning, which neither the sensor nor the reference gets wrong, as a drift: nothing is named."""
 ACROSS_MIN_RATIO = 0.1
 RADIAL_MAX_RATIO = 0.05
 """The RMS of the trend across over that of the radial trend: at least ACROSS_MIN_RATIO for a drift of the offsets,
@@ -268,8 +275,10 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
     e2 = np.cross(m, e1)
     design = legendre.legvander(2 * (tk - t[0]) / span - 1, TREND_DEGREE)
     y = x @ np.column_stack([m, e1, e2])  # radial, across, across
+    reference_change = 0.0
     if f_ref is not None and np.ptp(f_ref[keep]) > 0:  # the field's magnitude as the reference follows it
         fk = f_ref[keep] - f_ref[keep].mean()
+        reference_change = float(np.sqrt(np.mean(fk ** 2)))
         gain = float(fk @ (y[:, 0] - y[:, 0].mean()) / (fk @ fk))
         y[:, 0] -= gain * fk
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
@@ -304,6 +313,12 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
     if sse_const - sse_step >= STEP_SHARE * (sse_const - sse_trend):
         out["why"] = ("a single step explains the drift as well as a smooth change: a field switched on near the "
                       "sensor (outside the library), not a drift")
+        return out
+    if across_drift and across <= ACROSS_OF_REFERENCE_MIN * reference_change:
+        out["reference_change_rms_nT"] = reference_change
+        out["why"] = (f"the readings drift across their own direction (RMS {across:.3g} nT), no more than the reference "
+                      f"itself changes (RMS {reference_change:.3g} nT): the field the reference measures changed, and it turns "
+                      "as it changes, which is no drift of the sensor nor of the field away from the reference")
         return out
     if across_drift:
         thermal = follows is not None and follows >= TEMPERATURE_FOLLOWS_TIME_R2
