@@ -1,9 +1,8 @@
-"""Naming ``lag`` and ``field_drift`` on moving records: a time shift is a shift of the sensor's axes (the reference is
-not shifted: a term that shifts a changing reference is, at any size the data can see, a free function of time), and
-a name must describe the model it names (the model fitted without linearization leaves what the held-out tests'
-linearization predicts).  Each rule with a control that must still be named.  Records come from the second
-independent forward model (tests/independent_forward2.py, development cases 0-479), which shares no code with the
-diagnosis."""
+"""Naming ``lag`` and ``field_drift``: a time shift is a shift of the sensor's axes (the reference is not shifted: a
+term that shifts a changing reference is, at any size the data can see, a free function of time), and a fixed sensor
+whose readings turn no more than its reference changes names no drift.  Each rule with a control that must still be
+named.  Records come from the second independent forward model (tests/independent_forward2.py, development cases
+0-479), which shares no code with the diagnosis."""
 import sys
 from pathlib import Path
 
@@ -16,7 +15,6 @@ from independent_forward2 import make_case  # noqa: E402
 from independent_scoring import parse  # noqa: E402
 
 from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
-from magbench.benchmarks.diagnosis.vector import NONLINEAR_RMS_RATIO_MAX  # noqa: E402
 from magbench.simulate.dataset import Dataset  # noqa: E402
 from magbench.simulate.effects import Columns, LagEffect, Normalization  # noqa: E402
 
@@ -64,26 +62,6 @@ def test_negative_control_a_true_lag_beside_a_changing_reference_is_named(index)
     result, case = run_case(index)
     assert case.present == ("lag",) and np.ptp(case.f_ref_nT) > 10
     assert evidence_row(result, "lag")["named"] and result["verdict"] == "lag"
-
-
-def test_a_name_whose_fit_its_linearization_does_not_describe_is_dropped():
-    # a gain that switches mid-record on a band of attitudes: the base fit already has scales of 1.5, and field_drift's
-    # linear step slides further (offsets of 10^5 nT); the model cannot follow and leaves twice what the step predicts
-    result, case = run_case(424)
-    assert case.outside == ("gain_switch",) and not case.present
-    row = evidence_row(result, "field_drift")
-    check = row["tangent_check"]
-    assert not row["named"] and check["rms_model_nT"] > NONLINEAR_RMS_RATIO_MAX * check["rms_tangent_nT"]
-    assert result["verdict"] == "unexplained"
-
-
-@pytest.mark.parametrize("index", [51, 73])  # field drift with a nonlinearity on a band of attitudes; alone on a gimbal
-def test_negative_control_a_field_drift_its_linearization_describes_is_named(index):
-    result, case = run_case(index)
-    assert "field_drift" in case.present
-    check = result["naming"]["tangent_check"]
-    assert check["rms_model_nT"] <= 1.05 * check["rms_tangent_nT"]
-    assert "field_drift" in result["verdict"].split("+")
 
 
 @pytest.mark.parametrize("index", [129, 417])  # fixed sensors with spikes only, the reference changing by 20-75 nT

@@ -100,9 +100,6 @@ MAX_EFFECTS = 4
 SELECTION_PASSES = 3
 MIN_STEP_OF_REMAINING = 0.25  # ... or a quarter of what the effects before it left
 ROBUST_START = "ransac"  # the robust base start, where it estimates the base model (its supported_models)
-NONLINEAR_RMS_RATIO_MAX = 1.5
-"""The named model's residual evaluated with the model itself may exceed the residual its tangent predicts by at most
-this factor (``Diagnosis._described_by_tangent``)."""
 TANGENT_TOLERANCE = 0.05  # a later tangent point must reproduce the base fit's RMS within 5 %
 SHRINK_FLAG = ("above 100 %: the held-out RMS with the effect is below the noise-floor estimate, so the floor "
                "(its interval is given) is too high for these data or the remainder is smaller than its error")
@@ -428,7 +425,6 @@ class Diagnosis:
         modelled = tuple(s for s in confirmed if s not in named and not EFFECTS[s].robust and "step" not in rows[s]
                          and rows[s].get("first_order_share", 1.0) >= LAG_SHIFT_SHARE)
         named = undominated(evidence, named, remainder_of, modelled)
-        named, linear = self._described_by_tangent(evidence, named)
         if named != selected:
             current = heldout["random"](named)
         follows = temp_r2 is not None and temp_r2 >= TEMPERATURE_FOLLOWS_TIME_R2
@@ -442,8 +438,7 @@ class Diagnosis:
                   "base_residual_z": base_rem["remainder_z"],
                   "base_significant": bool(base_rem["remainder_significant"]),
                   "time_predicts_attitude_r2": slow, "temperature_follows_time_r2": temp_r2,
-                  "temperature_beyond_time_z": beyond, "evidence": evidence,
-                  **({"tangent_check": linear} if linear is not None else {})}
+                  "temperature_beyond_time_z": beyond, "evidence": evidence}
         return named, current, naming, confounded
 
     def _shift_signature(self, evidence: list[dict], named: list[str]) -> list[str]:
@@ -484,37 +479,6 @@ class Diagnosis:
                               "magnitude where the attitude changes fastest (a low-pass response of something else, such "
                               "as an induced field that lags or eddy currents), not a shifted reading")
         return named
-
-    def _described_by_tangent(self, evidence: list[dict], named: list[str]) -> tuple[list[str], dict | None]:
-        """Every held-out test is made in the tangent space at the selection's fit point.  The named model fitted on
-        every sample with the model itself (Levenberg-Marquardt from that point, not its linearization) must then leave
-        about the residual the tangent predicts: when the linear step slides along a direction the attitudes leave
-        free (offsets of 10^4-10^5 nT, scales of 2 and more, a time basis trading against them), the model cannot follow
-        it and leaves more than NONLINEAR_RMS_RATIO_MAX times that, and the tests that named its effects describe a
-        model that does not exist.  The names are then dropped (the structure stays unexplained);
-        spikes keep their count test.  Returns (named, the check's evidence or None when nothing is named)."""
-        plain = [nm for nm in named if not EFFECTS[nm].robust]
-        if not plain:
-            return named, None
-        robust = "outliers" in named
-        tangent = self.tangent
-        keep = ~tangent.spikes if robust else np.ones(len(self.columns), bool)
-        model, free = self.model, self.model.free_indices(named)
-        lin = float(np.sqrt(tangent.sse_free(free, robust) / max(int(keep.sum()), 1)))
-        rows = model.fit_subset()  # the model fitted (Levenberg-Marquardt from the tangent point, long records on a subset)
-        x = model.fit(tangent.x, free, keep=keep, blocks=model._fit_blocks(rows))
-        nonlin = rms(model.residuals(x)[keep])
-        check = {"rms_tangent_nT": lin, "rms_model_nT": nonlin}
-        if not nonlin > NONLINEAR_RMS_RATIO_MAX * max(lin, self.floor_se):
-            return named, check
-        for row in evidence:
-            if row["name"] in plain:
-                row["named"], row["tangent_check"] = False, check
-                row["why"] = (f"the named model fitted on every sample (not linearized) leaves {nonlin:.3g} nT, "
-                              f"{nonlin / max(lin, 1e-12):.3g} times the {lin:.3g} nT its linearization predicts: the linear "
-                              "fit slides along directions the data leave free, and the held-out tests (made in that "
-                              "linearization) do not describe it")
-        return [nm for nm in named if nm not in plain], check
 
     def _temperature_beyond_time(self, named: list[str]) -> float | None:
         """Paired z of the fit of base + ``named`` with the logged temperature against the same fit with the
