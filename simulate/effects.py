@@ -869,7 +869,9 @@ class LagEffect(Effect):
     10^5 to 10^7 samples, longer than the record: not a shift but a free function of time (the reference's
     derivative) that fits any slow structure, which beside ``field_drift``'s time basis named ``lag`` and
     ``field_drift`` for structure outside the library on the independent blind records.  The forward model never
-    shifted the reference either."""
+    shifted the reference either.  A clock offset between the sensor and a changing reference is still fitted: the
+    axes' common shift s changes the corrected magnitude by -s d|B|/dt, the reference's own change where it follows
+    the field."""
 
     name: ClassVar[str] = "lag"
     needs: ClassVar[tuple[str, ...]] = ("t",)
