@@ -1,6 +1,7 @@
 """Naming ``lag`` and ``field_drift``: a time shift is a shift of the sensor's axes (the reference is not shifted: a
 term that shifts a changing reference is, at any size the data can see, a free function of time), and a fixed sensor
-whose readings turn no more than its reference changes names no drift.  Each rule with a control that must still be
+whose readings turn no more than its reference changes names no drift, and a drift on held attitudes changes within
+every hold, not by a step inside one.  Each rule with a control that must still be
 named.  Records come from the second independent forward model (tests/independent_forward2.py, development cases
 0-479), which shares no code with the diagnosis."""
 import sys
@@ -15,6 +16,7 @@ from independent_forward2 import make_case  # noqa: E402
 from independent_scoring import parse  # noqa: E402
 
 from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
+from magbench.benchmarks.diagnosis.naming import ONE_HOLD_SHARE_MAX, largest_hold_share  # noqa: E402
 from magbench.simulate.dataset import Dataset  # noqa: E402
 from magbench.simulate.effects import Columns, LagEffect, Normalization  # noqa: E402
 
@@ -82,3 +84,32 @@ def test_negative_control_a_fixed_sensor_drifting_across_beyond_its_reference_ch
     f = case.f_ref_nT - case.f_ref_nT.mean()
     assert direction["across_trend_rms_nT"] > np.sqrt(np.mean(f ** 2))
     assert direction["named"] == "offset_drift|field_drift" and result["verdict"] == "offset_drift|field_drift"
+
+
+def test_largest_hold_share_arithmetic():
+    label = np.repeat(np.arange(4), 50)
+    rng = np.random.default_rng(0)
+    noise = rng.normal(0, 1, 200)
+    ramp = np.tile(np.linspace(-1, 1, 50), 4)  # the same change within every hold
+    assert largest_hold_share(noise + ramp, noise, label) < 0.4
+    step = np.where((label == 2) & (np.arange(200) % 50 >= 25), 3.0, 0.0)  # a switch inside hold 2
+    assert largest_hold_share(noise + step, noise, label) > 0.9
+
+
+def test_a_switch_inside_one_hold_is_not_a_drift():
+    # a gain switched during one of 42 holds: field_drift passed every held-out test and the test within the holds,
+    # with 93 % of its gain within the holds from that one hold
+    result, case = run_case(424)
+    assert case.outside == ("gain_switch",) and not case.present and case.schedule == "platform_survey"
+    row = evidence_row(result, "field_drift")
+    assert row["within_holds_z"] > 3 and row["largest_hold_share"] > ONE_HOLD_SHARE_MAX
+    assert not row["named"] and "step" in row and result["verdict"] == "unexplained"
+
+
+@pytest.mark.parametrize("index", [50, 51])  # field drift alone on a gimbal's holds; beside a nonlinearity on a survey
+def test_negative_control_a_drift_that_changes_within_every_hold_is_named(index):
+    result, case = run_case(index)
+    assert "field_drift" in case.present
+    row = evidence_row(result, "field_drift")
+    assert row["largest_hold_share"] < 0.5 and row["named"]
+    assert "field_drift" in result["verdict"].split("+")
