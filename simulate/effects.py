@@ -860,16 +860,25 @@ class OffsetDriftEffect(Effect):
 @register_effect
 @dataclass(frozen=True)
 class LagEffect(Effect):
-    """A time shift of each axis (and of the reference): axis j reads the field of time t - lag_j, the
-    reference that of t - lag_ref; fitted to first order, raw_j = lin_j - lag_j dlin_j/dt."""
+    """A time shift of each axis: axis j reads the field of time t - lag_j; fitted to first order,
+    raw_j = lin_j - lag_j dlin_j/dt.
+
+    The reference is not shifted in the fitted form (it was, with a term -lag_ref dF_ref/dt): a reference that
+    changes (an observatory's or a model's field) changes by tens of nT over minutes, so a shift of a few samples
+    moves it by hundredths of an nT, far below any noise floor, and a term large enough to be seen is a shift of
+    10^5 to 10^7 samples, longer than the record: not a shift but a free function of time (the reference's
+    derivative) that fits any slow structure, which beside ``field_drift``'s time basis named ``lag`` and
+    ``field_drift`` for structure outside the library on the independent blind records.  The forward model never
+    shifted the reference either.  A clock offset between the sensor and a changing reference is still fitted: the
+    axes' common shift s changes the corrected magnitude by -s d|B|/dt, the reference's own change where it follows
+    the field."""
 
     name: ClassVar[str] = "lag"
     needs: ClassVar[tuple[str, ...]] = ("t",)
-    fit_params: ClassVar[tuple[str, ...]] = ("lag_x_s", "lag_y_s", "lag_z_s", "lag_ref_s",
-                                             "lag2_x_s2", "lag2_y_s2", "lag2_z_s2")
+    fit_params: ClassVar[tuple[str, ...]] = ("lag_x_s", "lag_y_s", "lag_z_s", "lag2_x_s2", "lag2_y_s2", "lag2_z_s2")
     """lag_j and the second-order terms lag_j^2 (fitted freely, so the form stays linear): a shift of a
     smooth signal is x(t - s) = x - s x' + s^2 x'' / 2 + ..."""
-    shift_terms: ClassVar[tuple[str, ...]] = ("lag_x_s", "lag_y_s", "lag_z_s", "lag_ref_s")
+    shift_terms: ClassVar[tuple[str, ...]] = ("lag_x_s", "lag_y_s", "lag_z_s")
     """The first-order terms: a time shift of less than a few samples is carried by them, the second-order
     terms only correct it (the naming rule asks for this signature)."""
     RANDOM_LAG_S: ClassVar[float] = 0.05
@@ -902,7 +911,6 @@ class LagEffect(Effect):
             for a in range(3):
                 raw[bad, a] = np.interp(d.t_s[bad], ts[good], d.raw_nT[order[good], a])
         d.extra["draw_dt"], d.extra["draw_dt2"] = central_derivative(d.t_s, raw), local_derivatives(d.t_s, raw)[1]
-        d.extra["dref_dt"] = central_derivative(d.t_s, d.f_ref_nT)
         return {}
 
     @classmethod
@@ -911,13 +919,11 @@ class LagEffect(Effect):
             d.extra["draw_dt"] = central_derivative(d.t_s, d.raw_nT)
             d.extra["draw_dt2"] = local_derivatives(d.t_s, d.raw_nT)[1]
         du, du2 = d.extra["draw_dt"], d.extra["draw_dt2"]
-        g = np.zeros((len(u0), 3, 7))
+        g = np.zeros((len(u0), 3, 6))
         for a in range(3):
             g[:, a, a] = -du[:, a]
-            g[:, a, 4 + a] = 0.5 * du2[:, a]
-        h = np.zeros((len(u0), 7))
-        h[:, 3] = -(d.extra["dref_dt"] if "dref_dt" in d.extra else central_derivative(d.t_s, d.f_ref_nT))
-        return g, h
+            g[:, a, 3 + a] = 0.5 * du2[:, a]
+        return g, None
 
     @classmethod
     def from_fit(cls, e, norm, info=None):

@@ -35,7 +35,9 @@ An effect is therefore *named* only when all of these hold:
    only, and a drift in time cannot be told from structure that depends on the attitude.  There the
    attitude-blocked folds, which leave out whole holds whose levels the base correction cannot predict from the
    other dozen directions, are not used for a time effect (the test within the holds replaces them), and the name
-   must remove at least DOMINANCE_UNBLOCKED times what is left beside it.
+   must remove at least DOMINANCE_UNBLOCKED times what is left beside it.  A drift changes within every hold: when
+   one hold carries most of what it removes within the holds (ONE_HOLD_SHARE_MAX), the change is a step inside that
+   hold, a switch at one time (outside the library), and stays unexplained.
 5. **Not a by-product of a larger unexplained structure.**  When a significant remainder is left, every
    named effect must remove at least as much as is left (its own held-out contribution at least the
    remainder's RMS above the floor; a time shift twice that, DOMINANCE_SHIFT): a flexible basis fits part of any
@@ -117,6 +119,11 @@ SPIKE_TIMES_ALPHA = FAMILY_ALPHA
 HOLD_Z = 3.0
 """A time effect in a record of held attitudes must lower the residual within the holds by this many
 standard errors (paired, on the held-out residuals with each hold's mean removed)."""
+ONE_HOLD_SHARE_MAX = 0.75
+"""A drift (``TIME_EFFECTS``) in a record of held attitudes changes within every hold: when a single hold carries more
+than this share of what it removes within the holds (the per-hold sums of the decrease of the squared held-out
+residual, each hold's mean removed), the change is a step inside that hold, a switch at one time (a gain or a field
+switched, outside the library), not a slow drift."""
 TIME_EFFECTS = ("offset_drift", "field_drift")
 BODY_DRIFTS = ("offset_drift",)
 """Effects that are a body-fixed field changing slowly in time (a single step is a switch, not one of them)."""
@@ -481,6 +488,15 @@ def hold_demeaned(r: np.ndarray, label: np.ndarray) -> np.ndarray:
     """``r`` with each hold's mean removed."""
     means = np.bincount(label, weights=r) / np.maximum(np.bincount(label), 1)
     return r - means[label]
+
+
+def largest_hold_share(without: np.ndarray, with_effect: np.ndarray, label: np.ndarray) -> float:
+    """The largest share one hold carries of the decrease of the squared residual within the holds (each hold's
+    mean removed; holds where it rises count as none)."""
+    gain = np.bincount(label, weights=hold_demeaned(without, label) ** 2 - hold_demeaned(with_effect, label) ** 2)
+    gain = np.clip(gain, 0.0, None)
+    total = float(gain.sum())
+    return float(gain.max() / total) if total > 0 else 1.0
 
 
 def within_holds_z(without: np.ndarray, with_effect: np.ndarray, label: np.ndarray) -> float:

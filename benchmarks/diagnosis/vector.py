@@ -53,6 +53,7 @@ from .naming import (
     FAMILY_ALPHA,
     HOLD_Z,
     LAG_SHIFT_SHARE,
+    ONE_HOLD_SHARE_MAX,
     ROUGHNESS_MAX,
     TEMPERATURE_BEYOND_Z,
     TEMPERATURE_SMOOTH_DEGREE,
@@ -64,6 +65,7 @@ from .naming import (
     confounded_pairs,
     fold_drift_into_temperature,
     holds,
+    largest_hold_share,
     only_smooth_temperature,
     roughness,
     shift_share,
@@ -568,7 +570,8 @@ class Diagnosis:
             return named
         with_all = heldout(named)
         for name in [nm for nm in named if nm in TIME_EFFECTS or _is_thermal(nm)]:
-            z = within_holds_z(heldout([s for s in named if s != name]), with_all, label)
+            without = heldout([s for s in named if s != name])
+            z = within_holds_z(without, with_all, label)
             row = next(r for r in evidence if r["name"] == name)
             row["within_holds_z"] = z
             if z < HOLD_Z:
@@ -577,6 +580,16 @@ class Diagnosis:
                 row["why"] = (f"the attitudes were held ({int(label.max()) + 1} holds) and it lowers the residual within "
                               f"them by only {z:.1f} standard errors: between holds each attitude was seen at one time "
                               "only, so a time effect cannot be told from structure that depends on the attitude")
+                continue
+            if name not in TIME_EFFECTS:
+                continue
+            share = largest_hold_share(without, with_all, label)
+            row["largest_hold_share"] = share
+            if share > ONE_HOLD_SHARE_MAX:  # a switch: structure outside the library, not modelled by the drift
+                named = [s for s in named if s != name]
+                row["named"], row["step"] = False, {"largest_hold_share": share}
+                row["why"] = (f"one hold of {int(label.max()) + 1} carries {100 * share:.0f} % of what it removes within the "
+                              "holds: a step inside that hold, a switch at one time (outside the library), not a slow drift")
         return named
 
     def _contributions(self, selected, every, current, base_res, rms_base, floor, floor_se) -> list[dict]:
