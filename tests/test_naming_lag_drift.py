@@ -12,28 +12,16 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from independent_forward2 import make_case  # noqa: E402
-from independent_scoring import parse  # noqa: E402
+import independent_cases  # noqa: E402
+from independent_cases import evidence_row, names  # noqa: E402
 
-from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
 from magbench.benchmarks.diagnosis.naming import ONE_HOLD_SHARE_MAX, largest_hold_share  # noqa: E402
 from magbench.simulate.dataset import Dataset  # noqa: E402
 from magbench.simulate.effects import Columns, LagEffect, Normalization  # noqa: E402
 
 
 def run_case(index: int) -> tuple[dict, object]:
-    case = make_case(index, 2026)
-    data = Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C)
-    return diagnose(data, gravity=case.gravity), case
-
-
-def names(verdict: str) -> set[str]:
-    groups, _, _ = parse(verdict)
-    return {n for g in groups for n in g}
-
-
-def evidence_row(result: dict, name: str) -> dict:
-    return next(r for r in result["naming"]["evidence"] if r["name"] == name)
+    return independent_cases.run_case(index, generator=2)
 
 
 def test_the_lag_form_shifts_the_axes_and_not_the_reference():

@@ -10,6 +10,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from independent_cases import evidence_row, run_case  # noqa: E402
 from independent_forward import make_case  # noqa: E402
 
 from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
@@ -25,16 +26,6 @@ from magbench.benchmarks.diagnosis.naming import (  # noqa: E402
     undominated,
 )
 from magbench.simulate.dataset import Dataset  # noqa: E402
-
-
-def run_case(index: int) -> tuple[dict, object]:
-    case = make_case(index, 2026)
-    data = Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C)
-    return diagnose(data, gravity=case.gravity), case
-
-
-def evidence_row(result: dict, name: str) -> dict:
-    return next(r for r in result["naming"]["evidence"] if r["name"] == name)
 
 
 @pytest.mark.parametrize("index", [53, 17])  # a lagged soft iron; a gravity-following body field
@@ -299,16 +290,9 @@ def test_a_drift_is_not_named_temperature_when_the_readings_miss_the_temperature
     """The second generator's case 447 (an offset drift and a lag on a pendulum, a logged temperature that
     changes on its own): the temperature effect fitted the drift's smooth shape only, so it is not named alone.
     Control: case 130 (a temperature effect under such a temperature) is named temperature."""
-    import independent_forward2
-
-    def run2(index):
-        case = independent_forward2.make_case(index, 2026)
-        data = Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C)
-        return diagnose(data, gravity=case.gravity), case
-
-    result, case = run2(447)
+    result, case = run_case(447, generator=2)
     assert case.present == ("offset_drift", "lag") and result["naming"]["temperature_follows_time_r2"] < 0.9
     assert "temperature" not in [g for g in result["verdict"].split("+")], result["verdict"]
-    control, case = run2(130)
+    control, case = run_case(130, generator=2)
     assert case.present == ("temperature",) and control["verdict"] == "temperature"
     assert control["naming"]["temperature_beyond_time_z"] > 10

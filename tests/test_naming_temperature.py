@@ -13,19 +13,11 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from effect_records import OFFSET_NT, sphere_record  # noqa: E402
-from independent_forward import make_case  # noqa: E402
+from independent_cases import run_case  # noqa: E402
 from independent_scoring import score  # noqa: E402
 
-from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
 from magbench.benchmarks.diagnosis.naming import undominated  # noqa: E402
-from magbench.simulate.dataset import Dataset  # noqa: E402
 from magbench.simulate.effects import TemperatureEffect  # noqa: E402
-
-
-def run_case(index: int) -> tuple[dict, object]:
-    case = make_case(index, 2026)
-    data = Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C)
-    return diagnose(data, gravity=case.gravity), case
 
 
 def test_the_alignment_form_undoes_a_temperature_dependent_alignment():
