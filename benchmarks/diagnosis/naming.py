@@ -61,7 +61,10 @@ temperature beats the fit with the temperature replaced by a smooth function of 
 errors, which no drift can.  An offset drift named beside a temperature effect is folded into it (what it
 removed is then part of the remainder).  ``field_drift`` (one scalar series, the same on every axis) is
 paired with a temperature effect only when either can replace the other with a held-out residual within the
-tests' error on every fold family.
+tests' error on every fold family.  When the logged temperature changes on its own (it does not follow time), a
+temperature effect is named only when the readings follow those changes beyond its smooth part in time
+(TEMPERATURE_BEYOND_Z); otherwise it is said with ``offset_drift`` when that alone explains the residual, or
+not named (``only_smooth_temperature``).
 """
 from __future__ import annotations
 
