@@ -567,7 +567,8 @@ def undominated(evidence: list[dict], named: list[str], remainder_of, modelled: 
         named.remove(name)
         rows[name]["named"] = False
         left = rem["remainder_nT"]
-        factor = "" if _dominance(name, rows[name]) == 1.0 else f"{_dominance(name, rows[name]):g} times "
+        multiple = _dominance(name, rows[name])
+        factor = "" if multiple == DOMINANCE else f"{multiple:g} times "
         rows[name]["why"] = (f"it removes {own:.3g} nT, less than {factor}the {left:.3g} nT left "
                              "unexplained beside it: more likely the part of an unmodelled structure that its form can fit "
                              "than a cause")

@@ -141,7 +141,7 @@ def time_only(data: Dataset, reason: str) -> dict:
     design = np.column_stack([np.ones(n), hours - hours.mean()])
     coef, se, resid = _linear(design[keep], r[keep])
     drift: dict = {"drift_nT_per_h": float(coef[1]), "drift_se_nT_per_h": float(se[1]),
-             "significant": bool(abs(coef[1]) > DRIFT_Z * se[1]) if np.ptp(hours) > 0 else False}
+                   "significant": bool(abs(coef[1]) > DRIFT_Z * se[1]) if np.ptp(hours) > 0 else False}
     left = None  # what the smooth trend of |B| - F leaves on the kept samples
     if trend_design is not None and n > 3 * TREND_DEGREE:
         trend = trend_design @ np.linalg.lstsq(trend_design[keep], r[keep], rcond=None)[0]
