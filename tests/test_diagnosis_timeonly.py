@@ -133,6 +133,30 @@ def test_a_drift_across_the_readings_cannot_be_told_from_a_turning_field_and_alo
     assert r["verdict"] == "field_drift" and r["confounded"] == [], r["time_only"]["drift_direction"]
 
 
+def test_a_drift_across_that_the_wandering_temperature_fits_keeps_temperature_among_the_alternatives():
+    """The logged temperature wanders on its own (it does not follow time), and the offsets follow it through a
+    thermal lag: the drift across is said with ``temperature`` among its alternatives; the same drift in time
+    beside a temperature that wanders otherwise (negative control) is not."""
+    from magbench.simulate.effects import first_order_lag
+    rng = np.random.default_rng(3)
+    n = 3000
+    t = np.linspace(0.0, 6 * 3600.0, n)
+    u = t / t[-1]
+    wander = 20 + 2.0 * u + 1.5 * np.sin(2 * np.pi * 2.3 * u) + 1.0 * np.sin(2 * np.pi * 5.1 * u + 1.0)
+    b = B / np.linalg.norm(B)
+    across = np.cross(b, [0.0, 1.0, 0.0])
+    across /= np.linalg.norm(across)
+    core = first_order_lag(t, wander, 600.0)
+    raw = B + 4.0 * (core - core.mean())[:, None] * across + rng.normal(0, 0.3, (n, 3))
+    r = diagnose(Dataset(raw, f_ref_nT=np.full(n, F), t_s=t, temp_C=wander))
+    direction = r["time_only"]["drift_direction"]
+    assert direction["temperature_follows_time_r2"] < 0.9 and r["verdict"] in (
+        "offset_drift|temperature|field_drift", "temperature"), direction
+    other = 20 + 2.0 * u + 1.5 * np.sin(2 * np.pi * 3.7 * u + 2.0) + 1.0 * np.cos(2 * np.pi * 1.3 * u)
+    r = diagnose(Dataset(raw, f_ref_nT=np.full(n, F), t_s=t, temp_C=other))
+    assert r["verdict"] == "offset_drift|field_drift", r["time_only"]["drift_direction"]
+
+
 def test_negative_controls_a_switch_and_a_radial_drift_that_follows_the_temperature():
     r = diagnose(drifting(across_nT=30.0, radial_nT=5.0, step=True, logged=False))  # a field switched on: not a drift
     assert r["verdict"] == "insufficient_data", r["time_only"]["drift_direction"]

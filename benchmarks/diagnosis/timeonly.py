@@ -27,7 +27,10 @@ DRIFT_DIRECTION_ALPHA):
   variation gives where the reference varies (TURN_FACTOR times its RMS: a field that changes also turns, and
   a scalar reference follows its magnitude only): ``offset_drift|field_drift`` (the offsets drift, or the field
   turns beyond its followed variation), with ``temperature`` among the alternatives when the logged temperature
-  follows time (a temperature coefficient of any smooth shape is such a drift to these data); ``confounded``
+  follows time (a temperature coefficient of any smooth shape is such a drift to these data), or when the logged
+  temperature through a first-order lag fits the trend across as well as the smooth trend does (the same F test
+  as for a radial trend, below: a temperature effect whose temperature wanders on its own, too weakly beyond
+  time to be named on its own signature, still fits the drift it makes); ``confounded``
   says what would separate them (a vector reference, or turning the sensor);
 * a significant radial part with the part across below RADIAL_MAX_RATIO of it: ``field_drift``, said with
   ``temperature`` when the logged temperature (through a first-order lag, as the library's temperature effect)
@@ -209,10 +212,15 @@ def _alternatives(name: str, direction: dict) -> dict:
                         "tells a field that turns or changes from offsets that drift")
     if "temperature" in parts:
         separate.append("a record in which the temperature changes independently of time tells a temperature "
-                        "coefficient from a drift in time")
+                        "coefficient from a drift in time" if direction.get("temperature_follows_time_r2", 0.0)
+                        >= TEMPERATURE_FOLLOWS_TIME_R2 else
+                        "a longer record, or a larger change of the temperature on its own, tells a temperature "
+                        "coefficient (the readings follow the logged temperature's own changes) from a drift that "
+                        "happens to have its shape")
     return {"alternatives": parts,
             "evidence": {key: direction[key] for key in ("radial_trend_rms_nT", "across_trend_rms_nT",
-                                                          "temperature_follows_time_r2") if key in direction}
+                                                          "temperature_follows_time_r2", "trend_beats_temperature_p")
+                         if key in direction}
             | {"statement": direction.get("why", "")},
             "separate_by": "; ".join(separate)}
 
@@ -324,27 +332,33 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
         out["why"] = ("a single step explains the drift as well as a smooth change: a field switched on near the "
                       "sensor (outside the library), not a drift")
         return out
-    if across_drift:
-        thermal = follows is not None and follows >= TEMPERATURE_FOLLOWS_TIME_R2
-        out["named"] = "offset_drift|temperature|field_drift" if thermal else "offset_drift|field_drift"
-        out["why"] = (f"the readings drift across their own direction (RMS {across:.3g} nT against {radial:.3g} nT "
-                      "along it): the offsets drift" + (", or a temperature coefficient (the logged temperature "
-                                                         "follows time)" if thermal else "") +
-                      ", or the field's direction changes (a scalar reference follows no direction)")
-        return out
-    out["named"] = "field_drift"
-    out["why"] = (f"the readings drift along their own direction only (RMS {radial:.3g} nT, {across:.3g} nT across): "
-                  "the field's magnitude changes")
+    p_beats = None  # whether the smooth trend beats the logged temperature (through a first-order lag) on ``cols``
     if temp is not None and np.ptp(temp) > 0:
         best = np.inf
         for share in THERMAL_LAG_OF_SPAN:
             lagged = first_order_lag(tk, temp[keep], share * span) if share > 0 else temp[keep]
             d2 = np.column_stack([np.ones(n), lagged])
-            best = min(best, float(np.sum((y[:, 0] - d2 @ np.linalg.lstsq(d2, y[:, 0], rcond=None)[0]) ** 2)))
-        p_beats = _f_p(best, float(sse1[0]), TREND_DEGREE - 1, n_eff[0], TREND_DEGREE + 1)
+            best = min(best, float(np.sum((y[:, cols] - d2 @ np.linalg.lstsq(d2, y[:, cols], rcond=None)[0]) ** 2)))
+        p_beats = _f_p(best, sse_trend, len(cols) * (TREND_DEGREE - 1), float(np.mean([n_eff[j] for j in cols])) * len(cols),
+                       len(cols) * (TREND_DEGREE + 1))
         out["trend_beats_temperature_p"] = p_beats
-        if p_beats >= DRIFT_DIRECTION_ALPHA:
-            out["named"] = "field_drift|temperature"
-            out["why"] += ("; the logged temperature fits it as well (the scale coefficients of the axes changing "
-                           "together)")
+    if across_drift:
+        follows_time = follows is not None and follows >= TEMPERATURE_FOLLOWS_TIME_R2
+        fits = p_beats is not None and p_beats >= DRIFT_DIRECTION_ALPHA
+        thermal = follows_time or fits
+        out["named"] = "offset_drift|temperature|field_drift" if thermal else "offset_drift|field_drift"
+        out["why"] = (f"the readings drift across their own direction (RMS {across:.3g} nT against {radial:.3g} nT "
+                      "along it): the offsets drift" + (", or a temperature coefficient (the logged temperature "
+                                                         "follows time)" if follows_time else
+                                                         ", or a temperature coefficient (the logged temperature, through "
+                                                         "a first-order lag, fits the drift as well)" if fits else "") +
+                      ", or the field's direction changes (a scalar reference follows no direction)")
+        return out
+    out["named"] = "field_drift"
+    out["why"] = (f"the readings drift along their own direction only (RMS {radial:.3g} nT, {across:.3g} nT across): "
+                  "the field's magnitude changes")
+    if p_beats is not None and p_beats >= DRIFT_DIRECTION_ALPHA:
+        out["named"] = "field_drift|temperature"
+        out["why"] += ("; the logged temperature fits it as well (the scale coefficients of the axes changing "
+                       "together)")
     return out
