@@ -16,6 +16,7 @@ Gram matrices of [J, r], so forward selection costs no refits.
 from __future__ import annotations
 
 import numpy as np
+from numpy.polynomial import legendre
 
 from magbench.simulate.effects import PPM, Columns, Effect, Normalization, OutlierEffect, robust_sigma
 from magbench.simulate.sensor import NEUTRAL, PARAM_NAMES, paper_matrix
@@ -37,6 +38,19 @@ FIT_RIDGE = 1e-8  # relative ridge of the Gauss-Newton steps (near-degenerate di
 RIDGE = 1e-10  # relative ridge on the scaled normal equations (columns without information)
 BASE_PRIOR_SD = {"angle": 0.05, "scale": 0.1}
 """Standard deviations of the weak prior on the base correction (``ExtendedModel.set_prior``): rad, and relative."""
+
+
+TIME_BASES = {"field_drift": 1, "offset_drift": 3}
+"""Effects whose fitted form is Legendre polynomials of time (degree 1 up), and how many series each has (one per
+axis for the offsets)."""
+
+
+def slope_penalty(degree: int) -> np.ndarray:
+    """P[i, j] = integral over [-1, 1] of L_i'(tau) L_j'(tau), i, j = 1 .. degree (Legendre polynomials; Gauss-Legendre
+    quadrature, exact for these degrees)."""
+    nodes, w = legendre.leggauss(degree + 2)
+    der = np.stack([legendre.legval(nodes, legendre.legder(np.eye(degree + 1)[i])) for i in range(1, degree + 1)])
+    return (der * w) @ der.T
 
 
 def base_correction(x9: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -123,6 +137,28 @@ class ExtendedModel:
         g[:self.p, :self.p] = np.diag(w * w)
         g[:self.p, self.p] = g[self.p, :self.p] = w * rp
         g[self.p, self.p] = float(rp @ rp)
+        return g
+
+    def smooth_gram(self, x: np.ndarray, weight: float) -> np.ndarray:
+        """The (p + 1)^2 Gram matrix of a slope penalty on the time bases (``TIME_BASES``): ``weight`` (nT^2 per
+        unit of the squared slope in normalized time) times the integral over the record of the squared time
+        derivative of each drift, as pseudo-rows [J, r] at x (like ``prior_gram``: added to a fit's normal
+        equations, never to a residual).  A left-out stretch is then bridged by the gentlest drift its edges allow,
+        not by whatever a free degree-12 polynomial does where it saw no data."""
+        g = np.zeros((self.p + 1, self.p + 1))
+        for name, per in TIME_BASES.items():
+            idx = self.groups.get(name)
+            if not idx or weight <= 0:
+                continue
+            deg = len(idx) // per
+            pen = slope_penalty(deg) * weight
+            for a in range(per):
+                sl = idx[a * deg:(a + 1) * deg]
+                g[np.ix_(sl, sl)] += pen
+        xe = x - self.default
+        g[:self.p, self.p] = g[:self.p, :self.p] @ xe
+        g[self.p, :self.p] = g[:self.p, self.p]
+        g[self.p, self.p] = float(xe @ g[:self.p, :self.p] @ xe)
         return g
 
     # -- rows ---------------------------------------------------------------------------------
@@ -271,10 +307,12 @@ class Tangent:
     """Per-fold Gram matrices of [J, r] at the full fit x*, for all samples and for the spikes alone;
     every sub-model's fold fits and held-out residuals from them."""
 
-    def __init__(self, model: ExtendedModel, x: np.ndarray, fold: np.ndarray, k: int, spikes: np.ndarray | None):
+    def __init__(self, model: ExtendedModel, x: np.ndarray, fold: np.ndarray, k: int, spikes: np.ndarray | None,
+                 smooth: float = 0.0):
         """Rows are visited fold by fold (each fold's rows in blocks), so each block adds to one fold's
         Gram matrix; r and J are kept (J in float32) when small.  ``spikes`` None: the samples beyond
-        SPIKE_SIGMA robust sigma of the residual at x."""
+        SPIKE_SIGMA robust sigma of the residual at x.  ``smooth``: the time bases' slope penalty
+        (``ExtendedModel.smooth_gram``) per sample, added to every fit's normal equations (0: none)."""
         self.model, self.x, self.fold, self.k = model, x, fold, k
         p1 = model.p + 1
         n = len(model.d)
@@ -293,6 +331,8 @@ class Tangent:
             jr = np.column_stack([jac, r])
             self.gram[f] += jr.T @ jr
         self.prior = model.prior_gram(x)  # added to every fit's normal equations, never to a residual
+        if smooth > 0:
+            self.prior = self.prior + model.smooth_gram(x, smooth * n)
         self.spikes = OutlierEffect.spike_mask(self.r) if spikes is None else spikes
         sp = np.flatnonzero(self.spikes)
         if len(sp):

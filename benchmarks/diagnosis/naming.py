@@ -38,6 +38,13 @@ An effect is therefore *named* only when all of these hold:
    must remove at least DOMINANCE_UNBLOCKED times what is left beside it.  A drift changes within every hold: when
    one hold carries most of what it removes within the holds (ONE_HOLD_SHARE_MAX), the change is a step inside that
    hold, a switch at one time (outside the library), and stays unexplained.
+   A field drift that fails only the blocked families gets a second look (``Diagnosis._second_look``): there a
+   left-out stretch leaves its twelve free Legendre terms unconstrained, and they run anywhere, failing a true drift
+   as surely as a false one.  Fitted again with a slope penalty on the time bases (SMOOTH_SLOPE_PER_SAMPLE), it must
+   pass the blocked families and, since a gently bridged drift also carries attitude structure across a slow path,
+   show its own signature: one scalar series common to every attitude at the same time, which explains what a
+   body-fixed drift of the same time basis cannot, while such a drift adds nothing to it
+   (``scalar_series_signature``, SIGNATURE_Z).
 5. **Not a by-product of a larger unexplained structure.**  When a significant remainder is left, every
    named effect must remove at least as much as is left (its own held-out contribution at least the
    remainder's RMS above the floor; a time shift twice that, DOMINANCE_SHIFT): a flexible basis fits part of any
@@ -82,6 +89,7 @@ from magbench.simulate.effects import (  # noqa: F401  (clipped, holds and their
     holds,
 )
 
+from .model import slope_penalty
 from .scoring import paired_z, rms
 
 FAMILY_ALPHA = 0.01
@@ -119,6 +127,15 @@ multiple: the family that guards against a flexible time basis fitting part of a
 so the name must dominate what is left more clearly."""
 SPIKE_TIMES_ALPHA = FAMILY_ALPHA
 """Level of the test that spike times are spread over the record like the samples (Kolmogorov-Smirnov)."""
+SMOOTH_SLOPE_PER_SAMPLE = 1e-5
+"""The second look at a field drift (``scalar_series_signature``): the blocked families are fitted again with a slope
+penalty on the time bases of this weight per sample (``model.ExtendedModel.smooth_gram``: nT^2 per unit of the squared
+slope in normalized time), so that a left-out stretch is bridged by the gentlest drift its edges allow.  Small against
+the data wherever they are (a drift of a record's range changes the fit by a fraction of a percent)."""
+SIGNATURE_Z = 3.0
+"""A field drift that passes the blocked families only on the second look is named when the scalar series it is
+explains, held out, what a body-fixed drift of the same time basis cannot (z above this), and a body-fixed drift adds
+nothing significant to it (z at most this): one scalar series common to every attitude visited at the same time."""
 HOLD_Z = 3.0
 """A time effect in a record of held attitudes must lower the residual within the holds by this many
 standard errors (paired, on the held-out residuals with each hold's mean removed)."""
@@ -422,6 +439,7 @@ def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: flo
                               "structured residual, not outliers")
             continue
         failed = [f for f in fams if not passed.get((name, f), False)]
+        row["failed_families"] = failed
         own = min(v["own_rms_nT"] for v in fams.values())
         if not base_significant:
             row["named"], row["why"] = False, "the base residual is not significantly above the noise floor"
@@ -443,6 +461,48 @@ def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: flo
             row["named"], row["why"] = True, "significant on random, time-blocked and attitude-blocked folds"
             named.append(name)
     return named, evidence
+
+
+def scalar_series_signature(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray, k: int, seed: int,
+                            degree: int, weight: float = SMOOTH_SLOPE_PER_SAMPLE) -> dict:
+    """Field drift's own signature: one scalar series common to every attitude visited at the same time.
+
+    On the residual ``r`` of the other named effects (NaN: spikes), the held-out residuals (``k`` random folds,
+    seeded) of three linear models, each with the ten columns a refit of the base correction takes (1, the
+    direction u and its six products: its offsets, scales and angles to first order):
+    S, the scalar series (Legendre polynomials of time, degrees 1 to ``degree``); V, a body-fixed drift (each
+    component of u times the same polynomials: an offset drift, a switched body field, attitude structure that
+    time carries on a slow path); and both.  ``z_scalar_beyond_body``: what S adds to V (paired z);
+    ``z_body_beyond_scalar``: what V adds to S.  Each series carries the slope penalty ``weight`` per sample."""
+    ok = np.isfinite(r)
+    r, u, t = r[ok], unit[ok], t_s[ok]
+    n = len(r)
+    span = float(np.ptp(t))
+    if n < 4 * (10 + 4 * degree) or span <= 0:
+        return {"z_scalar_beyond_body": 0.0, "z_body_beyond_scalar": 0.0, "tested": False}
+    poly = legendre.legvander(2 * (t - t.min()) / span - 1, degree)[:, 1:]
+    base = np.column_stack([np.ones(n), u, u * u, u[:, 0] * u[:, 1], u[:, 0] * u[:, 2], u[:, 1] * u[:, 2]])
+    body = np.hstack([u[:, [a]] * poly for a in range(3)])
+    pen = slope_penalty(degree) * weight * n
+    fold = np.random.default_rng(seed).integers(0, k, n)
+
+    def heldout(series: list[np.ndarray]) -> np.ndarray:
+        x = np.hstack([base, *series])
+        penalty = np.zeros((x.shape[1], x.shape[1]))
+        for j in range(base.shape[1], x.shape[1], degree):
+            penalty[j:j + degree, j:j + degree] = pen
+        out = np.empty(n)
+        for f in range(k):
+            train = fold != f
+            a = x[train].T @ x[train] + penalty
+            a += 1e-12 * np.trace(a) / len(a) * np.eye(len(a))
+            out[~train] = r[~train] - x[~train] @ np.linalg.solve(a, x[train].T @ r[train])
+        return out
+
+    both, scalar, fixed = heldout([poly, body]), heldout([poly]), heldout([body])
+    return {"z_scalar_beyond_body": paired_z(fixed, both), "z_body_beyond_scalar": paired_z(scalar, both),
+            "rms_heldout_scalar_nT": rms(scalar), "rms_heldout_body_nT": rms(fixed), "rms_heldout_both_nT": rms(both),
+            "tested": True}
 
 
 def attitude_confounds(evidence: list[dict], slow_attitude_r2: float | None) -> list[dict]:
