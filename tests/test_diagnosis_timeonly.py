@@ -86,6 +86,22 @@ def test_glitches_in_a_fixed_record_are_named_outliers_and_clean_records_have_no
     assert clean["verdict"] == "insufficient_data" and not clean["time_only"]["spikes"]["named"]
 
 
+def test_a_few_glitches_in_a_long_fixed_record_are_counted_against_the_noise_not_a_share_of_the_samples():
+    """Twelve glitches in 12,000 samples (0.1 %): Gaussian noise gives 0.007 beyond 5 sigma, so their count is
+    significant and they are named; Student-t noise (3 degrees of freedom) exceeds 5 robust sigma many times but
+    throughout (its rest is heavy-tailed), and is not (negative control)."""
+    rng = np.random.default_rng(21)
+    d = fixed(drift_nT_per_day=0.0, seed=8, n=12000)
+    raw = d.raw_nT.copy()
+    rows = rng.choice(len(raw), 12, replace=False)
+    raw[rows] += rng.normal(0, 1, (12, 3)) * 60.0
+    r = diagnose(Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s, temp_C=d.temp_C))
+    assert r["verdict"] == "outliers" and r["time_only"]["spikes"]["count_z"] > 3, r["time_only"]["spikes"]
+    heavy = d.raw_nT + rng.standard_t(3, (12000, 3)) * 0.3
+    r = diagnose(Dataset(heavy, f_ref_nT=d.f_ref_nT, t_s=d.t_s, temp_C=d.temp_C))
+    assert r["time_only"]["spikes"]["n"] > 12 and not r["time_only"]["spikes"]["named"], r["time_only"]["spikes"]
+
+
 def test_a_burst_in_one_part_of_a_fixed_record_is_not_outliers():
     d = fixed(drift_nT_per_day=0.0, seed=6)
     raw = d.raw_nT.copy()

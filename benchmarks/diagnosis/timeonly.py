@@ -9,7 +9,8 @@ the attitude part is stated as ``insufficient_data``.
 
 Spikes and a temperature effect are what a fixed sensor can name.  Spikes: glitches in ``|B| - F`` beyond
 the smooth trend, judged by the vector diagnosis's own tests (their count, isolation and spread in time, not clipped
-readings, a noise-like rest).  A temperature effect: ``|B| - F`` follows the logged temperature beyond a smooth function
+readings, a noise-like rest); a long record's few glitches, below the selection's share of the samples, count when
+Gaussian noise does not give their number and the residual's shoulder below them is Gaussian (SHOULDER_SIGMA).  A temperature effect: ``|B| - F`` follows the logged temperature beyond a smooth function
 of time (the temperature's own changes, not only the time they share).
 
 A drift is named from the direction in which the *vector* readings move, which ``|B| - F`` alone cannot tell:
@@ -46,13 +47,14 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.polynomial import legendre
+from scipy.stats import norm, poisson
 
 from magbench.simulate.dataset import Dataset
-from magbench.simulate.effects import OutlierEffect, f_test_p, first_order_lag
+from magbench.simulate.effects import SPIKE_SIGMA, OutlierEffect, f_test_p, first_order_lag, robust_sigma
 
 from .floor import noise_spectrum, time_difference_floor
 from .naming import STEP_SHARE, TEMPERATURE_FOLLOWS_TIME_R2, spike_signature, temperature_follows_time
-from .scoring import rms
+from .scoring import Z_SIGNIFICANT, rms, spike_z
 
 SECONDS_PER_HOUR = 3600.0
 DRIFT_Z = 3.0
@@ -77,6 +79,11 @@ not named (a drift of the offsets beneath it cannot be told without a vector ref
 THERMAL_LAG_OF_SPAN = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0)
 """First-order thermal time constants tried (shares of the record's span) when asking whether the logged
 temperature fits a radial trend as well as the smooth trend does."""
+SHOULDER_SIGMA = 3.5
+SHOULDER_ALPHA = 0.01
+"""Fewer spikes than the selection's share of the samples are glitches only when the residual's shoulder (between
+SHOULDER_SIGMA and SPIKE_SIGMA robust sigma) holds no more samples than Gaussian noise gives (Poisson, at this level):
+heavy-tailed noise (Student's t) puts many there, glitches of tens of sigma few."""
 TEMPERATURE_NAME_Z = 4.0
 """A fixed sensor's temperature effect is named when |B| - F follows the logged temperature beyond a smooth
 function of time by this many standard errors."""
@@ -238,12 +245,32 @@ def _spikes(r: np.ndarray, design: np.ndarray | None, t: np.ndarray, raw_nT: np.
         resid = r - design @ np.linalg.lstsq(design[~mask], r[~mask], rcond=None)[0]
         mask = OutlierEffect.spike_mask(resid)
     glitches, share, ratio, clip = spike_signature(mask, resid, t, raw_nT)
-    named = bool(OutlierEffect.enough(int(mask.sum()), n) and glitches)
+    # their number: at least the selection's share of the samples; or, fewer (a fixed record is long and its glitches
+    # few), a count Gaussian noise does not give beyond SPIKE_SIGMA with a Gaussian shoulder below it (heavy-tailed
+    # noise crowds the shoulder, glitches far beyond it do not)
+    count_z = spike_z(int(mask.sum()), n, SPIKE_SIGMA)
+    shoulder_p = _shoulder_p(resid, mask)
+    enough = OutlierEffect.enough(int(mask.sum()), n) or (
+        mask.sum() >= OutlierEffect.MIN_SPIKES and count_z > Z_SIGNIFICANT and shoulder_p > SHOULDER_ALPHA)
+    named = bool(enough and glitches)
     return (mask if named else np.zeros(n, dtype=bool)), {
-        "n": int(mask.sum()), "named": named, "neighbour_share": share, "bulk_tail_ratio": ratio,
+        "n": int(mask.sum()), "count_z": count_z, "shoulder_p": shoulder_p, "named": named, "neighbour_share": share,
+        "bulk_tail_ratio": ratio,
         "clipped_share": clip,
         "rule": "beyond 5 robust sigma of a smooth trend; named when more than noise gives, isolated and spread in "
                 "time, not readings at a repeated extreme (clipping), on a noise-like rest"}
+
+
+def _shoulder_p(resid: np.ndarray, spikes: np.ndarray) -> float:
+    """p-value (Poisson, upper tail) of the count of samples between SHOULDER_SIGMA and SPIKE_SIGMA robust sigma of
+    the residual (spikes left out of the scale) against Gaussian noise's."""
+    sigma = robust_sigma(resid[~spikes])
+    if not sigma > 0:
+        return 0.0
+    a = np.abs(resid - np.median(resid[~spikes])) / sigma
+    count = int(np.sum((a > SHOULDER_SIGMA) & (a <= SPIKE_SIGMA)))
+    expected = len(resid) * 2.0 * float(norm.sf(SHOULDER_SIGMA) - norm.sf(SPIKE_SIGMA))
+    return float(poisson.sf(count - 1, expected))
 
 
 def _f_p(sse0: float, sse1: float, extra: int, n_eff: float, n_params: int) -> float:
