@@ -10,8 +10,9 @@ the attitude part is stated as ``insufficient_data``.
 Spikes and a temperature effect are what a fixed sensor can name.  Spikes: glitches in ``|B| - F`` beyond
 the smooth trend, judged by the vector diagnosis's own tests (their count, isolation and spread in time, not clipped
 readings, a noise-like rest); a long record's few glitches, below the selection's share of the samples, count when
-Gaussian noise does not give their number and the residual's shoulder below them is Gaussian (SHOULDER_SIGMA).  A temperature effect: ``|B| - F`` follows the logged temperature beyond a smooth function
-of time (the temperature's own changes, not only the time they share).
+Gaussian noise does not give their number and the residual's shoulder below them is Gaussian (SHOULDER_SIGMA).
+A temperature effect: ``|B| - F`` follows the logged temperature beyond a smooth function of time (the
+temperature's own changes, not only the time they share).
 
 A drift is named from the direction in which the *vector* readings move, which ``|B| - F`` alone cannot tell:
 a change of the field's magnitude that the reference does not follow moves the readings along the direction
