@@ -1,9 +1,10 @@
-"""The second look at a field drift (``Diagnosis._second_look``): a drift that fails the blocked folds only because
-its free Legendre terms run anywhere in a left-out stretch is fitted again with a slope penalty, and is then named
-only on its own signature, one scalar series common to every attitude at the same time
-(``naming.scalar_series_signature``).  The signature is tested on synthetic residuals, the rule on records of the
-third independent forward model (tests/independent_forward3.py, development cases 0-479), which shares no code
-with the diagnosis."""
+"""The drifts' own signatures (``naming.scalar_series_signature``).  The second look at a field drift
+(``Diagnosis._second_look``): a drift that fails the blocked folds only because its free Legendre terms run anywhere in
+a left-out stretch is fitted again with a slope penalty, and is then named only on its own signature, one scalar
+series common to every attitude at the same time.  An offset drift must be body-fixed (``Diagnosis._body_or_scalar``):
+where one scalar series does as well, it is said ``offset_drift|field_drift``.  The signature is tested on synthetic
+residuals, the rules on records of the third independent forward model (tests/independent_forward3.py, development
+cases 0-479), which shares no code with the diagnosis."""
 import sys
 from pathlib import Path
 
@@ -67,3 +68,19 @@ def test_negative_control_a_switched_load_passes_the_second_look_but_not_the_sig
     assert "field_drift" not in names(result["verdict"]), result["verdict"]
     row = evidence_row(result, "field_drift")
     assert not row["named"] and row["second_look"]["passed_blocked"] and "signature" in row["why"]
+
+
+def test_a_drift_on_a_hovering_quadcopter_cannot_be_told_body_fixed_or_scalar():
+    """Level flight turning about the vertical only: a drift of the vertical offset and a change of the field's
+    magnitude move the readings' magnitude alike; the third generator's field drift there is said as the pair."""
+    result, case = run_case(109, generator=3)
+    assert case.present == ("field_drift",) and case.schedule == "quad_hover"
+    assert result["verdict"] == "offset_drift|field_drift", result["verdict"]
+    pair = next(c for c in result["confounded"] if c["alternatives"] == ["offset_drift", "field_drift"])
+    assert pair["evidence"]["z_body_beyond_scalar"] <= SIGNATURE_Z and "turn the sensor" in pair["separate_by"]
+
+
+def test_negative_control_an_offset_drift_on_a_moored_buoy_is_body_fixed():
+    result, case = run_case(28, generator=3)
+    assert case.present == ("offset_drift",) and result["verdict"] == "offset_drift", result["verdict"]
+    assert not any(c["alternatives"] == ["offset_drift", "field_drift"] for c in result["confounded"])

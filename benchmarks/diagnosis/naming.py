@@ -44,7 +44,9 @@ An effect is therefore *named* only when all of these hold:
    pass the blocked families and, since a gently bridged drift also carries attitude structure across a slow path,
    show its own signature: one scalar series common to every attitude at the same time, which explains what a
    body-fixed drift of the same time basis cannot, while such a drift adds nothing to it
-   (``scalar_series_signature``, SIGNATURE_Z).
+   (``scalar_series_signature``, SIGNATURE_Z).  An offset drift named without a field drift must likewise be
+   body-fixed to these data (beyond one scalar series by SIGNATURE_Z); else (a record turning about one axis only)
+   it is said ``offset_drift|field_drift`` (``Diagnosis._body_or_scalar``).
 5. **Not a by-product of a larger unexplained structure.**  When a significant remainder is left, every
    named effect must remove at least as much as is left (its own held-out contribution at least the
    remainder's RMS above the floor; a time shift twice that, DOMINANCE_SHIFT): a flexible basis fits part of any

@@ -481,6 +481,7 @@ class Diagnosis:
         beyond = self._temperature_beyond_time(named)  # None without a thermal effect named
         confounded = (confounded_pairs(heldout, named, every, temp_r2, temperature_beyond_time_z=beyond)
                       + attitude_confounds(evidence, slow))
+        confounded += self._body_or_scalar(named, confounded)
         if only_smooth_temperature(temp_r2, beyond):  # the temperature's own signature fails
             paired = {pair["alternatives"][0] for pair in confounded}
             for row in evidence:
@@ -542,6 +543,29 @@ class Diagnosis:
                       "polynomial runs anywhere in a left-out stretch); one scalar series common to every attitude "
                       f"(beyond a body-fixed drift z {zs:.2g}; a body-fixed drift adds z {zb:.2g})")
         return [s for s in selected if s in named or s == "field_drift"]
+
+    def _body_or_scalar(self, named: list[str], confounded: list[dict]) -> list[dict]:
+        """An offset drift named (and no field drift) must be a body-fixed drift to these data: what it does must
+        not be done as well by one scalar series common to every attitude (``scalar_series_signature``: a body-fixed
+        drift beyond a scalar series, z above SIGNATURE_Z).  On a record whose attitude turns about one axis only (a
+        hovering or level vehicle), a drift of the offset along that axis changes the readings' magnitude alike at
+        every attitude, as a change of the field's magnitude does: then it is said ``offset_drift|field_drift``."""
+        if ("offset_drift" not in named or "field_drift" in named or self.columns.t_s is None
+                or any(c["alternatives"][0] == "offset_drift" for c in confounded)):
+            return []
+        others = [s for s in named if s != "offset_drift"]
+        sig = scalar_series_signature(np.asarray(self.model_residuals(others), dtype=float), self.unit,
+                                      self.columns.t_s, self.k, self.seed, FieldDriftEffect.DEGREE)
+        if not sig["tested"] or sig["z_body_beyond_scalar"] > SIGNATURE_Z:
+            return []
+        return [{"alternatives": ["offset_drift", "field_drift"], "named": True,
+                 "evidence": {**sig, "statement": f"a body-fixed drift explains no more than one scalar series common to "
+                                                  f"every attitude (z {sig['z_body_beyond_scalar']:.2g}, at most "
+                                                  f"{SIGNATURE_Z:g}): the attitude turned too little to tell a drift of "
+                                                  "the offsets from a change of the field's magnitude"},
+                 "separate_by": "turn the sensor about more than one axis while it drifts (a body-fixed drift then moves "
+                                "the readings' magnitude differently at each attitude, a field change alike), or a "
+                                "vector reference"}]
 
     def _shift_signature(self, evidence: list[dict], named: list[str]) -> list[str]:
         """Rule 4 of the naming rule for effects with first-order terms (``shift_terms``: the time shift):
