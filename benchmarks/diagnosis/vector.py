@@ -40,6 +40,7 @@ from magbench.simulate.effects import (
     Columns,
     FieldDriftEffect,
     Normalization,
+    OffsetDriftEffect,
     OutlierEffect,
     robust_sigma,
 )
@@ -512,7 +513,8 @@ class Diagnosis:
         the stretch gently; but a gently bridged drift also carries attitude structure across a slow path, so the
         drift must also show its own signature (``scalar_series_signature``: one scalar series common to every
         attitude at the same time, SIGNATURE_Z).  The evidence row keeps both (``second_look``)."""
-        row = next((r for r in evidence if r["name"] == "field_drift"), None)
+        field = FieldDriftEffect.name
+        row = next((r for r in evidence if r["name"] == field), None)
         if (row is None or row.get("named") or not row.get("failed_families")
                 or set(row["failed_families"]) - {"time-blocked", "attitude-blocked"}):
             return named
@@ -523,7 +525,7 @@ class Diagnosis:
             families[family] = Tangent(self.model, tangent.x, fold, k, tangent.spikes, smooth=SMOOTH_SLOPE_PER_SAMPLE)
         heldout = {f: (lambda names, t=t: t.heldout(names, "outliers" in names)[0]) for f, t in families.items()}
         _, again = confirm_on(heldout)
-        second = next(r for r in again if r["name"] == "field_drift")
+        second = next(r for r in again if r["name"] == field)
         look: dict = {"families": second["families"], "passed_blocked": bool(second.get("named"))}
         row["second_look"] = look
         if not second.get("named"):
@@ -542,7 +544,7 @@ class Diagnosis:
         row["why"] = ("significant on random folds, and on the blocked folds with its time bases slope-penalized (a free "
                       "polynomial runs anywhere in a left-out stretch); one scalar series common to every attitude "
                       f"(beyond a body-fixed drift z {zs:.2g}; a body-fixed drift adds z {zb:.2g})")
-        return [s for s in selected if s in named or s == "field_drift"]
+        return [s for s in selected if s in named or s == field]
 
     def _body_or_scalar(self, named: list[str], confounded: list[dict]) -> list[dict]:
         """An offset drift named (and no field drift) must be a body-fixed drift to these data: what it does must
@@ -550,15 +552,16 @@ class Diagnosis:
         drift beyond a scalar series, z above SIGNATURE_Z).  On a record whose attitude turns about one axis only (a
         hovering or level vehicle), a drift of the offset along that axis changes the readings' magnitude alike at
         every attitude, as a change of the field's magnitude does: then it is said ``offset_drift|field_drift``."""
-        if ("offset_drift" not in named or "field_drift" in named or self.columns.t_s is None
-                or any(c["alternatives"][0] == "offset_drift" for c in confounded)):
+        body, field = OffsetDriftEffect.name, FieldDriftEffect.name
+        if (body not in named or field in named or self.columns.t_s is None
+                or any(c["alternatives"][0] == body for c in confounded)):
             return []
-        others = [s for s in named if s != "offset_drift"]
+        others = [s for s in named if s != body]
         sig = scalar_series_signature(np.asarray(self.model_residuals(others), dtype=float), self.unit,
                                       self.columns.t_s, self.k, self.seed, FieldDriftEffect.DEGREE)
         if not sig["tested"] or sig["z_body_beyond_scalar"] > SIGNATURE_Z:
             return []
-        return [{"alternatives": ["offset_drift", "field_drift"], "named": True,
+        return [{"alternatives": [body, field], "named": True,
                  "evidence": {**sig, "statement": f"a body-fixed drift explains no more than one scalar series common to "
                                                   f"every attitude (z {sig['z_body_beyond_scalar']:.2g}, at most "
                                                   f"{SIGNATURE_Z:g}): the attitude turned too little to tell a drift of "
