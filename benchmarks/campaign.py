@@ -16,6 +16,9 @@ what finished with ``"complete": false`` in the manifest; ``resume=True`` runs o
 gives the same tables as an uninterrupted campaign.  The rows of the tables always come from the
 checkpoint's JSON, so a resumed campaign and an uninterrupted one are built from identical values.
 Local workers exit on their own when the campaign process dies (a watchdog thread polls their parent).
+A fresh campaign of ``compare --jobs N`` starts them first (``start_workers``): this module and the ones
+it imports at module level load neither pandas nor matplotlib, so the workers are forked from a lean
+process and warm up while the campaign process imports what its tables and figures need.
 
 Integrity: one campaign at a time per folder (``campaign_lock``: ``fcntl.flock`` on ``.magbench.lock`` in
 it, the holder's pid, host and command written there; a second campaign is refused naming the holder, and
@@ -41,9 +44,9 @@ from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from magbench.benchmarks.metrics import budget_violation, crb_row, run_metrics
 from magbench.benchmarks.progress import progress_bar
@@ -52,6 +55,9 @@ from magbench.calibrators import available, make, prefer_compiled_kernels
 from magbench.calibrators.methods._gakernel import NOTICE_ENV, announce_compiles
 from magbench.errors import InputError
 from magbench.simulate.scenarios import get_scenario
+
+if TYPE_CHECKING:  # pandas is imported where the tables are made: a worker process does without it
+    import pandas as pd
 
 RUNTIME_COLUMNS = ("runtime_s", "median_runtime_s")
 TRACE_POINTS = 100  # convergence traces (kept for every trial) are thinned to at most this many points per run
@@ -217,6 +223,7 @@ def warm_up(task: dict) -> float | None:
     t0 = time.perf_counter()
     run_task({**task, "keep_trace": False, "keep_fields": False})
     _WARM[key] = (os.getpid(), time.perf_counter() - t0)
+    _UNREPORTED[(os.getpid(), key)] = _WARM[key][1]
     # what exists now lives as long as the process: out of the collector's sight, so that a collection in a
     # timed run scans only that run's objects (and forked workers share these pages instead of copying them)
     gc.collect()
@@ -226,9 +233,11 @@ def warm_up(task: dict) -> float | None:
 
 def _timed(task: dict) -> dict:
     """``run_task`` after ``warm_up``: the row's ``_extra`` says the warm-up's seconds (in the process that
-    made it) and whether this was the process's first timed run of the configuration."""
-    warm = warm_up(task)
+    made it, on its first timed run of the configuration, also when the warm-up was made before, by
+    ``_worker_init``) and whether this was the process's first timed run of the configuration."""
+    warm_up(task)
     key = (os.getpid(), task["configuration"])
+    warm = _UNREPORTED.pop(key, None)
     first = key not in _FIRST_DONE
     _FIRST_DONE.add(key)
     row = run_task(task)
@@ -238,6 +247,8 @@ def _timed(task: dict) -> dict:
 
 
 _FIRST_DONE: set[tuple[int, str]] = set()
+_UNREPORTED: dict[tuple[int, str], float] = {}
+"""(process id, configuration) -> seconds of a warm-up made in that process that no row has reported yet."""
 
 
 def run_chunk(tasks: list[dict]) -> list[dict]:
@@ -261,10 +272,11 @@ def _chunks(items: list, n: int) -> list[list]:
     return [items[i:i + size] for i in range(0, len(items), size)]
 
 
-def _worker_init(parent_pid: int, quiet_compiles: bool = False) -> None:
+def _worker_init(parent_pid: int, quiet_compiles: bool = False, warm: tuple = ()) -> None:
     """In a local worker: Ctrl-C is the campaign process's business (it terminates us), SIGTERM kills,
     and a daemon thread ends the worker as soon as the campaign process is gone (even by SIGKILL);
-    ``quiet_compiles``: the campaign process announced the GA kernels' compiles already."""
+    ``quiet_compiles``: the campaign process announced the GA kernels' compiles already; ``warm``: tasks
+    whose configurations are warmed (``warm_up``) now, before any chunk arrives (``start_workers``)."""
     if quiet_compiles:
         os.environ[NOTICE_ENV] = "given"
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -280,6 +292,12 @@ def _worker_init(parent_pid: int, quiet_compiles: bool = False) -> None:
                 os._exit(1)
 
     threading.Thread(target=watch, name="magbench-parent-watchdog", daemon=True).start()
+    if warm:
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=1):  # as in run_chunk
+            for task in warm:
+                warm_up(task)
 
 
 def _alive(pid: int) -> bool:
@@ -331,11 +349,46 @@ def _stop_pool(pool) -> None:
             pass
 
 
-def _run_pool(tasks: list[dict], jobs: int, finish) -> None:
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+def _new_pool(tasks: list[dict], jobs: int, warm: tuple = ()):
+    from concurrent.futures import ProcessPoolExecutor
 
     quiet = announce_compiles({t["method"] for t in tasks})  # once here, not once per worker
-    pool = ProcessPoolExecutor(max_workers=jobs, initializer=_worker_init, initargs=(os.getpid(), quiet))
+    return ProcessPoolExecutor(max_workers=jobs, initializer=_worker_init, initargs=(os.getpid(), quiet, warm))
+
+
+EARLY_WARM_MIN = 2
+"""``start_workers`` warms a configuration in every worker when it has at least this many runs per worker
+(fewer may leave a worker without a run of it: a warm-up for nothing)."""
+
+
+def start_workers(campaign: Campaign, jobs: int):
+    """The local worker processes of a fresh campaign (``run_campaign(..., pool=)``), started now: forked
+    from this process before it imports pandas and matplotlib for the tables and figures, each warms the
+    campaign's configurations (``_worker_init``) while this process imports, so that the imports fill
+    the cores the workers leave idle.  The timed runs start when ``run_campaign`` sends them.  The caller
+    stops the pool (``stop_workers``) when the campaign does not reach ``execute``."""
+    tasks, _ = campaign.tasks()
+    first: dict[str, dict] = {}
+    count: dict[str, int] = {}
+    for t in tasks:
+        first.setdefault(t["configuration"], t)
+        count[t["configuration"]] = count.get(t["configuration"], 0) + 1
+    warm = tuple(t for label, t in first.items() if count[label] >= EARLY_WARM_MIN * jobs)
+    pool = _new_pool(tasks, jobs, warm)
+    pool.submit(os.getpid)  # forks the workers now (a fork pool starts them on its first task)
+    return pool
+
+
+def stop_workers(pool) -> None:
+    """Stop a pool from ``start_workers`` (nothing left to do once a campaign has shut it down)."""
+    if pool is not None:
+        _stop_pool(pool)
+
+
+def _run_pool(tasks: list[dict], jobs: int, finish, pool=None) -> None:
+    from concurrent.futures import as_completed
+
+    pool = pool if pool is not None else _new_pool(tasks, jobs)
     try:
         futures = {pool.submit(run_chunk, [tasks[i] for i in idx]): idx
                    for idx in _chunks(list(range(len(tasks))), jobs)}
@@ -368,14 +421,14 @@ def _run_dask(tasks: list[dict], address: str, finish) -> None:
 
 
 def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, progress: bool = True,
-            on_row=None, n_done: int = 0) -> list[dict]:
+            on_row=None, n_done: int = 0, pool=None) -> list[dict]:
     """Run the tasks serially, on ``jobs`` local processes, or on a Dask cluster; rows in task order.
 
     ``on_row(task, row)`` is called in this process as each run finishes (its return value, when not
     None, replaces the row); ``n_done`` runs done earlier start the progress bar.  Every configuration is
     warmed (``warm_up``) before its first timed run in each process, the workers in parallel.  On Ctrl-C
     or SIGTERM the pending work is cancelled, local workers terminated, and ``KeyboardInterrupt``
-    re-raised."""
+    re-raised.  ``pool``: local workers started already (``start_workers``), used when ``jobs`` > 1."""
     bar = progress_bar(n_done + len(tasks), "runs", "run", enabled=progress, initial=n_done, leave=True)
     results: list[dict | None] = [None] * len(tasks)
 
@@ -393,7 +446,7 @@ def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, p
             elif dask_address:
                 _run_dask(tasks, dask_address, finish)
             elif jobs > 1:
-                _run_pool(tasks, jobs, finish)
+                _run_pool(tasks, jobs, finish, pool)
             else:
                 from threadpoolctl import threadpool_limits
 
@@ -690,7 +743,7 @@ def manifest(campaign: Campaign, skipped: list[dict], command: str) -> dict:
 
 
 def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str | None = None,
-                 command: str = "", progress: bool = True, resume: bool = False) -> pd.DataFrame:
+                 command: str = "", progress: bool = True, resume: bool = False, pool=None) -> pd.DataFrame:
     """Run a campaign and write runs.csv, summary.{csv,md,tex}, traces.csv, fields.csv, manifest.json.
 
     Finished runs go to the checkpoint as they complete.  ``resume=True`` continues the campaign held in
@@ -698,7 +751,7 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
     SIGTERM the tables of the finished runs are written (manifest ``"complete": false``) and
     ``CampaignInterrupted`` is raised.  The returned frame's ``attrs`` say ``n_new`` (runs done by this
     call), ``n_resumed`` (taken from the checkpoint) and ``already_complete`` (a resume with nothing to
-    do: then nothing is rewritten)."""
+    do: then nothing is rewritten).  ``pool``: the local workers, started already (``start_workers``)."""
     out = Path(out_dir)
     tasks, skipped = campaign.tasks()
     ckpt_path = out / CHECKPOINT
@@ -743,7 +796,7 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
     interrupted = None
     try:
         execute(todo, jobs=jobs, dask_address=dask_address, progress=progress, on_row=checkpoint.add,
-                n_done=n_resumed)
+                n_done=n_resumed, pool=pool)
     except KeyboardInterrupt as exc:
         interrupted = exc
     finally:
@@ -771,6 +824,8 @@ def _complete_tables(out: Path) -> pd.DataFrame | None:
         return None
     if not (man.get("complete", True) and (out / "runs.csv").is_file()):
         return None
+    import pandas as pd
+
     runs = pd.read_csv(out / "runs.csv", keep_default_na=False)
     runs.attrs.update(n_new=0, n_resumed=len(runs), already_complete=True, n_missing=0)
     return runs
@@ -803,6 +858,8 @@ def one_time_costs(rows: list[dict]) -> dict:
 
 def _write_campaign_tables(campaign: Campaign, out: Path, rows: list[dict], skipped: list[dict], command: str,
                            wall: float, jobs: int, dask_address: str | None, n_missing: int) -> pd.DataFrame:
+
+    import pandas as pd
 
     traces, fields, flat = [], [], []
     costs = one_time_costs(rows)

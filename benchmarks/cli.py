@@ -21,8 +21,24 @@ import numpy as np
 import magbench.simulate.dataset as dataset_module
 from magbench import __version__
 from magbench.benchmarks.argtypes import integer, seed
+from magbench.benchmarks.campaign import (
+    CHECKPOINT,
+    LOCK,
+    Campaign,
+    CampaignInterrupted,
+    MethodSpec,
+    campaign_lock,
+    clear_outputs,
+    lock_holder,
+    run_campaign,
+    start_workers,
+    stop_workers,
+)
 from magbench.benchmarks.gradiometer_cli import add_gradiometer_command
+from magbench.benchmarks.metrics import evaluations_label
 from magbench.benchmarks.progress import slow_phase
+from magbench.benchmarks.runner import run_one
+from magbench.benchmarks.tables import to_terminal
 from magbench.calibrators import available, make
 from magbench.calibrators.artifacts import apply_problems, apply_to_csv, export, export_path, load_calibration
 from magbench.calibrators.registry import plugin_errors
@@ -393,9 +409,6 @@ def cmd_apply(args) -> int:
 def cmd_demo(args) -> int:
     import pandas as pd
 
-    from magbench.benchmarks.metrics import evaluations_label
-    from magbench.benchmarks.runner import run_one
-
     rows = []
     for name in ("lu2014", "sphere9"):
         scenario = get_scenario(name)
@@ -449,8 +462,6 @@ def _at_budgets(specs, budgets, calibrators):
     """Every iterative configuration once per evaluation budget (``ga budget=1000``, ``ga budget=10000``),
     so that fixed-budget tables compare like with like; closed-form methods, which have no evaluations to
     budget, appear once."""
-    from magbench.benchmarks.campaign import MethodSpec
-
     if any(b < 1 for b in budgets):
         raise InputError("--budgets must be positive numbers of evaluations")
     out = []
@@ -467,8 +478,6 @@ def _campaign_from_args(args):
     """The campaign and output folder ``compare`` was asked for, refused (InputError) before anything in
     ``--out`` is touched: unknown scenarios or methods, bad counts, a non-empty folder without --force or
     --resume."""
-    from magbench.benchmarks.campaign import CHECKPOINT, LOCK, Campaign, MethodSpec, lock_holder
-
     scenarios = tuple(s for item in args.scenarios for s in item.split(",") if s)
     for s in scenarios:
         get_scenario(s)
@@ -501,8 +510,6 @@ def _campaign_from_args(args):
 def cmd_compare(args) -> int:
     import shlex
 
-    from magbench.benchmarks.campaign import LOCK, campaign_lock
-
     campaign, out = _campaign_from_args(args)
     command = "magbench " + shlex.join(args._argv)
     with campaign_lock(out, command):  # one campaign per folder; held until the report is written
@@ -514,15 +521,18 @@ def cmd_compare(args) -> int:
 def _compare_locked(args, campaign, out: Path, command: str) -> int:
     import shlex
 
-    from magbench.benchmarks.campaign import CampaignInterrupted, clear_outputs, run_campaign
-
     if args.force:
         clear_outputs(out)
     progress = not args.json and not args.quiet
     cluster = _local_dask_cluster(args.jobs, progress) if args.dask == "local" else None
+    # a fresh campaign on local workers: they start (and warm up) now, while this process imports what its
+    # tables, figures and report need (pandas, matplotlib), which it would otherwise do on a core of its own
+    pool = start_workers(campaign, args.jobs) if args.jobs > 1 and not args.dask and not args.resume else None
     try:
+        if pool is not None:
+            _output_tools()
         runs = run_campaign(campaign, out, jobs=args.jobs, command=command, progress=progress, resume=args.resume,
-                            dask_address=cluster.scheduler_address if cluster is not None else args.dask)
+                            dask_address=cluster.scheduler_address if cluster is not None else args.dask, pool=pool)
     except CampaignInterrupted as stop:
         argv = [a for a in args._argv if a != "--force"] + ([] if args.resume else ["--resume"])
         sys.stderr.write(f"magbench: interrupted: {stop.n_done} of {stop.n_total} runs finished, kept in {out} "
@@ -533,9 +543,19 @@ def _compare_locked(args, campaign, out: Path, command: str) -> int:
                          "resume": "magbench " + shlex.join(argv)}, "")
         return stop.exit_status
     finally:
+        stop_workers(pool)
         if cluster is not None:
             cluster.close()
     return _compare_outputs(args, runs, out, progress)
+
+
+def _output_tools():
+    """The comparison's tables, the figures and the report: (write_comparison, make_figures, write_report)."""
+    from magbench.benchmarks.comparison import write_comparison
+    from magbench.benchmarks.figures import make_figures
+    from magbench.benchmarks.report import write_report
+
+    return write_comparison, make_figures, write_report
 
 
 def _compare_outputs(args, runs, out: Path, progress: bool) -> int:
@@ -545,14 +565,12 @@ def _compare_outputs(args, runs, out: Path, progress: bool) -> int:
     comparison = len(runs) and runs["configuration"].nunique() >= 2  # a comparison needs two methods
     prepare = None
     if comparison and not attrs.get("already_complete"):
-        from magbench.benchmarks.comparison import write_comparison
+        write_comparison = _output_tools()[0]
 
         def prepare():  # the comparison's tables; its figures are drawn with the others, in parallel
             write_comparison(out, figures=False)
     if figures:
-        from magbench.benchmarks.figures import make_figures
-        from magbench.benchmarks.report import write_report
-
+        _, make_figures, write_report = _output_tools()
         images: dict = {}  # the report embeds the figures drawn here at screen resolution
         make_figures(out, formats=tuple(args.format), dpi=args.dpi, images=images, progress=progress,
                      jobs=max(1, args.jobs or 1), prepare=prepare)
@@ -574,8 +592,6 @@ def _compare_outputs(args, runs, out: Path, progress: bool) -> int:
     else:
         note = f"\n{len(runs)} runs ({failed} failed) in {out}"
     import pandas as pd
-
-    from magbench.benchmarks.tables import to_terminal
 
     summary = pd.read_csv(out / "summary.csv", keep_default_na=False, na_values=[""]) \
         if (out / "summary.csv").is_file() else None

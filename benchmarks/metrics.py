@@ -8,7 +8,6 @@ the Cramér-Rao bound of the trial (calibrators/fisher.py) for the efficiency of
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from magbench.calibrators.base import CalibrationResult
 from magbench.calibrators.core.objective import ScalarObjective
@@ -29,6 +28,9 @@ def heading_error_deg(params: ErrorParams, data: Dataset) -> float | None:
     truth = data.truth
     if truth is None or truth.attitude_quat is None or data.heading_deg is None:
         return None
+    from scipy.spatial.transform import Rotation  # SciPy's spatial package when needed: a campaign process
+    # that only writes tables does not load it (its workers do, in their untimed warm-up)
+
     b_ned = Rotation.from_quat(truth.attitude_quat).apply(params.correct(data.raw_nT))
     true_azimuth = np.arctan2(truth.field_ned_nT[1], truth.field_ned_nT[0])
     err = np.angle(np.exp(1j * (np.arctan2(b_ned[:, 1], b_ned[:, 0]) - true_azimuth)))

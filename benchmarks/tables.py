@@ -5,12 +5,16 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from magbench.benchmarks.metrics import evaluations_label
 from magbench.paper import ARCSEC_PER_RAD
+
+if TYPE_CHECKING:  # pandas is imported where it is used: a campaign's workers import this module without it
+    import pandas as pd
+
 
 ANGLES = ("alpha", "beta", "gamma")
 FLOAT_FORMAT = "%.10g"
@@ -23,11 +27,15 @@ def _iqr(v: pd.Series) -> float:
 
 def successful(part: pd.DataFrame) -> pd.DataFrame:
     """The runs without an error whose calibrator reported success: what the medians are taken over."""
+    import pandas as pd
+
     return part[(part["error"] == "") & part.get("success", pd.Series(True, index=part.index)).fillna(False).astype(bool)]
 
 
 def summarize(runs: pd.DataFrame) -> pd.DataFrame:
     """One row per (scenario, configuration), in the order they appear in ``runs``."""
+    import pandas as pd
+
     out = []
     for (scenario, conf), part in runs.groupby(["scenario", "configuration"], sort=False):
         ok = successful(part)
@@ -183,6 +191,8 @@ def _value(r: pd.Series, c: Column, key: str | None = None) -> str:
 
 def _present(summary: pd.DataFrame, cols: list[Column]) -> list[Column]:
     """The columns that have at least one value."""
+    import pandas as pd
+
     return [c for c in cols if c.key in summary and pd.to_numeric(summary[c.key], errors="coerce").notna().any()]
 
 
@@ -250,6 +260,8 @@ def to_terminal(summary: pd.DataFrame, max_calibrator: int = 28) -> str:
     """A compact plain-text table for the terminal (it must not wrap at 100 columns): scenario, calibrator,
     runs, finished and accepted %, the worst angle error, RMS fit and held-out, evaluations, runtime; the
     full table is summary.md."""
+    import pandas as pd
+
     angle_keys = [c.key for c in ANGLE_COLUMNS if c.key in summary]
     rows = []
     for _, r in summary.iterrows():
@@ -320,6 +332,8 @@ def _table_format(cells: list[str]) -> str:
 
 
 def _latex_table(summary: pd.DataFrame, cols: list[Column], caption: str, label: str) -> str:
+    import pandas as pd
+
     header = [("scenario", ""), ("calibrator", "")]
     spans = []  # (first column, last column) of a median + IQR pair, 1-based
     for c in cols:

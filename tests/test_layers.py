@@ -67,7 +67,7 @@ def _type_checking_only(node, tree) -> bool:
 
 CORE_LAYERS = ("magbench", "simulate", "calibrators")
 """The library layers: no in-function import of magbench's own modules at all."""
-APPLICATION_LAZY_IMPORTS = 15
+APPLICATION_LAZY_IMPORTS = 8
 """``benchmarks/`` (the harness and the command line) loads the modules of a heavy command when the command
 runs, so that ``magbench --help`` and one-off commands do not import pandas, matplotlib and SciPy; the
 count may only go down (a ratchet), and every such import must be of a module that loads one of those
