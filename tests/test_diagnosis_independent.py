@@ -15,10 +15,10 @@ from independent_scoring import parse, score  # noqa: E402
 CASES = 240
 
 
-@pytest.fixture(scope="module", params=[1, 2], ids=["generator1", "generator2"])
+@pytest.fixture(scope="module", params=[1, 2, 3], ids=["generator1", "generator2", "generator3"])
 def verdicts(request):
-    """The first 240 records of each independent generator (tests/independent_forward.py and the second one,
-    tests/independent_forward2.py, written later by another hand)."""
+    """The first 240 records of each independent generator (tests/independent_forward.py, and the second and
+    third ones, tests/independent_forward2.py and tests/independent_forward3.py, written later by other hands)."""
     return run(range(CASES), jobs=2, generator=request.param)
 
 
