@@ -207,17 +207,18 @@ spawned or Dask worker warms itself."""
 REWARM_S = 0.25
 
 
-def warm_up(task: dict) -> float | None:
+def warm_up(task: dict) -> None:
     """Before this process's first timed run of a configuration: one untimed run of the same task, so that
     what happens once per process (imports, numba compiles and cache loads, SciPy's first LAPACK calls)
-    is paid here and not by a run's ``runtime_s``.  Returns the warm-up's seconds, or None when this
-    process has warmed the configuration already."""
+    is paid here and not by a run's ``runtime_s``.  Its seconds wait in ``_UNREPORTED`` for the process's
+    first timed run of the configuration to report them; nothing is run when this process has warmed the
+    configuration already."""
     key = task["configuration"]
     if key in _WARM:
         pid, seconds = _WARM[key]
         if pid == os.getpid() or seconds >= REWARM_S:
             _WARM[key] = (os.getpid(), seconds)
-            return None
+            return
 
     prefer_compiled_kernels()  # many fits follow: compiled GA kernels from the first, loaded here, untimed
     t0 = time.perf_counter()
@@ -228,7 +229,6 @@ def warm_up(task: dict) -> float | None:
     # timed run scans only that run's objects (and forked workers share these pages instead of copying them)
     gc.collect()
     gc.freeze()
-    return _WARM[key][1]
 
 
 def _timed(task: dict) -> dict:

@@ -18,7 +18,16 @@ from __future__ import annotations
 import numpy as np
 from numpy.polynomial import legendre
 
-from magbench.simulate.effects import PPM, Columns, Effect, Normalization, OutlierEffect, robust_sigma
+from magbench.simulate.effects import (
+    PPM,
+    Columns,
+    Effect,
+    FieldDriftEffect,
+    Normalization,
+    OffsetDriftEffect,
+    OutlierEffect,
+    robust_sigma,
+)
 from magbench.simulate.sensor import NEUTRAL, PARAM_NAMES, paper_matrix
 
 BLOCK_ROWS = 65536
@@ -40,9 +49,9 @@ BASE_PRIOR_SD = {"angle": 0.05, "scale": 0.1}
 """Standard deviations of the weak prior on the base correction (``ExtendedModel.set_prior``): rad, and relative."""
 
 
-TIME_BASES = {"field_drift": 1, "offset_drift": 3}
-"""Effects whose fitted form is Legendre polynomials of time (degree 1 up), and how many series each has (one per
-axis for the offsets)."""
+TIME_BASES = (FieldDriftEffect, OffsetDriftEffect)
+"""Effects whose fitted form is Legendre polynomials of time (degrees 1 to their ``DEGREE``), one series or one per
+axis (the offsets)."""
 
 
 def slope_penalty(degree: int) -> np.ndarray:
@@ -146,14 +155,13 @@ class ExtendedModel:
         equations, never to a residual).  A left-out stretch is then bridged by the gentlest drift its edges allow,
         not by whatever a free degree-12 polynomial does where it saw no data."""
         g = np.zeros((self.p + 1, self.p + 1))
-        for name, per in TIME_BASES.items():
-            idx = self.groups.get(name)
+        for cls in TIME_BASES:
+            idx = self.groups.get(cls.name)
             if not idx or weight <= 0:
                 continue
-            deg = len(idx) // per
-            pen = slope_penalty(deg) * weight
-            for a in range(per):
-                sl = idx[a * deg:(a + 1) * deg]
+            pen = slope_penalty(cls.DEGREE) * weight
+            for start in range(0, len(idx), cls.DEGREE):  # each series of the effect (axis-major)
+                sl = idx[start:start + cls.DEGREE]
                 g[np.ix_(sl, sl)] += pen
         xe = x - self.default
         g[:self.p, self.p] = g[:self.p, :self.p] @ xe

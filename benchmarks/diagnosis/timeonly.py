@@ -79,7 +79,7 @@ the field's own turning, which a scalar reference follows in magnitude but not i
 not named (a drift of the offsets beneath it cannot be told without a vector reference)."""
 THERMAL_LAG_OF_SPAN = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0)
 """First-order thermal time constants tried (shares of the record's span) when asking whether the logged
-temperature fits a radial trend as well as the smooth trend does."""
+temperature fits a drift (radial or across) as well as the smooth trend does."""
 SHOULDER_SIGMA = 3.5
 SHOULDER_ALPHA = 0.01
 """Fewer spikes than the selection's share of the samples are glitches only when the residual's shoulder (between
@@ -249,15 +249,15 @@ def _spikes(r: np.ndarray, design: np.ndarray | None, t: np.ndarray, raw_nT: np.
     # their number: at least the selection's share of the samples; or, fewer (a fixed record is long and its glitches
     # few), a count Gaussian noise does not give beyond SPIKE_SIGMA with a Gaussian shoulder below it (heavy-tailed
     # noise crowds the shoulder, glitches far beyond it do not)
-    count_z = spike_z(int(mask.sum()), n, SPIKE_SIGMA)
+    n_spikes = int(mask.sum())
+    count_z = spike_z(n_spikes, n, SPIKE_SIGMA)
     shoulder_p = _shoulder_p(resid, mask)
-    enough = OutlierEffect.enough(int(mask.sum()), n) or (
-        mask.sum() >= OutlierEffect.MIN_SPIKES and count_z > Z_SIGNIFICANT and shoulder_p > SHOULDER_ALPHA)
+    enough = OutlierEffect.enough(n_spikes, n) or (
+        n_spikes >= OutlierEffect.MIN_SPIKES and count_z > Z_SIGNIFICANT and shoulder_p > SHOULDER_ALPHA)
     named = bool(enough and glitches)
     return (mask if named else np.zeros(n, dtype=bool)), {
-        "n": int(mask.sum()), "count_z": count_z, "shoulder_p": shoulder_p, "named": named, "neighbour_share": share,
-        "bulk_tail_ratio": ratio,
-        "clipped_share": clip,
+        "n": n_spikes, "count_z": count_z, "shoulder_p": shoulder_p, "named": named, "neighbour_share": share,
+        "bulk_tail_ratio": ratio, "clipped_share": clip,
         "rule": "beyond 5 robust sigma of a smooth trend; named when more than noise gives, isolated and spread in "
                 "time, not readings at a repeated extreme (clipping), on a noise-like rest"}
 
@@ -370,9 +370,9 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
         p_beats = _f_p(best, sse_trend, len(cols) * (TREND_DEGREE - 1), float(np.mean([n_eff[j] for j in cols])) * len(cols),
                        len(cols) * (TREND_DEGREE + 1))
         out["trend_beats_temperature_p"] = p_beats
+    fits = p_beats is not None and p_beats >= DRIFT_DIRECTION_ALPHA  # the temperature fits the trend as well
     if across_drift:
         follows_time = follows is not None and follows >= TEMPERATURE_FOLLOWS_TIME_R2
-        fits = p_beats is not None and p_beats >= DRIFT_DIRECTION_ALPHA
         thermal = follows_time or fits
         out["named"] = "offset_drift|temperature|field_drift" if thermal else "offset_drift|field_drift"
         out["why"] = (f"the readings drift across their own direction (RMS {across:.3g} nT against {radial:.3g} nT "
@@ -385,7 +385,7 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
     out["named"] = "field_drift"
     out["why"] = (f"the readings drift along their own direction only (RMS {radial:.3g} nT, {across:.3g} nT across): "
                   "the field's magnitude changes")
-    if p_beats is not None and p_beats >= DRIFT_DIRECTION_ALPHA:
+    if fits:
         out["named"] = "field_drift|temperature"
         out["why"] += ("; the logged temperature fits it as well (the scale coefficients of the axes changing "
                        "together)")

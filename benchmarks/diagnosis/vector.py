@@ -417,12 +417,9 @@ class Diagnosis:
         loud.  Returns (named, their held-out residual, the evidence, the confounded pairs)."""
         tangent = self.tangent
         d, k = self.columns, self.k
-        families = {"random": tangent}
-        if selected:
-            for family, fold in (("time-blocked", time_blocks(d.t_s, n, k)),
-                                 ("attitude-blocked", attitude_blocks(self.unit, k, self.seed))):
-                families[family] = Tangent(self.model, tangent.x, fold, k, tangent.spikes)
-        heldout = {f: (lambda names, t=t: t.heldout(names, "outliers" in names)[0]) for f, t in families.items()}
+        blocked = ({"time-blocked": time_blocks(d.t_s, n, k), "attitude-blocked": attitude_blocks(self.unit, k, self.seed)}
+                   if selected else {})
+        heldout = self._families(blocked)
         n_train = n * (k - 1) // k
         # the base residual against the floor, spikes explained away when there are (they would swamp the test)
         spiky = "outliers" in selected
@@ -438,7 +435,7 @@ class Diagnosis:
                            slow, temp_r2, hold_label=self.hold_labels)
 
         named, evidence = confirm_on(heldout)
-        named = self._second_look(evidence, named, selected, tangent, confirm_on)
+        named = self._second_look(evidence, named, selected, blocked, confirm_on)
         confirmed = list(named)
         if any(s in BODY_DRIFTS for s in named):  # a switch is not a slow drift
             drift_res = np.nan_to_num(self.model_residuals(named))
@@ -504,7 +501,15 @@ class Diagnosis:
                   "temperature_beyond_time_z": beyond, "evidence": evidence}
         return named, current, naming, confounded
 
-    def _second_look(self, evidence: list[dict], named: list[str], selected: list[str], tangent: Tangent,
+    def _families(self, blocked: dict, smooth: float = 0.0) -> dict:
+        """{fold family: held-out residual of base + names}: the random folds, and a ``Tangent`` on each of the
+        ``blocked`` fold labellings (the time bases slope-penalized by ``smooth`` per sample)."""
+        tangent = self.tangent
+        families = {"random": tangent} | {family: Tangent(self.model, tangent.x, fold, self.k, tangent.spikes, smooth=smooth)
+                                          for family, fold in blocked.items()}
+        return {f: (lambda names, t=t: t.heldout(names, "outliers" in names)[0]) for f, t in families.items()}
+
+    def _second_look(self, evidence: list[dict], named: list[str], selected: list[str], blocked: dict,
                      confirm_on) -> list[str]:
         """A field drift that failed only the blocked families gets a second look.  A left-out stretch of time (or a
         region of directions visited in one stretch) leaves its twelve free Legendre terms unconstrained there, and
@@ -518,13 +523,8 @@ class Diagnosis:
         if (row is None or row.get("named") or not row.get("failed_families")
                 or set(row["failed_families"]) - {"time-blocked", "attitude-blocked"}):
             return named
-        d, k, n = self.columns, self.k, len(self.columns)
-        families = {"random": tangent}
-        for family, fold in (("time-blocked", time_blocks(d.t_s, n, k)),
-                             ("attitude-blocked", attitude_blocks(self.unit, k, self.seed))):
-            families[family] = Tangent(self.model, tangent.x, fold, k, tangent.spikes, smooth=SMOOTH_SLOPE_PER_SAMPLE)
-        heldout = {f: (lambda names, t=t: t.heldout(names, "outliers" in names)[0]) for f, t in families.items()}
-        _, again = confirm_on(heldout)
+        d, k = self.columns, self.k
+        _, again = confirm_on(self._families(blocked, SMOOTH_SLOPE_PER_SAMPLE))
         second = next(r for r in again if r["name"] == field)
         look: dict = {"families": second["families"], "passed_blocked": bool(second.get("named"))}
         row["second_look"] = look
