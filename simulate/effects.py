@@ -70,8 +70,10 @@ FD_STEP = 1e-3
 
 def first_order_lag(t_s: np.ndarray, x: np.ndarray, tau_s: float) -> np.ndarray:
     """x seen through a first-order lag of time constant ``tau_s`` (exact for piecewise-constant x between
-    samples), in time order; x itself when tau_s <= 0."""
-    if tau_s <= 0:
+    samples), in time order; x itself when tau_s == 0, and for tau_s < 0 the lag undone (``first_order_lead``)."""
+    if tau_s < 0:
+        return first_order_lead(t_s, x, -tau_s)
+    if tau_s == 0:
         return np.asarray(x, dtype=float).copy()
     from scipy.signal import lfilter
 
@@ -90,6 +92,31 @@ def first_order_lag(t_s: np.ndarray, x: np.ndarray, tau_s: float) -> np.ndarray:
     res = np.empty_like(out)
     res[order] = out
     return res
+
+
+LEAD_SMOOTHING_OF_TAU = 0.25
+"""``first_order_lead`` differentiates x smoothed both ways (zero phase) by a first-order lag of this share of its time
+constant: a logged temperature comes in steps of its resolution (1/16 degC), whose differences are spikes."""
+
+
+def first_order_lead(t_s: np.ndarray, x: np.ndarray, tau_s: float) -> np.ndarray:
+    """The input of a first-order lag of time constant ``tau_s`` whose output is x: x + tau_s dx/dt (the inverse
+    of ``first_order_lag``), the derivative taken on x smoothed forward and backward by a lag of
+    LEAD_SMOOTHING_OF_TAU tau_s.  A thermometer that lags the sensor it sits beside (its own thermal mass, or a
+    place the heat reaches later) logs the lagged temperature; the sensor's is this."""
+    xs = np.asarray(x, dtype=float)
+    if tau_s <= 0 or len(xs) < 3 or np.ptp(t_s) <= 0:
+        return xs.copy()
+    order = np.argsort(t_s, kind="stable")
+    ts = np.asarray(t_s, dtype=float)[order]
+    smooth_tau = LEAD_SMOOTHING_OF_TAU * tau_s
+    forward = first_order_lag(ts, xs[order], smooth_tau)
+    both = first_order_lag(ts[-1] + ts[0] - ts[::-1], forward[::-1], smooth_tau)[::-1]
+    keep = np.r_[True, np.diff(ts) > 0]  # repeated time stamps: one derivative for them
+    rate = np.interp(ts, ts[keep], np.gradient(both[keep], ts[keep])) if keep.sum() >= 2 else np.zeros_like(ts)
+    out = np.empty_like(xs)
+    out[order] = xs[order] + tau_s * rate
+    return out
 
 
 def _lstsq_sse(x: np.ndarray, y: np.ndarray) -> float:
@@ -563,8 +590,17 @@ class TemperatureEffect(Effect):
                                              "aTxy_urad_per_C", "aTxz_urad_per_C", "aTyz_urad_per_C")
     AXIS_PAIRS: ClassVar[tuple[tuple[int, int], ...]] = ((0, 1), (0, 2), (1, 2))
     """The axis pairs of the alignment coefficients a_T (x-y, x-z, y-z), in the order of ``fit_params``."""
-    LAG_GRID_OF_SPAN: ClassVar[tuple[float, ...]] = (0.0, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
-    """Thermal time constants tried, as shares of the record's time span (the best on the whole record)."""
+    LAG_GRID_OF_SPAN: ClassVar[tuple[float, ...]] = (-0.03, -0.01, -0.003, 0.0, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
+    """Thermal time constants tried, as shares of the record's time span (the best on the whole record).  Negative:
+    the thermometer lags the sensor (``first_order_lead``), by up to a few percent of the span (a board thermometer
+    beside the sensor head); positive: the sensor lags the thermometer (a core inside its housing)."""
+    LEAD_P: ClassVar[float] = 1e-3
+    """A lead (the thermometer lagging the sensor) is fitted only when it beats the best lag (0 included) by an F test
+    of its one extra degree of freedom at this level, and lies inside the grid (below 0.9 of its largest lead, never refined
+    beyond it): a lead adds the temperature's rate to its shape, a bump where it changes fastest, which fits part of
+    any slow structure (a field switched on, a soft iron that lags) best with the largest lead it is offered (on the
+    first independent generator's records, without a thermometer lag, the leads chosen sat at the bound; a grid to 0.1
+    of the span named temperature for a field drift there with a lead of 0.07, and gained two records of the second)."""
     LAG_REFINE_ROWS: ClassVar[int] = 200_000
     ALIGNMENT_P: ClassVar[float] = 1e-3
     """The alignment coefficients a_T are fitted only when they explain the base residual beside the offset and
@@ -600,7 +636,7 @@ class TemperatureEffect(Effect):
 
     def readings(self, lin, ctx, rng):
         temp = np.asarray(ctx["temp_C"], dtype=float)
-        if self.time_constant_s > 0 and ctx.get("t_s") is not None:
+        if self.time_constant_s != 0 and ctx.get("t_s") is not None:  # negative: the thermometer lags the sensor
             temp = first_order_lag(np.asarray(ctx["t_s"]), temp, self.time_constant_s)
         dt = (temp - self.ref_C)[:, None]
         o = np.asarray(ctx["offset_nT"])
@@ -642,30 +678,43 @@ class TemperatureEffect(Effect):
         lin = np.column_stack([np.ones(len(u0))] + lin)
         r = r_base[keep]
         def thermal_lag(k: int) -> tuple[float, np.ndarray]:
-            """The best share of the span and its lagged temperature, with the first k temperature columns."""
+            """The best share of the span and its lagged temperature, with the first k temperature columns: the
+            best lag (share >= 0) unless a lead (share < 0) beats it by an F test at LEAD_P."""
             cache: dict[float, tuple[float, np.ndarray]] = {}
 
             def sse(share: float) -> float:
                 if share not in cache:
-                    temp = first_order_lag(d.t_s, d.temp_C, share * span) if share > 0 else d.temp_C
+                    temp = first_order_lag(d.t_s, d.temp_C, share * span) if share != 0 else d.temp_C
                     x = np.einsum("na,nak->nk", unit[keep], cls._columns_for(u0, temp[keep] - norm.temp0_C)[:, :, :k])
                     cache[share] = (_lstsq_sse(np.column_stack([x, lin]), r), temp)
                 return cache[share][0]
 
-            grid = list(cls.LAG_GRID_OF_SPAN) if timed else [0.0]
-            scores = [sse(g) for g in grid]
-            i = int(np.argmin(scores))
-            best = grid[i]
-            if timed and len(d) <= cls.LAG_REFINE_ROWS and len(grid) > 1:
-                from scipy.optimize import minimize_scalar
+            def best_of(sign: float) -> float:
+                """The best share of one sign (0 included), refined on log|share| between its grid neighbours
+                (beside 0: down to a third of the smallest)."""
+                side = sorted(abs(g) for g in cls.LAG_GRID_OF_SPAN if g * sign > 0)
+                scores = [sse(sign * g) for g in [0.0, *side]]
+                j = int(np.argmin(scores))
+                best = sign * ([0.0, *side][j])
+                if len(d) <= cls.LAG_REFINE_ROWS:
+                    from scipy.optimize import minimize_scalar
 
-                lo = np.log(grid[i - 1] if i > 1 else grid[1] / 3.0)
-                hi = np.log(grid[i + 1] if i + 1 < len(grid) else grid[-1] * 3.0)
-                opt = minimize_scalar(lambda v: sse(float(np.exp(v))), bounds=(lo, hi), method="bounded",
-                                      options={"xatol": 0.02})
-                share = float(np.exp(opt.x))
-                if sse(share) < scores[i] * (1 - 1e-9):
-                    best = share
+                    lo = np.log(side[j - 2] if j > 1 else side[0] / 3.0)
+                    hi = np.log(side[j] if 0 < j < len(side) else side[-1] * (3.0 if sign > 0 else 1.0) if j else side[0])
+                    opt = minimize_scalar(lambda v: sse(sign * float(np.exp(v))), bounds=(lo, hi), method="bounded",
+                                          options={"xatol": 0.02})
+                    share = sign * float(np.exp(opt.x))
+                    if sse(share) < scores[j] * (1 - 1e-9):
+                        best = share
+                return best
+
+            if not timed:
+                sse(0.0)
+                return 0.0, cache[0.0][1]
+            lag, lead = best_of(1.0), best_of(-1.0)
+            dof = len(r) - k - lin.shape[1] - 1
+            inside = lead > 0.9 * min(cls.LAG_GRID_OF_SPAN)  # a lead at the grid's end is a shape, not a lag
+            best = lead if inside and dof > 0 and f_test_p(sse(lag), sse(lead), 1, dof) < cls.LEAD_P else lag
             return best, cache[best][1]
 
         best, temp = thermal_lag(6)  # offsets and scales

@@ -77,10 +77,12 @@ HISTORY = {
         "0-1439 and checked every change on 1440-2639; cases 2640-2879 were held out for round 3 and run once, with "
         "its final code (`--start 2640 --cases 240`). Round 4 developed on 0-2639; cases 2880-3359 were held out for "
         "it (`--start 2880 --cases 480`): each of its two branches ran them at its end, and one change (a false lag "
-        "on case 3268) was made after seeing them, so they are not fully blind. Round 5 (this table) used 0-2879 as "
+        "on case 3268) was made after seeing them, so they are not fully blind. Round 5 used 0-2879 as "
         "a regression set (no change may add a wrong name there) and ran 2880-3359 once, with its final code. Round 6 "
         "used 0-2879 as its regression set again, ran 2880-3359 once more, and held out cases 3360-3839, run once, "
-        "with its final code (`--start 3360 --cases 480`)."),
+        "with its final code (`--start 3360 --cases 480`). Round 7 (this table) used 0-2879 as its regression "
+        "set (a thermal lead: no verdict changed there), ran 2880-3839 once more, and held out cases 3840-4319, new, "
+        "run once, with its final code (`--start 3840 --cases 480`)."),
     2: ("Written during round 4 by another hand, from the physics only (it read neither the diagnosis nor the "
         "first generator's effects). Round 4 looked at cases 0-479 (`--start 0 --cases 480`): the fixed-sensor "
         "changes were made on them, and the round's branches were compared there. Cases 480-1439 "
@@ -90,7 +92,9 @@ HISTORY = {
         "temperature and fixed sensors) and ran 480-1439 once, with its final code. Round 6 developed on 0-479 again "
         "(a second look at field drifts with their signature, an offset drift that a scalar series explains as well, a "
         "fixed sensor's glitches and temperature alternatives), ran 480-1439 once more, and held out cases 1440-2399, "
-        "new, run once, with its final code (`--start 1440 --cases 960`)."),
+        "new, run once, with its final code (`--start 1440 --cases 960`). Round 7 developed on 0-479 again (a "
+        "thermometer that lags the sensor: a thermal lead), ran 480-2399 once more, and held out cases 2400-3359, new, "
+        "run once, with its final code (`--start 2400 --cases 960`)."),
     3: ("Written in round 5 by another hand, from the physics only (it read neither the diagnosis, the simulator, "
         "the calibrators nor the first two generators' effects and schedules): its own sensor parametrisation, "
         "schedules (a ship in a seaway, a quadcopter hover with yaw spins, a car on a closed circuit, a hand-rotated "
@@ -98,21 +102,26 @@ HISTORY = {
         "library. Before this table nobody had run the diagnosis on it, except cases 0-1 once as a plumbing smoke "
         "test; its first run was with round 5's final code. Round 6 developed on cases 0-479 (the changes named under "
         "the second generator), ran 480-1439 once more (not looked at case by case), and held out cases 1440-2399, new, "
-        "run once, with its final code (`--start 1440 --cases 960`)."),
+        "run once, with its final code (`--start 1440 --cases 960`). Round 7 checked its change on 0-479 (no verdict "
+        "changed), ran 480-2399 once more, and held out cases 2400-3359, new, run once, with its final code "
+        "(`--start 2400 --cases 960`)."),
 }
-SPLITS = {1: "1440,2640,2880,3360", 2: "480,1440", 3: "480,1440"}
+SPLITS = {1: "1440,2640,2880,3360,3840", 2: "480,1440,2400", 3: "480,1440,2400"}
 LABELS = {
     1: ["developed on in rounds 1-4 (rounds 2-3's development set)",
         "developed on in rounds 1-4 (round 3 checked every change on it; 2400-2639 was round 2's held-out block)",
         "held out for round 3: run once, with its final code",
         "held out for round 4 (one change was made after seeing them); run once more in rounds 5 and 6",
-        "held out for round 6: run once, with its final code"],
-    2: ["developed on in rounds 4-6",
-        "held out (run in round 4 three times, in rounds 5 and 6 once each; nothing tuned on them)",
-        "held out for round 6: new, run once, with its final code"],
-    3: ["developed on in round 6 (written in round 5 from the physics only, and run once there)",
-        "run once in round 5 and once more in round 6, not looked at case by case",
-        "held out for round 6: new, run once, with its final code"],
+        "held out for round 6: run once, with its final code; run once more in round 7",
+        "held out for round 7: new, run once, with its final code"],
+    2: ["developed on in rounds 4-7",
+        "held out (run in round 4 three times, in rounds 5, 6 and 7 once each; nothing tuned on them)",
+        "held out for round 6: new, run once, with its final code; run once more in round 7",
+        "held out for round 7: new, run once, with its final code"],
+    3: ["developed on in rounds 6-7 (written in round 5 from the physics only, and run once there)",
+        "run once in rounds 5, 6 and 7, not looked at case by case",
+        "held out for round 6: new, run once, with its final code; run once more in round 7",
+        "held out for round 7: new, run once, with its final code"],
 }
 
 

@@ -145,3 +145,68 @@ def test_blind_check_rates_on_three_cycles(blind45):
     assert sum(o == "right" for o in by["single"]) >= 0.7 * len(by["single"]), by["single"]
     assert sum(o == "right" for o in by["pair"]) >= 0.35 * len(by["pair"]), by["pair"]
     assert all("wrong" not in by[c] for c in by), by
+
+
+def test_first_order_lead_undoes_a_thermometer_lag_on_quantized_irregular_readings():
+    """A thermometer that lags the sensor logs its temperature through a first-order lag (here solved on a fine
+    grid, independently of the library's filter) and rounds it to 1/16 degC; the lead recovers the sensor's."""
+    from magbench.simulate.effects import first_order_lead
+
+    rng = np.random.default_rng(5)
+    fine = np.linspace(0.0, 3600.0, 360_001)
+    true = 20.0 + 12.0 * (1 - np.exp(-fine / 900.0)) + 1.5 * np.sin(2 * np.pi * fine / 700.0)
+    tau = 120.0
+    logged_fine = np.empty_like(true)
+    logged_fine[0] = true[0]
+    a = (fine[1] - fine[0]) / tau
+    for i in range(1, len(fine)):  # d logged / dt = (true - logged) / tau
+        logged_fine[i] = logged_fine[i - 1] + a * (true[i - 1] - logged_fine[i - 1])
+    t = _irregular_times(rng, 1500, 3600.0)
+    logged = np.round(np.interp(t, fine, logged_fine) / 0.0625) * 0.0625
+    truth = np.interp(t, fine, true)
+    inner = (t > 300.0) & (t < 3300.0)
+    err_log = float(np.sqrt(np.mean((logged - truth)[inner] ** 2)))
+    err_lead = float(np.sqrt(np.mean((first_order_lead(t, logged, tau) - truth)[inner] ** 2)))
+    assert err_log > 0.5  # negative control: the log itself is off by the lag
+    assert err_lead < 0.15 * err_log, (err_lead, err_log)
+    assert np.allclose(first_order_lag(t, logged, -tau), first_order_lead(t, logged, tau))
+
+
+@pytest.mark.parametrize("index", [70, 274])
+def test_a_thermometer_that_lags_the_sensor_is_fitted_as_a_negative_time_constant(index):
+    """The second independent generator logs a board thermometer that lags the sensor's temperature (its own
+    first-order lag, ``temp_log_lag_s``); the fitted thermal time constant is that lag with a minus sign."""
+    import sys
+    from pathlib import Path
+
+    from magbench.simulate.dataset import Dataset
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import independent_forward2 as forward
+
+    case = forward.make_case(index, 2026)
+    assert list(case.present) == ["temperature"]
+    r = diagnose(Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C), gravity=case.gravity)
+    fitted = r["effect_info"]["temperature"]["thermal_time_constant_s"]
+    assert fitted == pytest.approx(-case.notes["temp_log_lag_s"], rel=0.1), fitted
+    assert "temperature" in r["selected"], r["verdict"]
+
+
+@pytest.mark.parametrize("index", [1168, 1179])
+def test_a_lead_is_not_fitted_where_no_thermometer_lags(index):
+    """Negative controls from the first independent generator (no thermometer lag): a field switched on (1168) and a
+    field drift beside spikes (1179).  Offered freely, a lead's bump at the temperature's fastest change fitted both
+    at the largest lead allowed and named temperature for them; a lead must beat the best lag and lie inside the grid."""
+    import sys
+    from pathlib import Path
+
+    from magbench.simulate.dataset import Dataset
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import independent_forward as forward
+
+    case = forward.make_case(index, 2026)
+    assert "temperature" not in case.present
+    r = diagnose(Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C), gravity=case.gravity)
+    assert r["effect_info"]["temperature"]["thermal_time_constant_s"] >= 0.0
+    assert "temperature" not in r["verdict"], r["verdict"]
