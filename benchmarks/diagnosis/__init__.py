@@ -49,9 +49,31 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
         if isinstance(data, ScalarSeries):
             return diagnose_scalar(data, folds=folds, seed=seed)
         refusal = attitude_refusal(data, base)
-        if refusal is not None:  # a fixed sensor: the time question still has an answer
+        if refusal is not None and not turned(data):  # a fixed sensor: the time question still has an answer
             return time_only(data, refusal)
-        return Diagnosis(data, base, folds, seed, gravity=gravity, progress=progress).run()
+        return Diagnosis(data, base, folds, seed, gravity=gravity, progress=progress, degenerate=refusal).run()
+
+
+TURNED_RAD = 0.1
+"""A record whose readings' directions lie further than this (RMS, in radians) from their mean direction turned: the
+sensor was rotated (on a level vehicle, about one axis), though perhaps not enough to determine every parameter of the
+base model.  Its diagnosis holds the directions the attitudes leave free with the weak prior on the scales and angles
+(a fluxgate's scales within a few percent of 1, its axes within a degree or so of orthogonal) instead of answering the
+time question only; a fixed sensor's directions move by the field's own variation, thousandths of a radian."""
+
+
+def turned(data) -> bool:
+    """Whether the readings' directions spread more than TURNED_RAD (RMS angle from their mean direction)."""
+    raw = np.asarray(data.raw_nT, dtype=float)
+    norms = np.linalg.norm(raw, axis=1)
+    ok = np.isfinite(norms) & (norms > 0)
+    if ok.sum() < 2:
+        return False
+    u = raw[ok] / norms[ok, None]
+    mean = u.mean(axis=0)
+    mean /= max(float(np.linalg.norm(mean)), 1e-300)
+    angle = np.arccos(np.clip(u @ mean, -1.0, 1.0))
+    return bool(np.sqrt(np.mean(angle ** 2)) > TURNED_RAD)
 
 
 def attitude_refusal(data, base: str) -> str | None:

@@ -7,8 +7,9 @@ import numpy as np
 
 from magbench.calibrators import make
 from magbench.simulate.dataset import ScalarSeries
-from magbench.simulate.sensor import MODELS
+from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
+from .model import base_correction
 from .scalar import scalar_residual, together_columns
 from .vector import Diagnosis
 
@@ -45,7 +46,10 @@ def _table(result: dict, source: str) -> list[str]:
                      f"(z {result['remainder_z']:.1f}, {'significant' if result['remainder_significant'] else 'not significant'}"
                      f"{_measure_note(result)})")
     if result.get("base_fit", "lsq") != "lsq":
-        lines.append(f"  base fit: {result['base_fit']} (spikes pulled the least-squares fit)")
+        why = (" (spikes pulled the least-squares fit)" if str(result["base_fit"]).startswith("ransac") else
+               f" (the calibrators refuse these attitudes: {result['attitude_coverage']})" if "attitude_coverage" in result
+               else "")
+        lines.append(f"  base fit: {result['base_fit']}{why}")
     if "power" in result:
         lines.append(f"  power: {result['power']['statement']}")
     for name, why in result.get("not_tested", {}).items():
@@ -172,15 +176,22 @@ def _time_is_an_index(data) -> bool:
 
 
 def _plot_vector(ax, data, result: dict) -> str:
-    d = Diagnosis(data, result["base_model"] if result["base_model"] in MODELS else "nine")
-    fit = make("lsq", model=d.base).fit(data)
-    r = np.linalg.norm(fit.correct(np.asarray(data.raw_nT)), axis=1) - np.asarray(data.f_ref_nT)
+    degenerate = result.get("attitude_coverage")
+    d = Diagnosis(data, result["base_model"] if result["base_model"] in MODELS else "nine", degenerate=degenerate)
+    if degenerate is None:
+        correct = make("lsq", model=d.base).fit(data).correct
+    else:  # the calibrators refuse these attitudes: the diagnosis's own base correction (fitted with the weak prior)
+        m_mat, o = base_correction(np.array([result["base_params"][k] for k in PARAM_NAMES[d.base]], dtype=float))
+
+        def correct(raw):
+            return (np.asarray(raw, dtype=float) - o) @ m_mat.T
+    r = np.linalg.norm(correct(np.asarray(data.raw_nT)), axis=1) - np.asarray(data.f_ref_nT)
     if data.heading_deg is not None:
         x, label = np.asarray(data.heading_deg), "heading (deg)"
     elif data.t_s is not None and not _time_is_an_index(data):
         x, label = np.asarray(data.t_s), "time (s)"
     else:  # no heading and no clock: where the reading points in the sensor frame
-        b = fit.correct(np.asarray(data.raw_nT))
+        b = correct(np.asarray(data.raw_nT))
         x = np.degrees(np.arccos(np.clip(b[:, 2] / np.linalg.norm(b, axis=1), -1.0, 1.0)))
         label = "angle of the corrected field from the sensor's z axis (deg)"
     ax.plot(x, r, ".", ms=2, label=f"base model ({result['base_model']})")

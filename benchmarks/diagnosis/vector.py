@@ -125,6 +125,14 @@ SHRINK_FLAG = ("above 100 %: the held-out RMS with the effect is below the noise
 
 PRIOR_MIN_SCALE_NT = 0.1
 """The weak prior's pseudo-rows are scaled by the noise floor (nT), at least this."""
+DEGENERATE_PRIOR_STEP = 4.0
+DEGENERATE_PRIOR_MAX = 1e6
+"""On attitudes that cannot determine the base model alone (``Diagnosis.degenerate``) the base fit takes the weakest prior
+that keeps it plausible (``plausible_base``): its rows scaled by the floor times sqrt(n), then by DEGENERATE_PRIOR_STEP
+times more until the fit is plausible or the scale reaches DEGENERATE_PRIOR_MAX nT.  Structure in the residual (a
+temperature effect, a lag) pulls the fit along the directions the attitudes leave free, to scales of 2 and offsets of
+10^4 nT under a prior scaled by the floor; a prior scaled by the residual's size held the fit but biased a clean
+record's enough to call it unexplained."""
 IMPLAUSIBLE_SD = 3.0
 """A base fit whose scales or angles lie further than this many prior standard deviations from neutral is fitted
 again with the prior: attitudes that leave directions of the base model free (a vehicle's band) let least
@@ -162,7 +170,8 @@ class Diagnosis:
     PROGRESS_ROWS = 100_000
 
     def __init__(self, data: Dataset, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0,
-                 gravity: np.ndarray | None = None, progress: bool | None = None, rows_in_time_order: bool = False):
+                 gravity: np.ndarray | None = None, progress: bool | None = None, rows_in_time_order: bool = False,
+                 degenerate: str | None = None):
         if base not in MODELS or base not in BASE_FREE:
             raise InputError(f"unknown base model {base!r}: use angles or nine")
         if not data.has_reference:
@@ -172,6 +181,7 @@ class Diagnosis:
         self.dataset, self.base, self.k, self.seed = data, base, folds, seed
         self.gravity = gravity
         self.rows_in_time_order = rows_in_time_order
+        self.degenerate = degenerate  # why the attitudes cannot determine the base model alone (a sensor that turned)
         self.columns = Columns.of(data)
         self.norm = Normalization.of(self.columns)
         n, need = len(data), len(PARAM_NAMES[base]) + MIN_POINTS_BEYOND_PARAMETERS
@@ -184,7 +194,14 @@ class Diagnosis:
         ``lsq``; when its residual has samples beyond SPIKE_SIGMA robust sigma, also ``ransac`` (seed 003),
         and the one whose residual has the smaller robust scatter: a few spikes of thousands of nT pull a
         least-squares fit on narrow attitude coverage to a far-centre solution (scales of 2, offsets of
-        10^5 nT) that no trimming from there recovers."""
+        10^5 nT) that no trimming from there recovers.  On attitudes that cannot determine the base model alone
+        (``degenerate``: a sensor that turned, but about one axis, as on a level vehicle) the calibrators refuse; the
+        base correction is then fitted with the weak prior from the start (``_base_with_prior``, from neutral scales,
+        angles and zero offsets, at the prior's least scale; ``run`` fits it again at the floor's)."""
+        if self.degenerate is not None:
+            self.base_method = "weak prior"
+            start = np.asarray(NEUTRAL, dtype=float).copy()
+            return self._base_with_prior(start, PRIOR_MIN_SCALE_NT * float(np.sqrt(len(self.columns))))
         fits = [make("lsq", model=self.base).fit(self.dataset)]
         r = [self._scalar_residual(fits[0])]
         if OutlierEffect.spike_mask(r[0]).any() and self.base in get(ROBUST_START).supported_models:
@@ -235,12 +252,16 @@ class Diagnosis:
         # the prior's rows outweigh the n sigma^2 (1 - 1/k^2) that a scalar fit gains by scaling the noise down
         # along a direction the attitudes leave free: the floor times sqrt(n)
         prior_scale = max(fl["noise_floor_nT"], PRIOR_MIN_SCALE_NT) * float(np.sqrt(n))
-        implausible = not plausible_base(x9) and self._ill_conditioned()
+        implausible = self.degenerate is not None or (not plausible_base(x9) and self._ill_conditioned())
         if implausible:  # a degenerate valley of the attitudes: the fit again, with the weak prior
             refit = self._base_with_prior(x9, prior_scale)
-            if plausible_base(refit[0]):  # else the data pull it out anyway (clipping, a large structure): as it was
+            while self.degenerate is not None and not plausible_base(refit[0]) and prior_scale < DEGENERATE_PRIOR_MAX:
+                prior_scale *= DEGENERATE_PRIOR_STEP  # the weakest prior that keeps the base fit plausible
+                refit = self._base_with_prior(x9, prior_scale)
+            if self.degenerate is not None or plausible_base(refit[0]):  # else the data pull it out anyway
                 x9, r_all, unit = refit
-                self.base_method += " + weak prior (implausible scales or angles)"
+                if self.degenerate is None:
+                    self.base_method += " + weak prior (implausible scales or angles)"
                 fl = vector_floor(unit, d, r_all, self.rows_in_time_order)
             else:
                 implausible = False
@@ -298,7 +319,9 @@ class Diagnosis:
         result = verdict([alternatives.get(o, o) for o in order], rem["remainder_significant"], powered, untested,
                          any_tested=bool(effects_ok))
         x_sel = self.tangent.full_fit(selected, "outliers" in selected)
-        out = {"kind": "vector", "base_model": self.base, "base_fit": self.base_method, "n_points": n, "rms_fit_nT": rms(r_all),
+        out = {"kind": "vector", "base_model": self.base, "base_fit": self.base_method,
+               **({"attitude_coverage": self.degenerate} if self.degenerate is not None else {}),
+               "n_points": n, "rms_fit_nT": rms(r_all),
                "rms_base_nT": rms_base, "noise_floor_nT": floor, **{k_: v for k_, v in fl.items() if k_ != "noise_floor_nT"},
                "verdict": result, "effects": entries, "selected": order,
                "rms_selected_heldout_nT": rms(current), **rem,
@@ -553,6 +576,9 @@ class Diagnosis:
         hovering or level vehicle), a drift of the offset along that axis changes the readings' magnitude alike at
         every attitude, as a change of the field's magnitude does: then it is said ``offset_drift|field_drift``."""
         body, field = OffsetDriftEffect.name, FieldDriftEffect.name
+        if self.degenerate is not None:  # attitudes the base model needs the prior for: one axis of turning at most
+            return [self._level_drift(name, other) for name, other in ((body, field), (field, body))
+                    if name in named and other not in named and not any(c["alternatives"][0] == name for c in confounded)]
         if (body not in named or field in named or self.columns.t_s is None
                 or any(c["alternatives"][0] == body for c in confounded)):
             return []
@@ -569,6 +595,17 @@ class Diagnosis:
                  "separate_by": "turn the sensor about more than one axis while it drifts (a body-fixed drift then moves "
                                 "the readings' magnitude differently at each attitude, a field change alike), or a "
                                 "vector reference"}]
+
+    def _level_drift(self, name: str, other: str) -> dict:
+        """On attitudes that cannot determine the base model alone (``degenerate``: a level vehicle turning about its
+        vertical axis), a drift of the offset along that axis changes the magnitude alike at every heading, as a change
+        of the field does, and the scalar signature test has too little turning to tell them (on the third independent
+        generator's level car circuits it named each for the other beside a lag): a drift is said with its look-alike."""
+        return {"alternatives": [name, other], "named": True,
+                "evidence": {"attitude_coverage": self.degenerate,
+                             "statement": "the attitudes turn about one axis only: a drift of the offset along it changes the "
+                                          "readings' magnitude alike at every attitude, as a change of the field does"},
+                "separate_by": "turn the sensor about more than one axis while it drifts, or a vector reference"}
 
     def _shift_signature(self, evidence: list[dict], named: list[str]) -> list[str]:
         """Rule 4 of the naming rule for effects with first-order terms (``shift_terms``: the time shift):
