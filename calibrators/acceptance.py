@@ -113,8 +113,9 @@ def physical_range(x: np.ndarray, model: str, physical_lower: np.ndarray, physic
     """The fluxgate's physical range (``PHYSICAL_BOX``), each parameter outside it named with the limit it
     exceeds."""
     names = PARAM_NAMES[model]
-    bad = [f"{names[i]} = {x[i]:.4g} (limit {physical_lower[i]:.4g} .. {physical_upper[i]:.4g})"
-           for i in np.flatnonzero(~((x > physical_lower) & (x < physical_upper)))]
+    bad = [f"{names[i]} = {v:.4g} (limit {lo:.4g} .. {hi:.4g})"  # a few numbers: compared as Python floats
+           for i, (v, lo, hi) in enumerate(zip(np.asarray(x, dtype=float).tolist(), np.asarray(physical_lower).tolist(),
+                                               np.asarray(physical_upper).tolist())) if not lo < v < hi]
     if not bad:
         return []
     return [f"{', '.join(bad)} outside a fluxgate's physical range (angles within 0.5 rad, scales 0.5..2, offsets "
@@ -631,7 +632,7 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
             at = one_pass(objective, x)
     r = at.r
     mask, threshold = outlier_mask(r, field_nT, limits)
-    n_out = int(mask.sum())
+    n_out = int(np.count_nonzero(mask))
     if n_out:  # first: outliers are a cause, an estimate out of range is often their symptom
         what = (f"{n_out} of {len(r)} points are outliers (residual beyond {limits.outlier_sigmas:g} robust sigma "
                 f"= {threshold:.3g} nT; worst {np.max(np.abs(r[mask])):.3g} nT)")
@@ -641,7 +642,7 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
             rejections.append(what + ": remove them or use method='ransac'")
     if limits.physical_range:
         rejections += physical_range(x, objective.model, *physical_box)
-    n, p = int((~mask).sum()), len(x)
+    n, p = len(r) - n_out, len(x)
     info["n_outliers"] = n_out
     if n <= p:
         return rejections + [f"only {n} points are left after the outlier screening for {p} parameters"], warnings

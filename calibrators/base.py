@@ -570,8 +570,8 @@ AT_BOUND_REL = 1e-6
 
 
 def _at_bounds(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, model: str) -> list[str]:
-    tol = AT_BOUND_REL * (upper - lower)
-    at = [PARAM_NAMES[model][i] for i in np.flatnonzero((x <= lower + tol) | (x >= upper - tol))]
+    at = [name for name, v, lo, hi in zip(PARAM_NAMES[model], x.tolist(), lower.tolist(), upper.tolist())  # Python floats
+          if v <= lo + AT_BOUND_REL * (hi - lo) or v >= hi - AT_BOUND_REL * (hi - lo)]
     if not at:
         return []
     return [f"{', '.join(at)} ended on the search bound: the data do not determine them (attitude coverage) "
