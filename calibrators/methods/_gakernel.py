@@ -464,7 +464,7 @@ def real_generation_numpy(f, pop, u, z, selection, tournament, crossover, alpha,
         s = u[parts["blend"]].reshape(m, p) * (1.0 + 2.0 * alpha)
         s -= alpha
         d = pb - pa
-        if second == half:  # both children of every pair, as (2, half, p): one operation each
+        if second == half and out_pop.flags.c_contiguous:  # both children of every pair as (2, half, p) views
             pairs = s.reshape(2, half, p)
             pairs *= d
             pairs += pa
