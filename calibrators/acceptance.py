@@ -25,6 +25,7 @@ checked before the fit (``reference_problems``): it is bad input, refused with e
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 from dataclasses import dataclass, field, replace
 
@@ -112,8 +113,9 @@ def physical_range(x: np.ndarray, model: str, physical_lower: np.ndarray, physic
     """The fluxgate's physical range (``PHYSICAL_BOX``), each parameter outside it named with the limit it
     exceeds."""
     names = PARAM_NAMES[model]
-    bad = [f"{names[i]} = {x[i]:.4g} (limit {physical_lower[i]:.4g} .. {physical_upper[i]:.4g})"
-           for i in np.flatnonzero(~((x > physical_lower) & (x < physical_upper)))]
+    bad = [f"{names[i]} = {v:.4g} (limit {lo:.4g} .. {hi:.4g})"  # a few numbers: compared as Python floats
+           for i, (v, lo, hi) in enumerate(zip(np.asarray(x, dtype=float).tolist(), np.asarray(physical_lower).tolist(),
+                                               np.asarray(physical_upper).tolist())) if not lo < v < hi]
     if not bad:
         return []
     return [f"{', '.join(bad)} outside a fluxgate's physical range (angles within 0.5 rad, scales 0.5..2, offsets "
@@ -388,16 +390,16 @@ class StepFit:
 
 
 def _sums_after(t: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """For each split row ``edges[k]`` (sorted, >= 1) the sum over the rows from it on of ``t_i w_i^T``, as
-    (q, w, m): one contiguous row of m per entry, so that the systems built from them are vectors.  Short
-    records from the per-row products summed from the end in one vectorized pass; long ones block by block
-    between the split rows (at most ``STEP_CANDIDATES`` blocks), so that memory stays a fraction of the
-    record's."""
-    n, q = t.shape
-    width = w.shape[1]
+    """For each split row ``edges[k]`` (sorted, >= 1) the sum over the rows from it on of ``t_i w_i^T``
+    (``t``: (q, n), ``w``: (width, n), the rows' factors as columns), as (q, width, m): one contiguous row of m
+    per entry, so that the systems built from them are vectors.  Short records from the per-row products
+    summed from the end in one vectorized pass; long ones block by block between the split rows (at most
+    ``STEP_CANDIDATES`` blocks), so that memory stays a fraction of the record's."""
+    q, n = t.shape
+    width = w.shape[0]
     if n * q * width <= 4_000_000:
-        prod = np.ascontiguousarray(t.T)[:, None, :] * np.ascontiguousarray(w.T)[None, :, :]  # (q, width, n)
-        from_end = np.cumsum(prod[:, :, ::-1], axis=2)  # [..., j]: the sum over the last j + 1 rows
+        from_end = np.multiply(t[:, None, ::-1], w[None, :, ::-1], order="C")  # (q, width, n), rows from the end
+        np.cumsum(from_end, axis=2, out=from_end)  # [..., j]: the sum over the last j + 1 rows
         m = len(edges)
         if m and edges[-1] - edges[0] == m - 1:  # a short record's every row: a slice, not a gather
             return np.ascontiguousarray(from_end[:, :, n - 1 - edges[-1]:n - edges[0]][:, :, ::-1])
@@ -405,8 +407,8 @@ def _sums_after(t: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
     bounds = np.concatenate([edges, [n]])
     sums = np.empty((len(edges), q, width))
     for j in range(len(edges)):
-        rows = slice(bounds[j], bounds[j + 1])
-        sums[j] = t[rows].T @ w[rows]
+        rows = slice(bounds[j], bounds[j + 1])  # each block row-major, as a product of row-major blocks
+        sums[j] = np.ascontiguousarray(t[:, rows].T).T @ np.ascontiguousarray(w[:, rows].T)
     return np.cumsum(sums[::-1], axis=0)[::-1].transpose(1, 2, 0)
 
 
@@ -434,8 +436,7 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
         scale = n_all / len(keep)
         return replace(fit, index=fit.index * k, gain=fit.gain * scale, base=fit.base * scale,
                        total=fit.total * scale)
-    names = PARAM_NAMES[objective.model]
-    offsets = [i for i, nm in enumerate(names) if nm.endswith("_nT")]
+    offsets = _offset_columns(objective.model)
     # a step of the offsets where there are offsets, else of the mean; the mean is never a column of the
     # whole record (with scales the residual |c| - F lies in the span of the scales' columns and a constant)
     jac = objective.jacobian(x) if jacobian is None else jacobian
@@ -444,12 +445,13 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
     if offsets:
         full, tail = jo, offsets
     else:
-        full, tail = np.column_stack([np.ones(len(r)), jo]), [0]
-    n, q = full.shape[0], len(tail)
+        full, tail = np.column_stack([np.ones(len(r)), jo]), slice(0, 1)
+    n = full.shape[0]
+    q = tail.stop - tail.start
     whole = gram if gram is not None and offsets else full.T @ full  # the pass's J^T J: a sum in any row order
-    scale = np.sqrt(np.diag(whole) / n)
+    scale = np.sqrt(whole.diagonal() / n)
     scale[scale == 0] = 1.0  # columns of one size: the systems below are then well conditioned
-    a_all = whole / np.outer(scale, scale)
+    a_all = whole / (scale[:, None] * scale)
     ro = r if in_order else r[order]
     margin = max(1, n // 50)
     if n <= STEP_CANDIDATES:  # every row between the margins (what the spaced grid below gives then)
@@ -460,15 +462,19 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
         return None
     with np.errstate(all="ignore"):
         ev, vec = np.linalg.eigh(a_all)  # A^+ = V V^T over the eigenvalues above 1e-9 of the largest
-        kept = ev > 1e-9 * np.max(np.abs(ev))
-        z = full @ (vec[:, kept] / np.sqrt(ev[kept]) / scale[:, None])  # the scaled columns, whitened
+        kept = ev > 1e-9 * np.abs(ev).max()
+        if kept.all():  # a regular A (the usual case): no columns to drop
+            z = full @ (vec / np.sqrt(ev) / scale[:, None])  # the scaled columns, whitened
+        else:
+            z = full @ (vec[:, kept] / np.sqrt(ev[kept]) / scale[:, None])
         g = z.T @ ro
         base = float(g @ g)
-        t = full[:, tail] / scale[tail]
         pz = z.shape[1]
-        w = np.empty((n, pz + q + 1))
-        w[:, :pz], w[:, pz:pz + q] = z, t
-        np.subtract(ro, z @ g, out=w[:, -1])
+        # the per-row factors transposed, (q, n) and (p' + q + 1, n): one contiguous row per column
+        t = np.divide(full[:, tail].T, scale[tail, None], order="C")
+        w = np.empty((pz + q + 1, n))
+        w[:pz], w[pz:pz + q] = z.T, t
+        np.subtract(ro, z @ g, out=w[-1])
         after = _sums_after(t, w, edges)  # (q, p' + q + 1, m)
         e_t = after[:, :pz]  # E_k^T, (q, p', m)
         # the systems as (m, q, q) views of (q, q, m): each entry a contiguous vector over the splits
@@ -478,11 +484,21 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
         # span has S ~ 0 and c ~ 0 there, so that direction adds nothing)
         ridge = 1e-10 * schur.diagonal(axis1=1, axis2=2).sum(axis=1) / q + 1e-300
         gain = _quadratic_forms(schur, ridge, c)
-    gain = np.where(np.isfinite(gain), gain, -np.inf)
-    best = int(np.argmax(gain))
+    gain[~np.isfinite(gain)] = -np.inf
+    best = int(gain.argmax())
     return StepFit(index=int(edges[best]), gain=float(gain[best]), base=base, total=float(ro @ ro),
                    offsets=bool(offsets), system=(schur[best] + ridge[best] * np.eye(q), c[best].copy()),
                    column_scale=scale[tail])
+
+
+@functools.cache
+def _offset_columns(model: str) -> slice | None:
+    """The offsets' columns of ``model`` (the last three entries where it has them), or None."""
+    at = [i for i, nm in enumerate(PARAM_NAMES[model]) if nm.endswith("_nT")]
+    if not at:
+        return None
+    assert at == list(range(at[0], at[0] + len(at)))
+    return slice(at[0], at[-1] + 1)
 
 
 def _quadratic_forms(s: np.ndarray, ridge: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -616,7 +632,7 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
             at = one_pass(objective, x)
     r = at.r
     mask, threshold = outlier_mask(r, field_nT, limits)
-    n_out = int(mask.sum())
+    n_out = int(np.count_nonzero(mask))
     if n_out:  # first: outliers are a cause, an estimate out of range is often their symptom
         what = (f"{n_out} of {len(r)} points are outliers (residual beyond {limits.outlier_sigmas:g} robust sigma "
                 f"= {threshold:.3g} nT; worst {np.max(np.abs(r[mask])):.3g} nT)")
@@ -626,7 +642,7 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
             rejections.append(what + ": remove them or use method='ransac'")
     if limits.physical_range:
         rejections += physical_range(x, objective.model, *physical_box)
-    n, p = int((~mask).sum()), len(x)
+    n, p = len(r) - n_out, len(x)
     info["n_outliers"] = n_out
     if n <= p:
         return rejections + [f"only {n} points are left after the outlier screening for {p} parameters"], warnings

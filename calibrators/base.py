@@ -11,6 +11,7 @@ import contextvars
 import functools
 import hashlib
 import inspect
+import math
 import threading
 import time
 import weakref
@@ -270,13 +271,13 @@ class Calibrator(metaclass=_Sealed):
         (``population: int`` refuses ``"abc"`` and ``2.5``; ``float`` takes integers; ``X | None`` takes
         None); annotations naming other types are not checked."""
         validate_params(cls.name or cls.__name__, cls._parameter_constraints, params)
-        sig = _init_signature(cls)
+        annotated = _annotated_types(cls)
         for name, value in params.items():
-            if name not in sig.parameters or name in cls._parameter_constraints:
+            if name not in annotated or name in cls._parameter_constraints:
                 continue
-            allowed = _annotation_types(sig.parameters[name].annotation)
+            allowed = annotated[name]
             if allowed is None or isinstance(value, allowed) and not (isinstance(value, bool) and bool not in allowed):
-                if isinstance(value, float) and not np.isfinite(value):
+                if isinstance(value, float) and not math.isfinite(value):
                     raise InputError(f"{cls.name}: hyper-parameter {name} must be finite, not {value}")
                 continue
             names = {t.__name__ for t in allowed} - {"NoneType"} | ({"None"} if type(None) in allowed else set())
@@ -318,15 +319,12 @@ class Calibrator(metaclass=_Sealed):
         if n < need:
             raise InputError(f"{n} points are too few for {self.name} with the {model} model "
                              f"(it needs at least {need})")
-        if not np.all(np.isfinite(dataset.raw_nT)):
-            rows = np.flatnonzero(~np.all(np.isfinite(dataset.raw_nT), axis=1))
-            raise InputError(f"raw readings have NaN or infinite values in row(s) "
-                             f"{', '.join(map(str, rows[:5]))}")
-        if not dataset.has_reference:
-            raise InputError(NO_REFERENCE)
-        if not np.all(np.isfinite(dataset.f_ref_nT)) or np.any(dataset.f_ref_nT <= 0):
-            raise InputError("the reference magnitude must be finite and positive on every row")
-        known = _DatasetCache.of(dataset)
+        if not dataset.has_reference:  # non-finite readings first, else the missing reference
+            raise InputError(_input_problems(dataset))
+        known = _DatasetCache.of(dataset)  # what follows depends on the readings and reference alone: once per record
+        bad = known.get("input_problems", lambda: _input_problems(dataset))
+        if bad:
+            raise InputError(bad)
         problem = known.get("reference_problems", lambda: reference_problems(dataset.raw_nT, dataset.f_ref_nT))
         if problem:
             raise InputError(problem)
@@ -336,7 +334,7 @@ class Calibrator(metaclass=_Sealed):
         if report["refusal"]:
             raise InputError(report["refusal"])
         warnings = [report["warning"]] if report["warning"] else []
-        spread = np.ptp(dataset.f_ref_nT) / field_nT
+        spread = known.get("reference_spread", lambda: np.ptp(dataset.f_ref_nT) / field_nT)
         if spread > 0.05:
             warnings.append(f"the reference magnitude varies by {100 * spread:.1f} % over the record")
         return warnings
@@ -484,6 +482,19 @@ class Calibrator(metaclass=_Sealed):
         raise NotImplementedError
 
 
+def _input_problems(dataset: Dataset) -> str | None:
+    """Why no calibrator can use these readings and reference (non-finite readings, no reference, a reference
+    not finite and positive), or None."""
+    if not np.all(np.isfinite(dataset.raw_nT)):
+        rows = np.flatnonzero(~np.all(np.isfinite(dataset.raw_nT), axis=1))
+        return f"raw readings have NaN or infinite values in row(s) {', '.join(map(str, rows[:5]))}"
+    if not dataset.has_reference:
+        return NO_REFERENCE
+    if not np.all(np.isfinite(dataset.f_ref_nT)) or np.any(dataset.f_ref_nT <= 0):
+        return "the reference magnitude must be finite and positive on every row"
+    return None
+
+
 _ANNOTATION_TYPES = {"int": (int,), "float": (float, int), "str": (str,), "bool": (bool,), "None": (type(None),)}
 
 
@@ -559,8 +570,8 @@ AT_BOUND_REL = 1e-6
 
 
 def _at_bounds(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, model: str) -> list[str]:
-    tol = AT_BOUND_REL * (upper - lower)
-    at = [PARAM_NAMES[model][i] for i in np.flatnonzero((x <= lower + tol) | (x >= upper - tol))]
+    at = [name for name, v, lo, hi in zip(PARAM_NAMES[model], x.tolist(), lower.tolist(), upper.tolist())  # Python floats
+          if v <= lo + AT_BOUND_REL * (hi - lo) or v >= hi - AT_BOUND_REL * (hi - lo)]
     if not at:
         return []
     return [f"{', '.join(at)} ended on the search bound: the data do not determine them (attitude coverage) "
@@ -698,6 +709,13 @@ def _uncertainty(objective: ScalarObjective, x: np.ndarray, noise_nT: float | No
 def _init_signature(cls) -> inspect.Signature:
     """A calibrator class's constructor signature, read once per class (every fit reads its parameters)."""
     return inspect.signature(cls.__init__)
+
+
+@functools.cache
+def _annotated_types(cls) -> dict[str, tuple | None]:
+    """The Python types each constructor parameter's annotation allows (``_annotation_types``), read once per class
+    (every fit checks its hyper-parameters)."""
+    return {name: _annotation_types(p.annotation) for name, p in _init_signature(cls).parameters.items()}
 
 
 def _solver_point(x, p: int) -> tuple[np.ndarray, str]:

@@ -172,6 +172,24 @@ def test_the_one_pass_judges_as_the_separate_computations():
             assert plain_info[key] == pytest.approx(lean_info[key], rel=1e-9) == stale_info[key]
 
 
+def test_the_pass_at_the_solvers_last_point_reuses_its_block_to_the_last_bit():
+    """A one-block record's one_pass at the point normal_equations was last asked at (a local solver's answer)
+    takes that block instead of computing it again, and gives what a fresh objective computes, bit for bit;
+    at any other point (negative control: one ulp away) it computes its own."""
+    d = get_scenario("sphere9").build(0)
+    x = make("lsq").fit(d).x
+    fresh = ScalarObjective(d.raw_nT, d.f_ref_nT, "nine").one_pass(x, True)
+    for shifted in (False, True):
+        obj = ScalarObjective(d.raw_nT, d.f_ref_nT, "nine")
+        obj.normal_equations(np.nextafter(x, np.inf) if shifted else x.copy())
+        computed = []
+        block = obj._block
+        obj._block = lambda *a, computed=computed, block=block: computed.append(1) or block(*a)  # type: ignore[method-assign]
+        for a, b in zip(obj.one_pass(x, True), fresh):
+            assert np.array_equal(a, b)
+        assert len(computed) == int(shifted)  # the block taken only where it was computed
+
+
 def test_the_cholesky_quadratic_forms_equal_the_lu_solves():
     rng = np.random.default_rng(5)
     a = rng.normal(size=(50, 3, 3))

@@ -123,6 +123,9 @@ class ScalarObjective:
         self.n_params = n_params(model)
         self._raw_t = np.ascontiguousarray(self._raw.T)  # (3, n): one contiguous row per axis
         self._design_cache: np.ndarray | None = None  # built on the first population call
+        # A one-block record's last ``_block`` (x, r, J^T, weights) from ``normal_equations``: a local solver's last
+        # point is where the acceptance checks' ``one_pass`` then looks, and finds that block already computed.
+        self._last_block: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
 
     @property
     def _design(self) -> np.ndarray:
@@ -230,8 +233,11 @@ class ScalarObjective:
         information per unit noise variance)."""
         p = self.n_params
         jtj, jtr, rtr = np.zeros((p, p)), np.zeros(p), 0.0
-        for rows in self._blocks():
+        blocks = self._blocks()
+        for rows in blocks:
             r, jt, w = self._block(x, rows)
+            if len(blocks) == 1:
+                self._last_block = (np.array(x, dtype=float), r, jt, w)
             if weighted:
                 jw = jt / w
                 jtj += jw @ jt.T
@@ -258,8 +264,13 @@ class ScalarObjective:
         r = np.empty(n)
         keep = np.empty((p, n)) if keep_jacobian else None
         gram, fisher, grad, ss = np.zeros((p, p)), np.zeros((p, p)), np.zeros(p), 0.0
-        for rows in self._blocks():
-            rb, jt, w = self._block(x, rows)
+        blocks = self._blocks()
+        last = self._last_block
+        for rows in blocks:
+            if len(blocks) == 1 and last is not None and np.array_equal(last[0], x):
+                rb, jt, w = last[1:]  # the same block, to the last bit: normal_equations computed it at this x
+            else:
+                rb, jt, w = self._block(x, rows)
             r[rows] = rb
             if keep is not None:
                 keep[:, rows] = jt

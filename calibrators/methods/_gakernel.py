@@ -282,6 +282,8 @@ def choose(loops, generations: int, population: int) -> str:
     if _LOADED.get(loops.__name__) or _PREFER_COMPILED[0] or _RUNS.get(loops.__name__, 0) >= 1:
         return "numba"
     expected = generations * max(population, 1) / 80.0 * NUMPY_GENERATION_S
+    if expected <= min(CACHE_LOAD_S, COMPILE_S):  # numpy whatever numba's disk cache holds: not looked for
+        return "numpy"
     return "numba" if expected > (CACHE_LOAD_S if _cached_on_disk(loops) else COMPILE_S) else "numpy"
 
 
@@ -444,7 +446,8 @@ def real_generation_numpy(f, pop, u, z, selection, tournament, crossover, alpha,
     if selection == TOURNAMENT:
         cand = np.minimum((u[parts["select"]] * m).astype(np.int64), m - 1).reshape(n, tournament)
         if tournament == 2:
-            mates = np.where(rank[cand[:, 0]] < rank[cand[:, 1]], cand[:, 0], cand[:, 1])
+            ranked = rank[cand]
+            mates = np.where(ranked[:, 0] < ranked[:, 1], cand[:, 0], cand[:, 1])
         else:
             mates = cand[np.arange(n), np.argmin(rank[cand], axis=1)]
     else:
@@ -452,21 +455,27 @@ def real_generation_numpy(f, pop, u, z, selection, tournament, crossover, alpha,
         pointers = (u[parts["offset"]][0] + np.arange(n)) / n * cum[-1]
         picked = np.minimum(np.searchsorted(cum, pointers, side="left"), m - 1)
         mates = picked[np.argsort(u[parts["shuffle"]], kind="stable")]
-    pa, pb = pop[mates[:half]], pop[mates[half:]]
+    parents = pop[mates]  # pair k: parents[k] and parents[half + k]
+    pa, pb = parents[:half], parents[half:]
     second = m - half  # the second children kept
     cross = u[parts["cross"]] < pc
-    out_pop[:half] = pa
-    out_pop[half:] = pb[:second]
+    out_pop[:] = parents[:m]  # the first children pa, the second pb[:second]
     if crossover == BLX:
         s = u[parts["blend"]].reshape(m, p) * (1.0 + 2.0 * alpha)
         s -= alpha
         d = pb - pa
-        s[:half] *= d
-        s[half:] *= d[:second]
-        s[:half] += pa
-        s[half:] += pa[:second]
-        rows = np.concatenate((cross, cross[:second]))
-        out_pop[rows] = s[rows]
+        if second == half and out_pop.flags.c_contiguous:  # both children of every pair as (2, half, p) views
+            pairs = s.reshape(2, half, p)
+            pairs *= d
+            pairs += pa
+            np.copyto(out_pop.reshape(2, half, p), pairs, where=cross[None, :, None])
+        else:
+            s[:half] *= d
+            s[half:] *= d[:second]
+            s[:half] += pa
+            s[half:] += pa[:second]
+            rows = np.concatenate((cross, cross[:second]))
+            out_pop[rows] = s[rows]
     else:
         pick = u[parts["pick"]].reshape(half, p) < 0.5
         swap = ~pick & cross[:, None]
