@@ -111,7 +111,7 @@ LABELS = {
     1: ["developed on in rounds 1-4 (rounds 2-3's development set)",
         "developed on in rounds 1-4 (round 3 checked every change on it; 2400-2639 was round 2's held-out block)",
         "held out for round 3: run once, with its final code",
-        "held out for round 4 (one change was made after seeing them); run once more in rounds 5 and 6",
+        "held out for round 4 (one change was made after seeing them); run once more in rounds 5, 6 and 7",
         "held out for round 6: run once, with its final code; run once more in round 7",
         "held out for round 7: new, run once, with its final code"],
     2: ["developed on in rounds 4-7",
