@@ -712,9 +712,9 @@ class TemperatureEffect(Effect):
                 sse(0.0)
                 return 0.0, cache[0.0][1]
             lag, lead = best_of(1.0), best_of(-1.0)
+            dof = len(r) - k - lin.shape[1] - 1
             inside = lead > 0.9 * min(cls.LAG_GRID_OF_SPAN)  # a lead at the grid's end is a shape, not a lag
-            best = lead if inside and cls._lead_p(d, norm, unit, r_base, keep, lin, k, cache[lag][1], cache[lead][1]) \
-                < cls.LEAD_P else lag
+            best = lead if inside and dof > 0 and f_test_p(sse(lag), sse(lead), 1, dof) < cls.LEAD_P else lag
             return best, cache[best][1]
 
         best, temp = thermal_lag(6)  # offsets and scales
@@ -729,37 +729,6 @@ class TemperatureEffect(Effect):
         d.extra["temp_eff_C"] = temp
         d.extra["temp_alignment_on"] = np.full(len(d), float(aligned))
         return {"thermal_time_constant_s": best * span, "alignment_fitted": aligned, "alignment_p": p_align}
-
-    @classmethod
-    def _lead_p(cls, d, norm, unit, r_base, keep, lin, k, lagged, led) -> float:
-        """p-value of the F test of a lead (``led``, the temperature the lead gives) against the best lag (``lagged``)
-        with the first k temperature columns, beside what the alignment test also allows for (``_nuisance``: the
-        static response to the attitude up to the fifth order, a slow change of the field or of the offsets, a time
-        shift): the residual the time constant is chosen on still holds the other effects, and a lead's bump at the
-        temperature's fastest change fits part of them (on the project's own blind check, a nonlinearity beside a
-        temperature effect gave a lead at p 1e-15 without them)."""
-        rows = np.flatnonzero(keep)
-        sub = rows[systematic_rows(len(rows), cls.ALIGNMENT_ROWS)]
-        b = unit[sub]
-        nuisance = cls._nuisance(d, norm, b, sub)
-        pick = np.searchsorted(rows, sub)
-        sse = []
-        for temp in (lagged, led):
-            x = np.einsum("na,nak->nk", b, cls._columns_for(b * norm.f0_nT, temp[sub] - norm.temp0_C)[:, :, :k])
-            sse.append(_lstsq_sse(np.column_stack([x, lin[pick], nuisance]), r_base[sub]))
-        dof = len(sub) - k - lin.shape[1] - nuisance.shape[1] - 1
-        return f_test_p(sse[0], sse[1], 1, dof) if dof > 0 else 1.0
-
-    @staticmethod
-    def _nuisance(d, norm, b, rows) -> np.ndarray:
-        """Columns for what is not a temperature effect: the per-axis response up to the fifth order, and with a time
-        column a slow change of the field and of the offsets and a time shift of the axes."""
-        cols = [b[:, a:a + 1] * term[:, a:a + 1] for term in NonlinearityEffect.basis(b) for a in range(3)]
-        if d.t_s is not None and np.ptp(d.t_s) > 0:
-            slow = legendre.legvander(norm.tau(d.t_s[rows]), FieldDriftEffect.DEGREE)[:, 1:]
-            rate = central_derivative(d.t_s, d.raw_nT)[rows]
-            cols += [slow, b[:, :, None] * slow[:, None, :OffsetDriftEffect.DEGREE]] + [b * rate]
-        return np.column_stack([c.reshape(len(rows), -1) for c in cols])
 
     @classmethod
     def _alignment_p(cls, d, norm, unit, r_base, keep, temp, lin) -> float:
@@ -778,7 +747,12 @@ class TemperatureEffect(Effect):
         rows = rows[sub]
         b = unit[rows]
         cols = [np.einsum("na,nak->nk", b, cls._columns_for(b * norm.f0_nT, temp[rows] - norm.temp0_C)), lin[sub]]
-        x = np.column_stack([c.reshape(len(rows), -1) for c in cols] + [cls._nuisance(d, norm, b, rows)])
+        cols += [b[:, a:a + 1] * term[:, a:a + 1] for term in NonlinearityEffect.basis(b) for a in range(3)]
+        if d.t_s is not None and np.ptp(d.t_s) > 0:
+            slow = legendre.legvander(norm.tau(d.t_s[rows]), FieldDriftEffect.DEGREE)[:, 1:]
+            rate = central_derivative(d.t_s, d.raw_nT)[rows]
+            cols += [slow, b[:, :, None] * slow[:, None, :OffsetDriftEffect.DEGREE]] + [b * rate]
+        x = np.column_stack([c.reshape(len(rows), -1) for c in cols])
         sse_without = _lstsq_sse(np.delete(x, [6, 7, 8], axis=1), r_base[rows])  # without the alignment columns
         sse_with = _lstsq_sse(x, r_base[rows])
         return f_test_p(sse_without, sse_with, 3, len(rows) - x.shape[1])
