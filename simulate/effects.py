@@ -594,18 +594,13 @@ class TemperatureEffect(Effect):
     """Thermal time constants tried, as shares of the record's time span (the best on the whole record).  Negative:
     the thermometer lags the sensor (``first_order_lead``), by up to a few percent of the span (a board thermometer
     beside the sensor head); positive: the sensor lags the thermometer (a core inside its housing)."""
-    LEAD_P: ClassVar[float] = 1e-20
+    LEAD_P: ClassVar[float] = 1e-3
     """A lead (the thermometer lagging the sensor) is fitted only when it beats the best lag (0 included) by an F test
     of its one extra degree of freedom at this level, and lies inside the grid (below 0.9 of its largest lead, never refined
     beyond it): a lead adds the temperature's rate to its shape, a bump where it changes fastest, which fits part of
     any slow structure (a field switched on, a soft iron that lags) best with the largest lead it is offered (on the
     first independent generator's records, without a thermometer lag, the leads chosen sat at the bound; a grid to 0.1
-    of the span named temperature for a field drift there with a lead of 0.07, and gained two records of the second).
-    The level is far below a nominal one because the residual the time constant is chosen on still holds the other
-    effects (the test's noise is not white): on the own-simulator blind check a nonlinearity beside a temperature
-    effect gave a false lead at p 3.5e-15 (case 174), while the second generator's thermometer lags come at 1e-51 or
-    below.  Making the test beside the alignment test's nuisance columns (static response, drifts, a time shift)
-    instead let more leads through on the first generator: 2 more wrong names in 4320 records."""
+    of the span named temperature for a field drift there with a lead of 0.07, and gained two records of the second)."""
     LAG_REFINE_ROWS: ClassVar[int] = 200_000
     ALIGNMENT_P: ClassVar[float] = 1e-3
     """The alignment coefficients a_T are fitted only when they explain the base residual beside the offset and
