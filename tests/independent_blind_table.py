@@ -81,8 +81,9 @@ HISTORY = {
         "a regression set (no change may add a wrong name there) and ran 2880-3359 once, with its final code. Round 6 "
         "used 0-2879 as its regression set again, ran 2880-3359 once more, and held out cases 3360-3839, run once, "
         "with its final code (`--start 3360 --cases 480`). Round 7 (this table) used 0-2879 as its regression "
-        "set (a thermal lead: no verdict changed there), ran 2880-3839 once more, and held out cases 3840-4319, new, "
-        "run once, with its final code (`--start 3840 --cases 480`)."),
+        "set (a thermal lead: no verdict changed there), checked its level-vehicle path on the 4 records of 0-3839 whose "
+        "turning the calibrators refuse, ran 2880-3839 once more, and held out cases 3840-4319, new, run once, with "
+        "its final code (`--start 3840 --cases 480`)."),
     2: ("Written during round 4 by another hand, from the physics only (it read neither the diagnosis nor the "
         "first generator's effects). Round 4 looked at cases 0-479 (`--start 0 --cases 480`): the fixed-sensor "
         "changes were made on them, and the round's branches were compared there. Cases 480-1439 "
@@ -102,8 +103,10 @@ HISTORY = {
         "library. Before this table nobody had run the diagnosis on it, except cases 0-1 once as a plumbing smoke "
         "test; its first run was with round 5's final code. Round 6 developed on cases 0-479 (the changes named under "
         "the second generator), ran 480-1439 once more (not looked at case by case), and held out cases 1440-2399, new, "
-        "run once, with its final code (`--start 1440 --cases 960`). Round 7 checked its change on 0-479 (no verdict "
-        "changed), ran 480-2399 once more, and held out cases 2400-3359, new, run once, with its final code "
+        "run once, with its final code (`--start 1440 --cases 960`). Round 7 checked its thermal lead on 0-479 (no "
+        "verdict changed) and developed its level-vehicle path on the 36 records of 0-2399 whose turning the "
+        "calibrators refuse (a car or a quadcopter turning about one axis: so 480-2399 are not blind for those 36), "
+        "ran 480-2399 once more, and held out cases 2400-3359, new, run once, with its final code "
         "(`--start 2400 --cases 960`)."),
 }
 SPLITS = {1: "1440,2640,2880,3360,3840", 2: "480,1440,2400", 3: "480,1440,2400"}

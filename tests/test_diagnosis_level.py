@@ -54,7 +54,10 @@ def test_turned_measures_the_spread_of_the_directions():
 
 def test_a_drift_on_a_level_vehicle_is_said_with_its_look_alike():
     """A field drift beside a lag and a temperature effect on a level car circuit (1077): named alone it came back as
-    an offset drift (the z offset's drift moves the magnitude alike at every heading); it is said with its look-alike."""
+    an offset drift (the z offset's drift moves the magnitude alike at every heading); it is said with its look-alike.
+    Beyond the generator's development cases (``independent_cases.DEVELOPMENT_CASES``): round 7 developed the level
+    path on the 36 level records of cases 0-2399, none of them below 480 a drift, and says so in the blind table's
+    history (tests/independent_blind_table.py); the held-out block 2400-3359 was not looked at."""
     case, data = _data(1077)
     assert "field_drift" in case.present and "offset_drift" not in case.present
     r = diagnose(data, gravity=case.gravity)

@@ -176,17 +176,8 @@ def test_first_order_lead_undoes_a_thermometer_lag_on_quantized_irregular_readin
 def test_a_thermometer_that_lags_the_sensor_is_fitted_as_a_negative_time_constant(index):
     """The second independent generator logs a board thermometer that lags the sensor's temperature (its own
     first-order lag, ``temp_log_lag_s``); the fitted thermal time constant is that lag with a minus sign."""
-    import sys
-    from pathlib import Path
-
-    from magbench.simulate.dataset import Dataset
-
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    import independent_forward2 as forward
-
-    case = forward.make_case(index, 2026)
+    r, case = _independent(index, generator=2)
     assert list(case.present) == ["temperature"]
-    r = diagnose(Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C), gravity=case.gravity)
     fitted = r["effect_info"]["temperature"]["thermal_time_constant_s"]
     assert fitted == pytest.approx(-case.notes["temp_log_lag_s"], rel=0.1), fitted
     assert "temperature" in r["selected"], r["verdict"]
@@ -197,16 +188,18 @@ def test_a_lead_is_not_fitted_where_no_thermometer_lags(index):
     """Negative controls from the first independent generator (no thermometer lag): a field switched on (1168) and a
     field drift beside spikes (1179).  Offered freely, a lead's bump at the temperature's fastest change fitted both
     at the largest lead allowed and named temperature for them; a lead must beat the best lag and lie inside the grid."""
+    r, case = _independent(index, generator=1)
+    assert "temperature" not in case.present
+    assert r["effect_info"]["temperature"]["thermal_time_constant_s"] >= 0.0
+    assert "temperature" not in r["verdict"], r["verdict"]
+
+
+def _independent(index: int, generator: int):
+    """(the diagnosis, the case) of an independent generator's record (tests/independent_cases.py)."""
     import sys
     from pathlib import Path
 
-    from magbench.simulate.dataset import Dataset
-
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    import independent_forward as forward
+    from independent_cases import run_case
 
-    case = forward.make_case(index, 2026)
-    assert "temperature" not in case.present
-    r = diagnose(Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C), gravity=case.gravity)
-    assert r["effect_info"]["temperature"]["thermal_time_constant_s"] >= 0.0
-    assert "temperature" not in r["verdict"], r["verdict"]
+    return run_case(index, generator)
