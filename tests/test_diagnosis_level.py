@@ -66,3 +66,19 @@ def test_a_drift_on_a_level_vehicle_is_said_with_its_look_alike():
     assert {"offset_drift"} not in groups and {"field_drift"} not in groups
     assert any(c["alternatives"][:2] in (["offset_drift", "field_drift"], ["field_drift", "offset_drift"])
                and "attitude_coverage" in c["evidence"] for c in r["confounded"])
+
+
+def test_a_level_vehicle_with_a_reference_that_does_not_belong_is_refused():
+    """The level path fits with a prior, not through a calibrator, so it checks the reference itself: a reference
+    ten times the readings (wrong units) or one that jumps is bad input, refused as the calibrators refuse it (it
+    answered with a fit residual of 6e5 nT).  Negative control: the same record with its own reference."""
+    from magbench.errors import InputError
+
+    case, data = _data(240)
+    assert diagnose(data, gravity=case.gravity)["verdict"] == "none"
+    f_ref = np.asarray(data.f_ref_nT, dtype=float)
+    jump = f_ref.copy()
+    jump[len(jump) // 2:] *= 0.8
+    for ref, says in ((f_ref * 10, "times the reference"), (jump, "reference jumps")):
+        with pytest.raises(InputError, match=says):
+            diagnose(Dataset(data.raw_nT, f_ref_nT=ref, t_s=data.t_s, temp_C=data.temp_C), gravity=case.gravity)

@@ -261,3 +261,37 @@ def test_a_field_that_varies_turns_and_its_turning_is_not_named_a_drift():
     quiet = np.linalg.norm(field, axis=1).mean() + 2.0 * wave  # a reference varying by 2 nT only
     named = diagnose(Dataset(raw, f_ref_nT=quiet, t_s=t))
     assert named["verdict"] == "offset_drift|field_drift", named["time_only"]["drift_direction"]
+
+
+def _hold(data: Dataset, share: float, seed: int = 4) -> Dataset:
+    """The record as a logger that repeats its last reading on about ``share`` of the rows writes it."""
+    raw = np.array(data.raw_nT, dtype=float)
+    held = np.random.default_rng(seed).random(len(raw)) < share
+    for i in np.flatnonzero(held[1:]) + 1:
+        raw[i] = raw[i - 1]
+    return Dataset(raw, f_ref_nT=data.f_ref_nT, t_s=data.t_s, temp_C=data.temp_C)
+
+
+def test_held_samples_do_not_pull_a_fixed_sensors_floor_down():
+    """A held sample interpolates perfectly from its twin: the floor comes from the distinct samples, as the
+    vector floor's does.  Negative control: the record without held samples reports none and the same floor."""
+    clean = diagnose(fixed(noise=1.0, n=3000))["time_only"]
+    held = diagnose(_hold(fixed(noise=1.0, n=3000), 0.3))["time_only"]
+    assert clean["held_sample_fraction"] == 0.0 and "held" not in clean["floor_method"]
+    assert 0.25 < held["held_sample_fraction"] < 0.35 and "distinct samples" in held["floor_method"]
+    assert abs(held["noise_floor_nT"] / clean["noise_floor_nT"] - 1) < 0.1
+
+
+def test_a_stuck_sensor_and_a_reference_that_does_not_belong_are_refused(tmp_path, capsys):
+    """Every reading identical (a stuck logger), or readings a twelfth of the reference (wrong units), on a fixed
+    sensor: exit status 2 with one line, not a time-only answer (a floor of 0, a |B| - F of the units' error)."""
+    n = 400
+    t = np.arange(n, dtype=float)
+    for name, raw, ref, says in (("stuck", np.tile(B, (n, 1)), F, "stuck sensor"),
+                                 ("units", np.tile(B, (n, 1)) / 12 + np.random.default_rng(1).normal(0, 0.3, (n, 3)), F,
+                                  "times the reference")):
+        path = tmp_path / f"{name}.csv"
+        pd.DataFrame({"t": t, "bx": raw[:, 0], "by": raw[:, 1], "bz": raw[:, 2], "f_ref": ref}).to_csv(path, index=False)
+        assert main(["diagnose", str(path)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert says in err and len(err.splitlines()) == 1

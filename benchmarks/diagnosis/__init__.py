@@ -19,8 +19,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from magbench.calibrators.acceptance import reference_problems
 from magbench.calibrators.core.objective import ScalarObjective, identity_vector
 from magbench.calibrators.fisher import coverage
+from magbench.errors import InputError
 from magbench.simulate.dataset import ScalarSeries
 from magbench.simulate.sensor import PARAM_NAMES
 
@@ -48,6 +50,9 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
         if isinstance(data, ScalarSeries):
             return diagnose_scalar(data, folds=folds, seed=seed)
+        problem = reference_mismatch(data)
+        if problem:  # wrong units, mixed units, a jumping reference: bad input on every path (as the calibrators say)
+            raise InputError(problem)
         refusal = attitude_refusal(data, base)
         if refusal is not None and not turned(data):  # a fixed sensor: the time question still has an answer
             return time_only(data, refusal)
@@ -74,6 +79,19 @@ def turned(data) -> bool:
     mean /= max(float(np.linalg.norm(mean)), 1e-300)
     angle = np.arccos(np.clip(u @ mean, -1.0, 1.0))
     return bool(np.sqrt(np.mean(angle ** 2)) > TURNED_RAD)
+
+
+def reference_mismatch(data) -> str | None:
+    """Why the readings and the reference of a vector record cannot belong together (``reference_problems``:
+    wrong or mixed units, raw counts, a reference that jumps), or None; checked before any path (the rotating
+    one, the level vehicle's and the fixed sensor's time-only answer), so that none of them answers on such
+    input.  None when there is no reference or a reading is not finite: the paths refuse those themselves."""
+    if not data.has_reference:
+        return None
+    raw, f_ref = np.asarray(data.raw_nT, dtype=float), np.asarray(data.f_ref_nT, dtype=float)
+    if not (np.all(np.isfinite(raw)) and np.all(np.isfinite(f_ref)) and np.all(f_ref > 0)):
+        return None
+    return reference_problems(raw, f_ref)
 
 
 def attitude_refusal(data, base: str) -> str | None:

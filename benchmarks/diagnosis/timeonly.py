@@ -4,8 +4,9 @@ A fixed instrument (an observatory variometer beside its scalar magnetometer) ca
 calibration model can be fitted; its time question still has an answer.  With the readings' magnitude
 ``|B|`` and the reference ``F``: the constant ``|B| - F`` (its median), its drift (a straight line in time,
 in nT per hour, with its standard error, and a smooth trend), its temperature dependence beyond what time
-predicts (when ``temp`` is logged), the noise floor from time neighbours, and a verdict on the time part;
-the attitude part is stated as ``insufficient_data``.
+predicts (when ``temp`` is logged), the noise floor from time neighbours (on the distinct samples when a logger
+held its value: exact repeats of the previous reading), and a verdict on the time part; the attitude part is stated
+as ``insufficient_data``.  A record of almost nothing but repeats (a stuck sensor) is refused.
 
 Spikes and a temperature effect are what a fixed sensor can name.  Spikes: glitches in ``|B| - F`` beyond
 the smooth trend, judged by the vector diagnosis's own tests (their count, isolation and spread in time, not clipped
@@ -50,10 +51,11 @@ import numpy as np
 from numpy.polynomial import legendre
 from scipy.stats import norm, poisson
 
+from magbench.errors import InputError
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.effects import SPIKE_SIGMA, OutlierEffect, f_test_p, first_order_lag, robust_sigma
 
-from .floor import noise_spectrum, time_difference_floor
+from .floor import HELD_MIN_FRACTION, held_samples, noise_spectrum, time_difference_floor
 from .naming import STEP_SHARE, TEMPERATURE_FOLLOWS_TIME_R2, spike_signature, temperature_follows_time
 from .scoring import Z_SIGNIFICANT, rms, spike_z
 
@@ -85,6 +87,9 @@ SHOULDER_ALPHA = 0.01
 """Fewer spikes than the selection's share of the samples are glitches only when the residual's shoulder (between
 SHOULDER_SIGMA and SPIKE_SIGMA robust sigma) holds no more samples than Gaussian noise gives (Poisson, at this level):
 heavy-tailed noise (Student's t) puts many there, glitches of tens of sigma few."""
+MIN_DISTINCT = 10
+"""A fixed record needs at least this many readings that differ from the one before them (the floor's least
+number of distinct samples); fewer is a stuck sensor or logger, refused."""
 TEMPERATURE_NAME_Z = 4.0
 """A fixed sensor's temperature effect is named when |B| - F follows the logged temperature beyond a smooth
 function of time by this many standard errors."""
@@ -146,9 +151,21 @@ def time_only(data: Dataset, reason: str) -> dict:
     out: dict = {"kind": "time_only", "n_points": n, "attitude": "insufficient_data", "attitude_reason": reason}
     span = np.ptp(t)
     trend_design = legendre.legvander(2 * (t - t[0]) / span - 1, TREND_DEGREE) if span > 0 else None
+    # a logger that holds its last value repeats readings exactly: a held sample interpolates perfectly from its twin
+    # and pulls the floor down, so the floor comes from the distinct samples (as the vector floor's); a record of
+    # almost nothing but repeats is a stuck sensor or logger, with no time question to answer
+    held = held_samples(raw, order)[order]  # in time order
+    distinct = int((~held).sum())
+    if distinct < MIN_DISTINCT:
+        raise InputError(f"{n - distinct} of {n} readings repeat the one before them exactly ({distinct} distinct): a "
+                         "stuck sensor or a logger that holds its value; nothing to diagnose")
     spikes, spike_info = _spikes(r, trend_design, t, raw[order])
     keep = ~spikes
-    floor = time_difference_floor(r[keep], t[keep] if data.t_s is not None else None)
+    held_share = float(held.mean())
+    on = keep & ~held if held_share > HELD_MIN_FRACTION and (keep & ~held).sum() >= MIN_DISTINCT else keep
+    floor = time_difference_floor(r[on], t[on] if data.t_s is not None else None)
+    if on is not keep:
+        floor["floor_method"] += f" (on the {int(on.sum())} distinct samples: {100 * held_share:.1f} % held)"
     design = np.column_stack([np.ones(n), hours - hours.mean()])
     coef, se, resid = _linear(design[keep], r[keep])
     drift: dict = {"drift_nT_per_h": float(coef[1]), "drift_se_nT_per_h": float(se[1]),
@@ -164,7 +181,7 @@ def time_only(data: Dataset, reason: str) -> dict:
         "constant_nT": float(np.median(r)), "mean_nT": float(np.mean(r[keep])), "rms_nT": rms(r[keep]),
         "spikes": spike_info,
         "span_h": float(np.ptp(hours)), "drift": drift, "noise_floor_nT": floor["noise_floor_nT"],
-        "floor_method": floor["floor_method"],
+        "floor_method": floor["floor_method"], "held_sample_fraction": held_share,
         "statement": "|B| - F of the uncalibrated readings: a constant is a scale or offset error along the one "
                      "direction the fixed sensor sees; its drift is a drift of either or of the field's magnitude"}
     if data.temp_C is not None and np.ptp(data.temp_C) > 0:

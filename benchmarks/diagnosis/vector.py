@@ -252,15 +252,16 @@ class Diagnosis:
         # the prior's rows outweigh the n sigma^2 (1 - 1/k^2) that a scalar fit gains by scaling the noise down
         # along a direction the attitudes leave free: the floor times sqrt(n)
         prior_scale = max(fl["noise_floor_nT"], PRIOR_MIN_SCALE_NT) * float(np.sqrt(n))
-        implausible = self.degenerate is not None or (not plausible_base(x9) and self._ill_conditioned())
+        level = self.degenerate is not None  # turned about one axis: the prior holds what the attitudes leave free
+        implausible = level or (not plausible_base(x9) and self._ill_conditioned())
         if implausible:  # a degenerate valley of the attitudes: the fit again, with the weak prior
             refit = self._base_with_prior(x9, prior_scale)
-            while self.degenerate is not None and not plausible_base(refit[0]) and prior_scale < DEGENERATE_PRIOR_MAX:
+            while level and not plausible_base(refit[0]) and prior_scale < DEGENERATE_PRIOR_MAX:
                 prior_scale *= DEGENERATE_PRIOR_STEP  # the weakest prior that keeps the base fit plausible
                 refit = self._base_with_prior(x9, prior_scale)
-            if self.degenerate is not None or plausible_base(refit[0]):  # else the data pull it out anyway
+            if level or plausible_base(refit[0]):  # else the data pull it out anyway
                 x9, r_all, unit = refit
-                if self.degenerate is None:
+                if not level:
                     self.base_method += " + weak prior (implausible scales or angles)"
                 fl = vector_floor(unit, d, r_all, self.rows_in_time_order)
             else:
