@@ -119,6 +119,20 @@ def first_order_lead(t_s: np.ndarray, x: np.ndarray, tau_s: float) -> np.ndarray
     return out
 
 
+def base_freedom_columns(unit: np.ndarray, f0_nT: float = 1.0) -> np.ndarray:
+    """The first-order freedom of the base correction: ten columns, one a row of ``unit`` (the field's unit
+    direction u, n x 3), that a refit of the base correction's offsets, scales and angles takes in the magnitude
+    residual, to first order: 1, f0 u_i u_j for i >= j ((x, x), (y, x), (y, y), (z, x), (z, y), (z, z): the scales and
+    the angles between the axes, a symmetric form of u, times the field ``f0_nT``) and u_x, u_y, u_z (the offsets).
+    What these columns fit, the base correction absorbs when it is fitted again beside an effect, so an effect's
+    test (and a signature) is made beside them: only the part of it orthogonal to them is its own.  ``f0_nT`` scales
+    the six product columns (to nT per unit of a scale or angle); it changes no span.  For a unit u the squares sum
+    to the first column, so the ten span nine dimensions."""
+    scaled = unit * f0_nT
+    products = [unit[:, i] * scaled[:, j] for i in range(3) for j in range(i + 1)]
+    return np.column_stack([np.ones(len(unit))] + products + [unit[:, j] for j in range(3)])
+
+
 def _lstsq_sse(x: np.ndarray, y: np.ndarray) -> float:
     """Residual sum of squares of the least-squares fit of y on the columns of x (column-scaled normal
     equations above 100,000 rows, a QR-free solve that keeps memory at the size of x)."""
@@ -679,9 +693,7 @@ class TemperatureEffect(Effect):
         timed = d.t_s is not None and np.ptp(d.t_s) > 0
         span = float(np.ptp(d.t_s)) if timed else 0.0
         u0 = unit[keep] * norm.f0_nT
-        # the freedom of a 9-parameter correction, to first order: b_i u_j (i >= j) and b_j
-        lin = [unit[keep, i] * u0[:, j] for i in range(3) for j in range(i + 1)] + [unit[keep, j] for j in range(3)]
-        lin = np.column_stack([np.ones(len(u0))] + lin)
+        lin = base_freedom_columns(unit[keep], norm.f0_nT)
         r = r_base[keep]
         def thermal_lag(k: int) -> tuple[float, np.ndarray]:
             """The best share of the span and its lagged temperature, with the first k temperature columns: the

@@ -87,6 +87,7 @@ from magbench.simulate.effects import (  # noqa: F401  (clipped, holds and their
     HOLD_ANGLE_RAD,
     HOLD_MIN_SAMPLES,
     HOLD_SHARE,
+    base_freedom_columns,
     clipped,
     holds,
 )
@@ -470,8 +471,8 @@ def scalar_series_signature(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray, k:
     """Field drift's own signature: one scalar series common to every attitude visited at the same time.
 
     On the residual ``r`` of the other named effects (NaN: spikes), the held-out residuals (``k`` random folds,
-    seeded) of three linear models, each with the ten columns a refit of the base correction takes (1, the
-    direction u and its six products: its offsets, scales and angles to first order):
+    seeded) of three linear models, each with the ten columns a refit of the base correction takes
+    (``base_freedom_columns``: 1, the direction u and its six products: its offsets, scales and angles to first order):
     S, the scalar series (Legendre polynomials of time, degrees 1 to ``degree``); V, a body-fixed drift (each
     component of u times the same polynomials: an offset drift, a switched body field, attitude structure that
     time carries on a slow path); and both.  ``z_scalar_beyond_body``: what S adds to V (paired z);
@@ -483,7 +484,7 @@ def scalar_series_signature(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray, k:
     if n < 4 * (10 + 4 * degree) or span <= 0:
         return {"z_scalar_beyond_body": 0.0, "z_body_beyond_scalar": 0.0, "tested": False}
     poly = legendre.legvander(2 * (t - t.min()) / span - 1, degree)[:, 1:]
-    base = np.column_stack([np.ones(n), u, u * u, u[:, 0] * u[:, 1], u[:, 0] * u[:, 2], u[:, 1] * u[:, 2]])
+    base = base_freedom_columns(u)
     body = np.hstack([u[:, [a]] * poly for a in range(3)])
     pen = slope_penalty(degree) * weight * n
     fold = np.random.default_rng(seed).integers(0, k, n)
