@@ -101,7 +101,9 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
 
     def error(self, message):
-        raise UsageError(f"{self.prog}: {message} (see --help)")
+        # said after "magbench: ": a subcommand's name once ("magbench: calibrate: ..."), the program's not twice
+        command = self.prog.removeprefix("magbench").strip()
+        raise UsageError(f"{command + ': ' if command else ''}{message} (see {self.prog} --help)")
 
 
 def _add_reference_options(p: argparse.ArgumentParser) -> None:

@@ -641,3 +641,72 @@ def test_apply_reads_the_data_file_once(tmp_path, capsys, monkeypatch):
     assert code == 0, err
     assert reads.count(str(src)) == 1
     assert __import__("json").loads(out)["input_sha256"] == before
+
+
+DIAGNOSE_ANSWERS = {"plane-36", "plane-3600"}  # a level turntable: the diagnosis's weak prior answers it (exit 0)
+CALIBRATE_ONLY = ("--method", "--save", "--accept-any", "--param", "--model")
+
+
+def _fixed(n=400, seed=2):
+    """A fixed sensor's readings (one attitude), the noise its only change."""
+    b = np.asarray(FIELD.vector_nT, dtype=float)
+    return b + np.random.default_rng(seed).normal(0.0, 0.5, (n, 3))
+
+
+DIAGNOSE_CASES = [
+    ("fixed-stuck", _csv(np.tile(np.asarray(FIELD.vector_nT), (400, 1))), "stuck sensor"),
+    ("fixed-uT", _csv(_fixed() / 1000.0), "uT"),
+    ("fixed-gain", _csv(_fixed() / 2.5), "times the reference"),
+    ("fixed-reference-jumps", _csv(_fixed(), f_ref=np.where(np.arange(400) < 200, F_NT, 0.9 * F_NT)), "jumps"),
+    ("level-reference-tenfold", _csv(_plane(400, wobble_deg=0.5), f_ref=10 * F_NT), "times the reference"),
+]
+
+
+BAD_FOR_DIAGNOSE = [c for c in CASES if c[3] == 2 and c[0] not in DIAGNOSE_ANSWERS
+                    and not any(e.startswith(CALIBRATE_ONLY) for e in c[2])]
+
+
+def test_most_of_the_corpus_is_bad_input_for_diagnose_too():
+    assert len(BAD_FOR_DIAGNOSE) >= 60
+
+
+@pytest.mark.parametrize("ident,content,extra,status,fragment", BAD_FOR_DIAGNOSE, ids=[c[0] for c in BAD_FOR_DIAGNOSE])
+def test_diagnose_refuses_the_bad_input_calibrate_refuses(tmp_path, capsys, ident, content, extra, status, fragment):
+    """The diagnosis reads the same files: what is bad input to ``calibrate`` is bad input to ``diagnose``, with one
+    line and exit 2 (its level-vehicle and fixed-sensor paths answer where the calibrators refuse the attitudes
+    only, and must not answer on wrong units or a wrong reference)."""
+    path = tmp_path / "input.csv"
+    if content == "DIRECTORY":
+        path.mkdir()
+    elif content is not None:
+        path.write_bytes(content if isinstance(content, bytes) else content.encode("utf-8"))
+    before = hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else None
+    code = main(["diagnose", str(path), *extra])
+    out, err = capsys.readouterr()
+    assert code == 2, f"{ident}: exit {code}; stdout: {out[:300]}"
+    assert "Traceback" not in err + out and out == ""
+    assert len([ln for ln in err.splitlines() if ln.strip()]) == 1
+    if before is not None:
+        assert hashlib.sha256(path.read_bytes()).hexdigest() == before
+
+
+@pytest.mark.parametrize("ident,content,fragment", DIAGNOSE_CASES, ids=[c[0] for c in DIAGNOSE_CASES])
+def test_diagnose_refuses_a_stuck_sensor_and_a_reference_that_does_not_belong(tmp_path, capsys, ident, content,
+                                                                              fragment):
+    """The paths that answer where the calibrators refuse the attitudes (a fixed sensor's time question, a level
+    vehicle's weak prior) refuse what is bad input: a stuck sensor, readings in other units, a reference that jumps
+    or does not belong (they answered with a floor of 0, or |B| - F of the units' error, at exit 0)."""
+    path = tmp_path / "input.csv"
+    path.write_text(content)
+    code = main(["diagnose", str(path)])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == "" and fragment in err and len(err.strip().splitlines()) == 1, (ident, code, err, out[:200])
+
+
+def test_diagnose_answers_the_fixed_and_level_records_of_those_negative_controls(tmp_path, capsys):
+    """Negative controls: the same fixed and level records with their own reference are answered (exit 0)."""
+    for name, raw in (("fixed", _fixed()), ("level", _plane(400, wobble_deg=0.5))):
+        path = tmp_path / f"{name}.csv"
+        path.write_text(_csv(raw))
+        assert main(["diagnose", str(path)]) == 0, (name, capsys.readouterr().err)
+        capsys.readouterr()
