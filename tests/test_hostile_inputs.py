@@ -240,14 +240,19 @@ def test_the_corpus_is_large_enough():
     assert 45000 < _bad_igrf_is_an_ordinary_reference() < 56000
 
 
-@pytest.mark.parametrize("ident,content,extra,status,fragment", CASES, ids=[c[0] for c in CASES])
-def test_hostile_input(tmp_path, capsys, ident, content, extra, status, fragment):
+def _input_file(tmp_path, content):
+    """The case's input at tmp_path/input.csv (a directory for DIRECTORY, nothing for None), and its SHA-256."""
     path = tmp_path / "input.csv"
     if content == "DIRECTORY":
         path.mkdir()
     elif content is not None:
         path.write_bytes(content if isinstance(content, bytes) else content.encode("utf-8"))
-    before = hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else None
+    return path, hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else None
+
+
+@pytest.mark.parametrize("ident,content,extra,status,fragment", CASES, ids=[c[0] for c in CASES])
+def test_hostile_input(tmp_path, capsys, ident, content, extra, status, fragment):
+    path, before = _input_file(tmp_path, content)
     args = ["calibrate", str(path)] + (["--method", "lsq"] if "--method" not in extra else []) + extra
     code = main(args)
     out, err = capsys.readouterr()
@@ -675,12 +680,7 @@ def test_diagnose_refuses_the_bad_input_calibrate_refuses(tmp_path, capsys, iden
     """The diagnosis reads the same files: what is bad input to ``calibrate`` is bad input to ``diagnose``, with one
     line and exit 2 (its level-vehicle and fixed-sensor paths answer where the calibrators refuse the attitudes
     only, and must not answer on wrong units or a wrong reference)."""
-    path = tmp_path / "input.csv"
-    if content == "DIRECTORY":
-        path.mkdir()
-    elif content is not None:
-        path.write_bytes(content if isinstance(content, bytes) else content.encode("utf-8"))
-    before = hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else None
+    path, before = _input_file(tmp_path, content)
     code = main(["diagnose", str(path), *extra])
     out, err = capsys.readouterr()
     assert code == 2, f"{ident}: exit {code}; stdout: {out[:300]}"
