@@ -108,8 +108,10 @@ REAL_DATA = [("lu2014_table2", "nT", "nine"), ("ck_acc_mag", "G", "nine")] + \
     [(f"sap6_{d}", "uT", "nine") for d in ("BB", "CF", "FG", "HC", "HC_improved", "IB", "JG")]
 
 
-def diagnosis_reports(out: Path, blind_n: int = 300, progress: bool = False, jobs: int = 1) -> Path:
-    """``magbench diagnose`` on the real recordings shipped in simulate/data, and the blind check."""
+def diagnosis_reports(out: Path, blind_n: int = 300, progress: bool = False, jobs: int = 1,
+                      clock: PhaseClock | None = None) -> Path:
+    """``magbench diagnose`` on the real recordings shipped in simulate/data, and the blind check; ``clock``, when
+    given, receives the wall time of seed 000's Table 2 diagnosis (issue 17's goal: at most 5 s)."""
     folder = out / "diagnosis"
     folder.mkdir(parents=True, exist_ok=True)
     rows = []
@@ -118,8 +120,11 @@ def diagnosis_reports(out: Path, blind_n: int = 300, progress: bool = False, job
         args = ["diagnose", str(path), "--units", units, "--model", model, "--json", "--force",
                 "--figure", str(folder / f"{name}.png")]
         buf, err = io.StringIO(), io.StringIO()
+        t0 = time.perf_counter()
         with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(err):
             code = cli(args)
+        if clock is not None and name == "lu2014_table2":
+            clock.note(f"of which seed 000's Table 2 diagnosed ({TABLE2_GOAL_S:g} s at most)", time.perf_counter() - t0)
         if code == 0:
             result = json.loads(buf.getvalue())
             result["figure"] = f"{name}.png"
@@ -238,12 +243,18 @@ def _bar(items, desc: str, progress: bool, total: int | None = None, **kw):
                 total=total, **kw)
 
 
+TABLE2_GOAL_S = 5.0
+"""Seed 000's Table 2 (35 headings) is diagnosed in at most this many seconds (issue 17; it took 44 s)."""
+
+
 class PhaseClock:
     """Wall time of each phase of ``reproduce`` (``time.perf_counter``): ``start(name)`` ends the running
-    phase and starts the next, ``stop()`` ends the last; ``seconds`` keeps them in order."""
+    phase and starts the next, ``stop()`` ends the last; ``seconds`` keeps them in order.  ``note(label, s)``
+    adds a part of the running phase, listed under it."""
 
     def __init__(self) -> None:
         self.seconds: dict[str, float] = {}
+        self.parts: dict[str, list[tuple[str, float]]] = {}
         self._name: str | None = None
         self._t0 = 0.0
         self._begin = time.perf_counter()
@@ -251,6 +262,10 @@ class PhaseClock:
     def start(self, name: str) -> None:
         self.stop()
         self._name, self._t0 = name, time.perf_counter()
+
+    def note(self, label: str, seconds: float) -> None:
+        if self._name is not None:
+            self.parts.setdefault(self._name, []).append((label, seconds))
 
     def stop(self) -> None:
         if self._name is not None:
@@ -263,7 +278,11 @@ class PhaseClock:
 
     def lines(self) -> list[str]:
         total = self.total
-        rows = [f"| {name} | {s:.1f} | {100 * s / total:.0f} % |" for name, s in self.seconds.items()]
+        rows = []
+        for name, s in self.seconds.items():
+            rows.append(f"| {name} | {s:.1f} | {100 * s / total:.0f} % |")
+            rows += [f"| &nbsp;&nbsp;{label} | {part:.1f} | {100 * part / total:.0f} % |"
+                     for label, part in self.parts.get(name, [])]
         return ["| phase | wall s | share |", "|---|---|---|", *rows, f"| total | {total:.1f} | 100 % |"]
 
 
@@ -336,7 +355,7 @@ def reproduce(out: Path, quick: bool = False, jobs: int = 2, progress: bool = Tr
         clock.start("Lu et al. 2014 tables")
         written.append(lu2014_tables(camp_dir, out / "lu2014_tables.md"))
         phase("diagnosis of the real recordings and the blind check")
-        written.append(diagnosis_reports(out, blind_n=14 if quick else 300, progress=progress, jobs=jobs))
+        written.append(diagnosis_reports(out, blind_n=14 if quick else 300, progress=progress, jobs=jobs, clock=clock))
         if not quick:
 
             phase("quality study")

@@ -67,3 +67,23 @@ def test_reproduce_reports_the_wall_time_of_each_phase(tmp_path):
     assert list(clock.seconds) == ["first", "second"] and all(s >= 0 for s in clock.seconds.values())
     text = write_timing(clock, tmp_path, jobs=2, quick=True).read_text()
     assert "| first |" in text and "| second |" in text and "| total |" in text and "--jobs 2" in text
+
+
+def test_reproduce_times_seed_000_table_2s_diagnosis_under_its_phase(tmp_path, monkeypatch):
+    """The diagnosis phase records how long Table 2's diagnosis takes (issue 17: at most 5 s), listed under the
+    phase; a note outside any phase is dropped.  The blind check is stubbed (it has its own tests)."""
+    import re
+
+    from magbench.benchmarks import reproduce as rep
+
+    monkeypatch.setattr(rep, "blind_check", lambda *a, **k: "(the blind check, stubbed)")
+    clock = rep.PhaseClock()
+    clock.note("outside", 1.0)
+    clock.start("diagnosis")
+    rep.diagnosis_reports(tmp_path, blind_n=2, clock=clock)
+    clock.stop()
+    label, seconds = clock.parts["diagnosis"][0]
+    assert "Table 2" in label and 0 < seconds < 60
+    lines = clock.lines()
+    assert re.search(r"\| &nbsp;&nbsp;of which seed 000's Table 2 diagnosed \(5 s at most\) \| \d+\.\d \|", "\n".join(lines))
+    assert not any("outside" in ln for ln in lines)
