@@ -295,3 +295,17 @@ def test_a_stuck_sensor_and_a_reference_that_does_not_belong_are_refused(tmp_pat
         assert main(["diagnose", str(path)]) == 2
         err = capsys.readouterr().err.strip()
         assert says in err and len(err.splitlines()) == 1
+
+
+def test_a_fixed_sensor_below_its_resolution_gets_a_floor_from_its_lattice_not_a_collapsed_mad():
+    """Readings rounded to 1 nT under 0.3 nT of noise repeat on each axis (not a logger's holds: whole rows repeat
+    no more often than the axes' own repeats together give); the interpolation errors take lattice values whose
+    median absolute deviation fell to 0.02 nT (and 58 % of its rows, taken for a logger's holds, were dropped).  Their RMS gives
+    about the noise.  Negative control: the same record at 0.01 nT resolution keeps the MAD and every row."""
+    d = fixed(drift_nT_per_day=0.0, noise=0.3, n=3000, seed=7)
+    coarse = Dataset(np.round(d.raw_nT), f_ref_nT=d.f_ref_nT, t_s=d.t_s, temp_C=d.temp_C)
+    fine = Dataset(np.round(d.raw_nT, 2), f_ref_nT=d.f_ref_nT, t_s=d.t_s, temp_C=d.temp_C)
+    c, f = diagnose(coarse)["time_only"], diagnose(fine)["time_only"]
+    assert c["held_sample_fraction"] > 0.3 and "grid" in c["floor_method"] and "distinct" not in c["floor_method"]
+    assert 0.2 < c["noise_floor_nT"] < 0.5, c["noise_floor_nT"]
+    assert "grid" not in f["floor_method"] and 0.2 < f["noise_floor_nT"] < 0.4, f

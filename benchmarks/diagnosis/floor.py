@@ -78,13 +78,16 @@ def _interpolation_errors(r: np.ndarray, t: np.ndarray | None, order: int) -> np
     return (r[i] - pred) / np.sqrt(1.0 + sum(w * w for w in weights))
 
 
-def time_difference_floor(r_in_order: np.ndarray, t_in_order: np.ndarray | None = None) -> dict:
+def time_difference_floor(r_in_order: np.ndarray, t_in_order: np.ndarray | None = None, grid: bool = False) -> dict:
     """Floor from the errors of linear interpolation between time neighbours (``_interpolation_errors``;
     the second differences on even sampling), checked against cubic interpolation from four neighbours;
     errors that touch a spike (a sample beyond SPIKE_SIGMA robust sigma) are left out, since each spike
-    would otherwise inflate three (five) of them."""
+    would otherwise inflate three (five) of them.  Their scale is the median absolute deviation, or with
+    ``grid`` (readings on a grid coarser than their noise: a fixed sensor below its resolution) their RMS: the
+    errors then take a few lattice values, whose median absolute deviation falls to a fraction of the spread."""
     n = len(r_in_order)
-    spk = np.abs(r_in_order - np.median(r_in_order)) > SPIKE_SIGMA * robust_sigma(r_in_order)
+    spread = float(np.std(r_in_order)) if grid else robust_sigma(r_in_order)  # a grid's MAD can be 0
+    spk = np.abs(r_in_order - np.median(r_in_order)) > SPIKE_SIGMA * spread
     e1 = _interpolation_errors(r_in_order, t_in_order, 1)
     e3 = _interpolation_errors(r_in_order, t_in_order, 3)
     if spk.any() and (~spk).sum() > 10:
@@ -92,15 +95,16 @@ def time_difference_floor(r_in_order: np.ndarray, t_in_order: np.ndarray | None 
         touch3 = np.convolve(spk, np.ones(5), mode="valid") > 0
         e1, e3 = e1[~touch1], e3[~touch3]
         n = int((~spk).sum())
-    s1 = robust_sigma(e1)
-    s3 = robust_sigma(e3) if len(e3) else s1
+    scale = (lambda e: float(np.sqrt(np.mean(e * e))) if len(e) else 0.0) if grid else robust_sigma
+    s1 = scale(e1)
+    s3 = scale(e3) if len(e3) else s1
     leak = bool(s1 - s3 > LEAK_Z * _interval(s1, int(INDEPENDENT_SHARE * n))[0])  # structure inflates s1
     sigma = min(s1, s3) if leak else s1
     se, lo, hi = _interval(sigma, int(INDEPENDENT_SHARE * n))
+    method = ("cubic interpolation from four time neighbours (the two-neighbour one carries structure)" if leak else
+              "linear interpolation between time neighbours (second differences on even sampling)")
     return {"noise_floor_nT": float(sigma), "floor_se_nT": float(se), "floor_interval_nT": [float(lo), float(hi)],
-            "floor_method": "cubic interpolation from four time neighbours (the two-neighbour one carries "
-                            "structure)" if leak else "linear interpolation between time neighbours "
-                                                       "(second differences on even sampling)",
+            "floor_method": method + (", their RMS (readings on a grid coarser than their noise)" if grid else ""),
             "floor_is_upper_bound": False,
             "floor_second_diff_nT": float(s1), "floor_third_diff_nT": float(s3)}
 
