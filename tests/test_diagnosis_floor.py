@@ -103,3 +103,40 @@ def test_a_diagnosis_reports_how_its_residual_averages_down():
                              t_s=np.arange(n, dtype=float)))
     assert fixed["time_only"]["drift"]["noise_spectrum"]["kind"] == "white"
     assert "noise over time scales" in diagnosis_text(fixed, "fixed")
+
+
+def test_held_attitudes_read_below_the_resolution_are_not_a_loggers_holds():
+    """A sensor held at 40 attitudes for 25 samples each, read to 1 nT under 0.3 nT of noise: its axes repeat their
+    values on their own, and whole rows no more often than those repeats together give, so no row is dropped as a
+    logger's hold (dropping them biased the floor to 0.63 nT against a base residual of 0.42); the errors' RMS,
+    not their collapsed MAD, gives the floor.  Negative control: read to 0.01 nT, nothing repeats and the MAD
+    stays.  The logger of the test above is still recognized, and its holds do not make a grid (``repeats``)."""
+    import sys
+    from pathlib import Path
+
+    from magbench.benchmarks.diagnosis import diagnose
+    from magbench.benchmarks.diagnosis.floor import repeats
+    from magbench.simulate import attitude
+    from magbench.simulate.dataset import Dataset
+    from magbench.simulate.sensor import SensorModel
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from test_hostile_inputs import FIELD, NINE
+
+    rng = np.random.default_rng(3)
+    b = np.repeat(attitude.full_sphere(40, rng).body_field(np.asarray(FIELD.vector_nT)), 25, axis=0)
+    clean = SensorModel(NINE, noise_nT=0.0).measure(b, rng)
+    noisy = clean + rng.normal(0, 0.3, clean.shape)
+    t = np.arange(len(b), dtype=float)
+    for lsb, grid in ((1.0, True), (0.01, False)):
+        raw = np.round(noisy / lsb) * lsb
+        assert repeats(raw) == (grid, False)
+        out = diagnose(Dataset(raw, f_ref_nT=np.full(len(raw), 50000.0), t_s=t))
+        assert out["verdict"] == "none" and ("grid" in out["floor_method"]) == grid
+        assert "distinct samples" not in out["floor_method"]
+        assert abs(out["noise_floor_nT"] / out["rms_base_nT"] - 1) < 0.1, (lsb, out["noise_floor_nT"], out["rms_base_nT"])
+    n = 3000
+    hold = np.random.default_rng(3).random(n) < 0.3
+    hold[0] = False
+    logged = (rng.normal(0, 1, (n, 3)) * 2.0 + 50000.0)[np.maximum.accumulate(np.where(hold, 0, np.arange(n)))]
+    assert repeats(logged) == (False, True)  # a logger's holds of continuous readings: no grid

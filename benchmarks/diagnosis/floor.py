@@ -125,20 +125,44 @@ def held_samples(raw_nT: np.ndarray, order: np.ndarray) -> np.ndarray:
     return out
 
 
+GRID_REPEAT_SHARE = 0.25
+"""An axis whose reading equals the previous one this often is read on a grid coarser than its noise (a fixed
+sensor, or held attitudes, below the resolution; continuous readings of a turning sensor never repeat exactly)."""
+
+
+def repeats(x: np.ndarray) -> tuple[bool, bool]:
+    """(grid, logger) for readings ``x`` (n, 3) in time order: whether whole rows repeat (more than
+    HELD_MIN_FRACTION of them) more than twice as often as the axes' own repeats together give (a logger holding
+    its last reading, rather than three axes rounding to their previous values at once), and whether an axis
+    repeats its previous value more than GRID_REPEAT_SHARE of the time (a resolution coarser than the noise),
+    counted on the rows a logger did not hold."""
+    if len(x) < 2:
+        return False, False
+    same = x[1:] == x[:-1]
+    whole = np.all(same, axis=1)
+    per_axis = same.mean(axis=0)
+    rows = float(whole.mean())
+    logger = bool(rows > HELD_MIN_FRACTION and rows > 2 * np.prod(per_axis))
+    own = same[~whole].mean(axis=0) if logger and (~whole).any() else per_axis
+    return bool(own.max() > GRID_REPEAT_SHARE), logger
+
+
 def vector_floor(unit: np.ndarray, d: Columns, r: np.ndarray, rows_in_time_order: bool = False) -> dict:
     """The floor of a vector record (module docstring); held samples (exact repeats of the previous reading)
-    are left out when they are more than HELD_MIN_FRACTION of the record, and their share is reported."""
+    are left out when a logger held them (``repeats``), and their share is reported; readings on a grid coarser
+    than their noise take the interpolation errors' RMS (``time_difference_floor``)."""
     n = len(r)
     if d.t_s is not None and np.ptp(d.t_s) > 0:
         order = np.argsort(d.t_s, kind="stable")
         held = held_samples(d.raw_nT, order)
         share = float(held.mean())
-        if share > HELD_MIN_FRACTION and (~held).sum() >= 10:
+        grid, logger = repeats(d.raw_nT[order])  # held attitudes read below the resolution repeat without a logger
+        if logger and (~held).sum() >= 10:
             keep = order[~held[order]]
-            out = time_difference_floor(r[keep], d.t_s[keep])
+            out = time_difference_floor(r[keep], d.t_s[keep], grid=grid)
             out["floor_method"] += f" (on the {int((~held).sum())} distinct samples: {100 * share:.1f} % held)"
         else:
-            out = time_difference_floor(r[order], d.t_s[order])
+            out = time_difference_floor(r[order], d.t_s[order], grid=grid)
         out["held_sample_fraction"] = share
         return out
     if rows_in_time_order:
@@ -271,7 +295,8 @@ def model_floor(fl: dict, r_model: np.ndarray, t_s: np.ndarray, raw_nT: np.ndarr
     random attitudes; outside-library structure the model cannot fit otherwise stays in both floors."""
     order = np.argsort(t_s, kind="stable")
     held = held_samples(raw_nT, order)
-    drop = spikes | held if held.mean() > HELD_MIN_FRACTION else spikes
+    grid, logger = repeats(raw_nT[order])
+    drop = spikes | held if logger else spikes
     keep = order[~drop[order]]
     n = len(keep)
     if n - n_free < 10:
@@ -285,7 +310,7 @@ def model_floor(fl: dict, r_model: np.ndarray, t_s: np.ndarray, raw_nT: np.ndarr
     out = dict(fl)
     out["floor_motion_z"] = float(rho * np.sqrt(n - 1)) if np.isfinite(rho) else 0.0
     out["floor_neighbour_z"] = neighbour_z(rk, raw_nT[keep])
-    alt = time_difference_floor(rk, t_s[keep])
+    alt = time_difference_floor(rk, t_s[keep], grid=grid)
     scale = float(np.sqrt(n / (n - n_free)))
     sigma, se = alt["noise_floor_nT"] * scale, alt["floor_se_nT"] * scale
     out["floor_model_nT"] = float(sigma)

@@ -55,7 +55,7 @@ from magbench.errors import InputError
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.effects import SPIKE_SIGMA, OutlierEffect, f_test_p, first_order_lag, robust_sigma
 
-from .floor import HELD_MIN_FRACTION, held_samples, noise_spectrum, time_difference_floor
+from .floor import held_samples, noise_spectrum, repeats, time_difference_floor
 from .naming import STEP_SHARE, TEMPERATURE_FOLLOWS_TIME_R2, spike_signature, temperature_follows_time
 from .scoring import Z_SIGNIFICANT, rms, spike_z
 
@@ -154,7 +154,7 @@ def time_only(data: Dataset, reason: str) -> dict:
     # a logger that holds its last value repeats readings exactly: a held sample interpolates perfectly from its twin
     # and pulls the floor down, so the floor comes from the distinct samples (as the vector floor's); a record of
     # almost nothing but repeats is a stuck sensor or logger, with no time question to answer.  A fixed sensor below
-    # its resolution repeats values too, each axis on its own: those are its readings, not holds (``_repeats``)
+    # its resolution repeats values too, each axis on its own: those are its readings, not holds (``repeats``)
     held = held_samples(raw, order)[order]  # in time order
     distinct = int((~held).sum())
     if distinct < MIN_DISTINCT:
@@ -163,7 +163,7 @@ def time_only(data: Dataset, reason: str) -> dict:
     spikes, spike_info = _spikes(r, trend_design, t, raw[order])
     keep = ~spikes
     held_share = float(held.mean())
-    grid, logger = _repeats(raw[order])
+    grid, logger = repeats(raw[order])
     on = keep & ~held if logger and (keep & ~held).sum() >= MIN_DISTINCT else keep
     floor = time_difference_floor(r[on], t[on] if data.t_s is not None else None, grid=grid)
     if on is not keep:
@@ -227,24 +227,6 @@ def time_only(data: Dataset, reason: str) -> dict:
     out["verdict"] = "+".join(verdict) if verdict else "insufficient_data"
     out["time_verdict"] = "+".join(named) if named else "constant"
     return out
-
-
-GRID_REPEAT_SHARE = 0.25
-"""A fixed record's axis whose reading equals the previous one this often is read on a grid coarser than its noise
-(continuous readings never repeat exactly)."""
-
-
-def _repeats(x: np.ndarray) -> tuple[bool, bool]:
-    """(grid, logger) for readings ``x`` (n, 3) in time order: whether an axis repeats its previous value more than
-    GRID_REPEAT_SHARE of the time (a resolution coarser than the noise), and whether whole rows repeat (more than
-    HELD_MIN_FRACTION of them) more than twice as often as the axes' own repeats together give (a logger holding
-    its last reading, rather than three axes rounding to their previous values at once)."""
-    if len(x) < 2:
-        return False, False
-    same = x[1:] == x[:-1]
-    per_axis = same.mean(axis=0)
-    rows = float(np.all(same, axis=1).mean())
-    return bool(per_axis.max() > GRID_REPEAT_SHARE), bool(rows > HELD_MIN_FRACTION and rows > 2 * np.prod(per_axis))
 
 
 def _alternatives(name: str, direction: dict) -> dict:
