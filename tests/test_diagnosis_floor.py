@@ -108,7 +108,7 @@ def test_a_diagnosis_reports_how_its_residual_averages_down():
 def test_held_attitudes_read_below_the_resolution_are_not_a_loggers_holds():
     """A sensor held at 40 attitudes for 25 samples each, read to 1 nT under 0.3 nT of noise: its axes repeat their
     values on their own, and whole rows no more often than those repeats together give, so no row is dropped as a
-    logger's hold (dropping them biased the floor to 0.63 nT against a base residual of 0.42); the errors' RMS,
+    logger's hold (dropping them biased the floor to 0.63 nT against a base residual of 0.42); the errors' trimmed RMS,
     not their collapsed MAD, gives the floor.  Negative control: read to 0.01 nT, nothing repeats and the MAD
     stays.  The logger of the test above is still recognized, and its holds do not make a grid (``repeats``)."""
     import sys
@@ -140,3 +140,15 @@ def test_held_attitudes_read_below_the_resolution_are_not_a_loggers_holds():
     hold[0] = False
     logged = (rng.normal(0, 1, (n, 3)) * 2.0 + 50000.0)[np.maximum.accumulate(np.where(hold, 0, np.arange(n)))]
     assert repeats(logged) == (False, True)  # a logger's holds of continuous readings: no grid
+
+
+def test_grid_sigma_is_the_gaussian_sigma_and_leaves_out_a_few_large_errors():
+    """The grid's trimmed RMS is consistent for Gaussian errors, and 5 % of errors of 20 sigma (a turntable moving
+    between its pauses) move it by less than a tenth where the plain RMS quadruples (negative control)."""
+    from magbench.benchmarks.diagnosis.floor import grid_sigma
+
+    e = np.random.default_rng(5).normal(0.0, 2.0, 40000)
+    assert abs(grid_sigma(e) - 2.0) < 0.05
+    e[::20] = 40.0
+    assert abs(grid_sigma(e) / 2.0 - 1) < 0.1 and np.sqrt(np.mean(e * e)) > 4 * 2.0
+    assert grid_sigma(np.zeros(0)) == 0.0

@@ -300,8 +300,9 @@ def test_a_stuck_sensor_and_a_reference_that_does_not_belong_are_refused(tmp_pat
 def test_a_fixed_sensor_below_its_resolution_gets_a_floor_from_its_lattice_not_a_collapsed_mad():
     """Readings rounded to 1 nT under 0.3 nT of noise repeat on each axis (not a logger's holds: whole rows repeat
     no more often than the axes' own repeats together give); the interpolation errors take lattice values whose
-    median absolute deviation fell to 0.02 nT (and 58 % of its rows, taken for a logger's holds, were dropped).  Their RMS gives
-    about the noise.  Negative control: the same record at 0.01 nT resolution keeps the MAD and every row."""
+    median absolute deviation fell to 0.02 nT (and 58 % of its rows, taken for a logger's holds, were dropped).
+    Their trimmed RMS gives about the noise.  Negative control: the same record at 0.01 nT resolution keeps the MAD
+    and every row."""
     d = fixed(drift_nT_per_day=0.0, noise=0.3, n=3000, seed=7)
     coarse = Dataset(np.round(d.raw_nT), f_ref_nT=d.f_ref_nT, t_s=d.t_s, temp_C=d.temp_C)
     fine = Dataset(np.round(d.raw_nT, 2), f_ref_nT=d.f_ref_nT, t_s=d.t_s, temp_C=d.temp_C)

@@ -83,8 +83,9 @@ def time_difference_floor(r_in_order: np.ndarray, t_in_order: np.ndarray | None 
     the second differences on even sampling), checked against cubic interpolation from four neighbours;
     errors that touch a spike (a sample beyond SPIKE_SIGMA robust sigma) are left out, since each spike
     would otherwise inflate three (five) of them.  Their scale is the median absolute deviation, or with
-    ``grid`` (readings on a grid coarser than their noise: a fixed sensor below its resolution) their RMS: the
-    errors then take a few lattice values, whose median absolute deviation falls to a fraction of the spread."""
+    ``grid`` (readings on a grid coarser than their noise: a fixed sensor below its resolution) their trimmed RMS
+    (``grid_sigma``): the errors then take a few lattice values, whose median absolute deviation falls to a
+    fraction of the spread."""
     n = len(r_in_order)
     spread = float(np.std(r_in_order)) if grid else robust_sigma(r_in_order)  # a grid's MAD can be 0
     spk = np.abs(r_in_order - np.median(r_in_order)) > SPIKE_SIGMA * spread
@@ -95,7 +96,7 @@ def time_difference_floor(r_in_order: np.ndarray, t_in_order: np.ndarray | None 
         touch3 = np.convolve(spk, np.ones(5), mode="valid") > 0
         e1, e3 = e1[~touch1], e3[~touch3]
         n = int((~spk).sum())
-    scale = (lambda e: float(np.sqrt(np.mean(e * e))) if len(e) else 0.0) if grid else robust_sigma
+    scale = grid_sigma if grid else robust_sigma
     s1 = scale(e1)
     s3 = scale(e3) if len(e3) else s1
     leak = bool(s1 - s3 > LEAK_Z * _interval(s1, int(INDEPENDENT_SHARE * n))[0])  # structure inflates s1
@@ -104,7 +105,7 @@ def time_difference_floor(r_in_order: np.ndarray, t_in_order: np.ndarray | None 
     method = ("cubic interpolation from four time neighbours (the two-neighbour one carries structure)" if leak else
               "linear interpolation between time neighbours (second differences on even sampling)")
     return {"noise_floor_nT": float(sigma), "floor_se_nT": float(se), "floor_interval_nT": [float(lo), float(hi)],
-            "floor_method": method + (", their RMS (readings on a grid coarser than their noise)" if grid else ""),
+            "floor_method": method + (", their trimmed RMS (readings on a grid coarser than their noise)" if grid else ""),
             "floor_is_upper_bound": False,
             "floor_second_diff_nT": float(s1), "floor_third_diff_nT": float(s3)}
 
@@ -123,6 +124,26 @@ def held_samples(raw_nT: np.ndarray, order: np.ndarray) -> np.ndarray:
     out = np.zeros(len(x), dtype=bool)
     out[order] = same
     return out
+
+
+GRID_TRIM = 0.9
+GRID_TRIM_FACTOR = 0.7893
+"""On a grid the floor is the RMS of the central GRID_TRIM of the interpolation errors (by size), divided by
+GRID_TRIM_FACTOR, that RMS for unit Gaussian errors (sqrt(1 - 2 z phi(z) / 0.9), z = 1.645): unlike the median
+absolute deviation it does not collapse on lattice values, and unlike the plain RMS it leaves out the few large
+errors where held attitudes change (a turntable stepping between pauses)."""
+
+
+def grid_sigma(e: np.ndarray) -> float:
+    """The Gaussian sigma of errors ``e`` on a grid (GRID_TRIM): the RMS of the smallest GRID_TRIM of them by size,
+    ties at the cut included as a share, over GRID_TRIM_FACTOR; 0 for no errors."""
+    if not len(e):
+        return 0.0
+    sq = np.sort(e * e)
+    k = GRID_TRIM * len(sq)
+    whole = int(k)
+    total = float(np.sum(sq[:whole])) + (k - whole) * (float(sq[whole]) if whole < len(sq) else 0.0)
+    return float(np.sqrt(total / k)) / GRID_TRIM_FACTOR
 
 
 GRID_REPEAT_SHARE = 0.25
