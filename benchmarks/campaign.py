@@ -777,7 +777,9 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
             runs_done = _complete_tables(out)
             if runs_done is not None:
                 return runs_done
-            raise InputError(f"cannot resume: {out} has no {CHECKPOINT} holding its finished runs; "
+            damaged = runs_table_problem(out / "runs.csv") if (out / "runs.csv").is_file() else None
+            raise InputError(f"cannot resume: {damaged}, and no {CHECKPOINT} to rebuild it from; use --force to start "
+                             "over" if damaged else f"cannot resume: {out} has no {CHECKPOINT} holding its finished runs; "
                              "use --force to start over")
         elif out.is_dir() and any(out.iterdir()):
             raise InputError(f"cannot resume: {out} holds no campaign (no readable {CHECKPOINT} or manifest.json)")
@@ -816,14 +818,40 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
     return runs
 
 
+RUNS_KEY_COLUMNS = ("scenario", "configuration", "trial")
+
+
+def runs_table_problem(path: Path) -> str | None:
+    """Why a campaign's runs.csv cannot be reported on (unreadable, a key column missing, or rows without a
+    scenario, a configuration or an integer trial: a damaged or hand-edited table), or None."""
+    import pandas as pd
+
+    try:
+        runs = pd.read_csv(path, dtype={"configuration": str, "scenario": str}, keep_default_na=False,
+                           na_values={"trial": [""]})
+    except (OSError, UnicodeDecodeError, pd.errors.EmptyDataError, pd.errors.ParserError) as exc:
+        return f"{path} is not a readable runs table ({str(exc).splitlines()[0][:120]})"
+    missing = [c for c in RUNS_KEY_COLUMNS if c not in runs.columns]
+    if missing:
+        return f"{path} has no {', '.join(missing)} column: not a campaign's runs table"
+    trial = pd.to_numeric(runs["trial"], errors="coerce")
+    bad = (runs["scenario"].str.strip() == "") | (runs["configuration"].str.strip() == "") | ~np.isfinite(trial) | \
+        (trial != trial.round())
+    if bad.any():
+        lines = (np.flatnonzero(bad.to_numpy()) + 2).tolist()
+        where = ", ".join(map(str, lines[:5])) + (f" and {len(lines) - 5} more" if len(lines) > 5 else "")
+        return f"{path}: line {where} has no scenario, configuration or whole trial number (a damaged or edited table)"
+    return None
+
+
 def _complete_tables(out: Path) -> pd.DataFrame | None:
     """runs.csv of a finished campaign (manifest says complete), marked ``already_complete``; else None."""
     try:
         man = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    if not (man.get("complete", True) and (out / "runs.csv").is_file()):
-        return None
+    if not (man.get("complete", True) and (out / "runs.csv").is_file()) or runs_table_problem(out / "runs.csv"):
+        return None  # a damaged runs.csv is not a finished campaign's table: rebuilt from the checkpoint, or refused
     import pandas as pd
 
     runs = pd.read_csv(out / "runs.csv", keep_default_na=False)

@@ -31,6 +31,7 @@ from magbench.benchmarks.campaign import (
     clear_outputs,
     lock_holder,
     run_campaign,
+    runs_table_problem,
     start_workers,
     stop_workers,
 )
@@ -633,6 +634,10 @@ def cmd_report(args) -> int:
     d = Path(args.dir)
     if not (d / "runs.csv").is_file():
         raise InputError(f"{d} is not a campaign directory (no runs.csv): run 'magbench compare' first")
+    problem = runs_table_problem(d / "runs.csv")
+    if problem:
+        raise InputError(f"{problem}: remove the line, or run its campaign again with --resume (its {CHECKPOINT}, when "
+                         "there is one, rebuilds the tables)" if "line" in problem else problem)
     images: dict = {}
     progress = not args.json and not args.quiet
     written = make_figures(d, formats=tuple(args.format or ()), dpi=args.dpi, images=images, progress=progress,

@@ -386,3 +386,31 @@ def test_a_campaign_started_while_another_process_runs_one_is_refused(tmp_path, 
             proc.kill()
     header, done = Checkpoint.read(out / CHECKPOINT)
     assert header["campaign"]["seed"] == SEED and done
+
+
+def test_a_damaged_runs_table_is_refused_by_report_and_rebuilt_by_resume(tmp_path, capsys):
+    """A hand-edited runs.csv (a row without scenario, configuration or whole trial) crashed ``report`` with an
+    internal error, and ``--resume`` called the campaign complete, counting the row as a run.  Now ``report`` refuses
+    it in one line (exit 2) naming the line; ``--resume`` rebuilds the tables from the checkpoint (the same runs as
+    before the edit), and refuses (exit 2) when there is no checkpoint to rebuild from.  Negative control: the
+    intact table is reported."""
+    out = tmp_path / "camp"
+    assert main(_small(out)) == 0
+    good = pd.read_csv(out / "runs.csv")
+    assert main(["report", str(out), "--quiet"]) == 0
+    capsys.readouterr()
+    for damage in ("garbage,,,\n", "sphere9,lsq,lsq,nine,two" + "," * (len(good.columns) - 5) + "\n"):
+        with (out / "runs.csv").open("a") as fh:
+            fh.write(damage)
+        assert main(["report", str(out), "--quiet"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and f"line {len(good) + 2}" in err and "Traceback" not in err
+        assert main(_small(out, "--resume")) == 0
+        rebuilt = pd.read_csv(out / "runs.csv")
+        assert len(rebuilt) == len(good) and rebuilt["trial"].tolist() == good["trial"].tolist()
+    with (out / "runs.csv").open("a") as fh:
+        fh.write("garbage,,,\n")
+    (out / CHECKPOINT).unlink()
+    capsys.readouterr()
+    assert main(_small(out, "--resume")) == 2
+    assert "no " + CHECKPOINT in capsys.readouterr().err
