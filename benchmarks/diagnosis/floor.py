@@ -155,16 +155,24 @@ def repeats(x: np.ndarray) -> tuple[bool, bool]:
     """(grid, logger) for readings ``x`` (n, 3) in time order: whether whole rows repeat (more than
     HELD_MIN_FRACTION of them) more than twice as often as the axes' own repeats together give (a logger holding
     its last reading, rather than three axes rounding to their previous values at once), and whether an axis
-    repeats its previous value more than GRID_REPEAT_SHARE of the time (a resolution coarser than the noise),
-    counted on the rows a logger did not hold."""
+    repeats its previous value on its own more than GRID_REPEAT_SHARE of the time (a resolution coarser than the
+    noise).  The axes' own rates come from the rows that do not repeat whole, so that a logger's holds on a coarse
+    grid are told from the grid alone."""
     if len(x) < 2:
         return False, False
     same = x[1:] == x[:-1]
     whole = np.all(same, axis=1)
-    per_axis = same.mean(axis=0)
     rows = float(whole.mean())
-    logger = bool(rows > HELD_MIN_FRACTION and rows > 2 * np.prod(per_axis))
-    own = same[~whole].mean(axis=0) if logger and (~whole).any() else per_axis
+    if not (~whole).any():
+        return True, rows > HELD_MIN_FRACTION
+    # the axes' own repeat rates q_i, from the rows that do not repeat whole (a logger's holds are all among those
+    # that do): there an axis repeats with (q_i - P) / (1 - P), P = prod(q_i) the whole-row rate the axes give alone
+    part = same[~whole].mean(axis=0)
+    alone = 0.0
+    for _ in range(200):  # the smallest fixed point of P = prod(part (1 - P) + P)
+        alone = float(np.prod(part * (1.0 - alone) + alone))
+    logger = bool(rows > HELD_MIN_FRACTION and rows > 2 * alone)
+    own = part * (1.0 - alone) + alone
     return bool(own.max() > GRID_REPEAT_SHARE), logger
 
 
