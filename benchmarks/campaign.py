@@ -125,6 +125,11 @@ def identity_seed(root: int, scenario: str, trial: int, configuration: str | Non
     return np.random.SeedSequence(int(root), spawn_key=tuple(key))
 
 
+MAX_RUNS = 1_000_000
+"""The most runs a campaign may have (scenarios x methods x trials): a million runs take about 0.7 GB of task
+descriptions and a few minutes to seed before the first runs; more is refused (exit 2)."""
+
+
 @dataclass(frozen=True)
 class Campaign:
     scenarios: tuple[str, ...]
@@ -141,6 +146,10 @@ class Campaign:
     def tasks(self) -> tuple[list[dict], list[dict]]:
         """All runs as picklable dicts, and the (scenario, method) pairs skipped as not applicable."""
 
+        n_runs = len(self.scenarios) * len(self.methods) * int(self.trials)
+        if n_runs > MAX_RUNS:  # a typed zero too many: refused before hours of seeding and gigabytes of tasks
+            raise InputError(f"a campaign of {n_runs:,} runs ({len(self.scenarios)} scenario(s) x {len(self.methods)} "
+                             f"method(s) x {int(self.trials):,} trials) is more than the limit of {MAX_RUNS:,} runs")
         cals = available()
         tasks, skipped = [], []
         for kind, names in (("scenario", list(self.scenarios)), ("configuration", [m.label for m in self.methods])):

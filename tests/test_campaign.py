@@ -155,3 +155,22 @@ def test_resume_with_added_methods_runs_only_the_new_configurations(tmp_path):
     with pytest.raises(Exception, match="another campaign"):
         run_campaign(Campaign(first.scenarios, grown.methods, trials=2, seed=10), tmp_path, jobs=1,
                      progress=False, resume=True)
+
+
+def test_a_campaign_beyond_the_run_limit_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    """--trials 100000000 (a typed zero or two too many) built task descriptions for hours and gigabytes before
+    the first run; it is refused at once (exit 2, the limit named, no folder made).  The limit counts scenarios x
+    methods x trials (checked at a small limit: the campaign at it runs, one run more is refused)."""
+    from magbench.benchmarks import campaign as campaign_module
+    from magbench.benchmarks.cli import main as cli_main
+    from magbench.errors import InputError
+
+    out = tmp_path / "big"
+    assert cli_main(["compare", "--scenarios", "sphere9", "tumble9", "--methods", "lsq", "ga", "--trials", "100000000",
+                     "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "400,000,000 runs" in err and "limit of 1,000,000" in err and not out.exists()
+    monkeypatch.setattr(campaign_module, "MAX_RUNS", 4)
+    assert len(Campaign(("sphere9",), (MethodSpec("lsq"), MethodSpec("ga")), trials=2).tasks()[0]) == 4
+    with pytest.raises(InputError, match="more than the limit of 4 runs"):
+        Campaign(("sphere9",), (MethodSpec("lsq"),), trials=5).tasks()
