@@ -320,9 +320,9 @@ class Calibrator(metaclass=_Sealed):
             raise InputError(f"{n} points are too few for {self.name} with the {model} model "
                              f"(it needs at least {need})")
         if not dataset.has_reference:  # non-finite readings first, else the missing reference
-            raise InputError(_input_problems(dataset))
+            raise InputError(input_problems(dataset))
         known = _DatasetCache.of(dataset)  # what follows depends on the readings and reference alone: once per record
-        bad = known.get("input_problems", lambda: _input_problems(dataset))
+        bad = known.get("input_problems", lambda: input_problems(dataset))
         if bad:
             raise InputError(bad)
         problem = known.get("reference_problems", lambda: reference_problems(dataset.raw_nT, dataset.f_ref_nT))
@@ -482,7 +482,7 @@ class Calibrator(metaclass=_Sealed):
         raise NotImplementedError
 
 
-def _input_problems(dataset: Dataset) -> str | None:
+def input_problems(dataset: Dataset) -> str | None:
     """Why no calibrator can use these readings and reference (non-finite readings, no reference, a reference
     not finite and positive), or None."""
     if not np.all(np.isfinite(dataset.raw_nT)):

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from magbench.calibrators.acceptance import reference_problems
+from magbench.calibrators.base import input_problems
 from magbench.calibrators.core.objective import ScalarObjective, identity_vector
 from magbench.calibrators.fisher import coverage
 from magbench.errors import InputError
@@ -82,16 +83,21 @@ def turned(data) -> bool:
 
 
 def reference_mismatch(data) -> str | None:
-    """Why the readings and the reference of a vector record cannot belong together (``reference_problems``:
-    wrong or mixed units, raw counts, a reference that jumps), or None; checked before any path (the rotating
-    one, the level vehicle's and the fixed sensor's time-only answer), so that none of them answers on such
-    input.  None when there is no reference or a reading is not finite: the paths refuse those themselves."""
+    """Why a vector record cannot be diagnosed (``input_problems``: readings or reference not finite, as the
+    calibrators say it; a time or temperature not finite; ``reference_problems``: wrong or mixed units, raw
+    counts, a reference that jumps), or None; checked before any path (the rotating one, the level vehicle's and
+    the fixed sensor's time-only answer), so that none of them answers on such input.  None without a reference:
+    the paths refuse that themselves, with the reference options named."""
     if not data.has_reference:
         return None
-    raw, f_ref = np.asarray(data.raw_nT, dtype=float), np.asarray(data.f_ref_nT, dtype=float)
-    if not (np.all(np.isfinite(raw)) and np.all(np.isfinite(f_ref)) and np.all(f_ref > 0)):
-        return None
-    return reference_problems(raw, f_ref)
+    bad = input_problems(data)  # non-finite readings or reference, as the calibrators say it
+    if bad:
+        return bad
+    for name, values in (("t_s", data.t_s), ("temp_C", data.temp_C)):
+        if values is not None and not np.all(np.isfinite(values)):
+            rows = np.flatnonzero(~np.isfinite(np.asarray(values, dtype=float)))
+            return f"{name} has NaN or infinite values in row(s) {', '.join(map(str, rows[:5]))}"
+    return reference_problems(np.asarray(data.raw_nT, dtype=float), np.asarray(data.f_ref_nT, dtype=float))
 
 
 def attitude_refusal(data, base: str) -> str | None:

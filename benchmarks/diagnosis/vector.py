@@ -116,6 +116,12 @@ floor by this many standard errors, twice the usual test's, before the record is
 MIN_POINTS_BEYOND_PARAMETERS = 10
 MAX_EFFECTS = 4
 SELECTION_PASSES = 3
+EXACT_SHARE = 1e-12
+EXACT_REASON = ("the base model fits the readings to the arithmetic's precision (a residual below 1e-12 of the field: "
+                "noise-free data); the structure of rounding errors is not an effect")
+"""A base residual (RMS) below this share of the field is rounding, not a measurement: float64 carries 16 digits,
+so noise-free readings fit to a few 1e-12 nT, while the quietest fluxgates have picotesla noise (1e-8 of the field).
+Nothing is then tested (the spikes of rounding errors were named ``outliers``, and the verdict was ``unexplained``)."""
 MIN_STEP_OF_REMAINING = 0.25  # ... or a quarter of what the effects before it left
 ROBUST_START = "ransac"  # the robust base start, where it estimates the base model (its supported_models)
 TANGENT_TOLERANCE = 0.05  # a later tangent point must reproduce the base fit's RMS within 5 %
@@ -271,6 +277,10 @@ class Diagnosis:
         self.progress.step("base calibration")
         n_base = len(BASE_FREE[self.base])
         effects_ok, untested, not_applicable = testable(self.base, d, unit, n_base, k)
+        exact = rms(r_all) <= EXACT_SHARE * float(np.median(d.f_ref_nT))
+        if exact:  # noise-free readings: nothing to test, and nothing an effect could hide in (``none``)
+            untested.update({cls.name: EXACT_REASON for cls in effects_ok})
+            effects_ok = []
         self.effect_info = {cls.name: cls.prepare(d, self.norm, r_all, unit) for cls in effects_ok}
         self.progress.step("noise floor")
         model = self.model = ExtendedModel(self.base, effects_ok, d, self.norm, x9[6:9], self.effect_info)
@@ -318,7 +328,7 @@ class Diagnosis:
         powered = mdn <= POWER_MAX_OF_FLOOR * floor
         alternatives = {c["alternatives"][0]: "|".join(c["alternatives"]) for c in confounded if c.get("named", True)}
         result = verdict([alternatives.get(o, o) for o in order], rem["remainder_significant"], powered, untested,
-                         any_tested=bool(effects_ok))
+                         any_tested=bool(effects_ok) or exact)
         x_sel = self.tangent.full_fit(selected, "outliers" in selected)
         out = {"kind": "vector", "base_model": self.base, "base_fit": self.base_method,
                **({"attitude_coverage": self.degenerate} if self.degenerate is not None else {}),
