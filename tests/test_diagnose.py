@@ -115,3 +115,26 @@ def test_noise_free_readings_are_none_not_the_structure_of_rounding_errors():
     assert all("arithmetic's precision" in why for why in exact["not_tested"].values())
     tiny = diagnose(Dataset(b + np.random.default_rng(1).normal(0, 1e-6, b.shape), f_ref_nT=5e4, t_s=t))
     assert tiny["verdict"] == "none" and not tiny["not_tested"]
+
+
+def test_a_turntable_series_that_does_not_go_round_is_refused(tmp_path, capsys):
+    """Table 2 with every heading set to 0 was diagnosed (harmonics of 0.30 nT each, an axis elevation of -1538 rad),
+    and its first half (headings 0-170) too; the harmonics of one turn need at least 12 different headings with no
+    gap over 90 degrees: exit 2, one line.  Negative control: Table 2 itself (36 headings 10 degrees apart)."""
+    from magbench.benchmarks.cli import main
+
+    lines = resources.files("magbench.simulate").joinpath("data/lu2014_table2.csv").read_text().splitlines()
+    meta = [ln for ln in lines if ln.startswith("#")]
+    header, *rows = [ln for ln in lines if not ln.startswith("#")]
+    one = [",".join([r.split(",")[0], "0", *r.split(",")[2:]]) for r in rows]
+    half = [r for r in rows if float(r.split(",")[1]) < 180]
+    for name, body, says in (("one", one, "only 1 different heading"), ("half", half, "gap of 190 degrees"),
+                             ("whole", rows, None)):
+        path = tmp_path / f"{name}.csv"
+        path.write_text("\n".join([*meta, header, *body]) + "\n")
+        code = main(["diagnose", str(path), "--json"])
+        err = capsys.readouterr().err.strip()
+        if says is None:
+            assert code == 0, err
+        else:
+            assert code == 2 and says in err and len(err.splitlines()) == 1, (name, code, err)

@@ -20,6 +20,9 @@ from .localize import harmonics
 from .scoring import MIN_SIGNIFICANT_SHRINK_PCT, Z_SIGNIFICANT, paired_z, rms, shrink_pct
 
 MIN_HEADINGS = 12
+MAX_HEADING_GAP_DEG = 90.0
+"""The widest gap between neighbouring headings (around the circle) a scalar turntable series may leave: the 1..4
+cycles-per-revolution harmonics the diagnosis separates are confounded over a wider one."""
 TOGETHER = ("offset", "scale")  # the two first-order heading effects, also scored together
 MIN_GAP_NT = 1e-9
 
@@ -63,6 +66,15 @@ def _checked(series: ScalarSeries) -> ScalarFit:
     n = len(r)
     if n < MIN_HEADINGS:
         raise InputError(f"{n} headings are too few to diagnose (need at least {MIN_HEADINGS})")
+    heading = np.mod(np.asarray(series.heading_deg, dtype=float), 360.0)
+    distinct = len(np.unique(np.round(heading, 6)))
+    if distinct < MIN_HEADINGS:  # the harmonics of the heading need that many different headings, not rows
+        raise InputError(f"the {n} readings have only {distinct} different heading(s) (need at least {MIN_HEADINGS} "
+                         "around the turntable)")
+    gap = float(np.max(np.diff(np.concatenate([np.sort(heading), [np.min(heading) + 360.0]]))))
+    if gap > MAX_HEADING_GAP_DEG:
+        raise InputError(f"the headings leave a gap of {gap:.0f} degrees (at most {MAX_HEADING_GAP_DEG:g} for the "
+                         "harmonics of one turn): turn the table all the way round")
     order = np.argsort(series.t_s if series.t_s is not None else np.arange(n))
     tau = np.empty(n)
     tau[order] = np.linspace(-1, 1, n)
