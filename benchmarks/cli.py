@@ -636,8 +636,8 @@ def cmd_report(args) -> int:
         raise InputError(f"{d} is not a campaign directory (no runs.csv): run 'magbench compare' first")
     problem = runs_table_problem(d / "runs.csv")
     if problem:
-        raise InputError(f"{problem}: remove the line, or run its campaign again with --resume (its {CHECKPOINT}, when "
-                         "there is one, rebuilds the tables)" if "line" in problem else problem)
+        raise InputError(f"{problem}; running its campaign again with --resume rebuilds the tables from its "
+                         f"{CHECKPOINT}, when it has one")
     images: dict = {}
     progress = not args.json and not args.quiet
     written = make_figures(d, formats=tuple(args.format or ()), dpi=args.dpi, images=images, progress=progress,

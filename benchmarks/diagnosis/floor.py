@@ -179,7 +179,7 @@ def repeats(x: np.ndarray) -> tuple[bool, bool]:
 def vector_floor(unit: np.ndarray, d: Columns, r: np.ndarray, rows_in_time_order: bool = False) -> dict:
     """The floor of a vector record (module docstring); held samples (exact repeats of the previous reading)
     are left out when a logger held them (``repeats``), and their share is reported; readings on a grid coarser
-    than their noise take the interpolation errors' RMS (``time_difference_floor``)."""
+    than their noise take the interpolation errors' trimmed RMS (``time_difference_floor``, ``grid_sigma``)."""
     n = len(r)
     if d.t_s is not None and np.ptp(d.t_s) > 0:
         order = np.argsort(d.t_s, kind="stable")

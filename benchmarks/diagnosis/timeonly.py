@@ -159,7 +159,8 @@ def time_only(data: Dataset, reason: str) -> dict:
     distinct = int((~held).sum())
     if distinct < MIN_DISTINCT:
         raise InputError(f"{n - distinct} of {n} readings repeat the one before them exactly ({distinct} distinct): a "
-                         "stuck sensor or a logger that holds its value; nothing to diagnose")
+                         "stuck sensor, a logger that holds its value, or a resolution far coarser than the changes; "
+                         "nothing to diagnose")
     spikes, spike_info = _spikes(r, trend_design, t, raw[order])
     keep = ~spikes
     held_share = float(held.mean())

@@ -117,11 +117,11 @@ MIN_POINTS_BEYOND_PARAMETERS = 10
 MAX_EFFECTS = 4
 SELECTION_PASSES = 3
 EXACT_SHARE = 1e-12
-EXACT_REASON = ("the base model fits the readings to the arithmetic's precision (a residual below 1e-12 of the field: "
-                "noise-free data); the structure of rounding errors is not an effect")
 """A base residual (RMS) below this share of the field is rounding, not a measurement: float64 carries 16 digits,
 so noise-free readings fit to a few 1e-12 nT, while the quietest fluxgates have picotesla noise (1e-8 of the field).
 Nothing is then tested (the spikes of rounding errors were named ``outliers``, and the verdict was ``unexplained``)."""
+EXACT_REASON = ("the base model fits the readings to the arithmetic's precision (a residual below 1e-12 of the field: "
+                "noise-free data); the structure of rounding errors is not an effect")
 MIN_STEP_OF_REMAINING = 0.25  # ... or a quarter of what the effects before it left
 ROBUST_START = "ransac"  # the robust base start, where it estimates the base model (its supported_models)
 TANGENT_TOLERANCE = 0.05  # a later tangent point must reproduce the base fit's RMS within 5 %
