@@ -169,8 +169,12 @@ def repeats(x: np.ndarray) -> tuple[bool, bool]:
     # that do): there an axis repeats with (q_i - P) / (1 - P), P = prod(q_i) the whole-row rate the axes give alone
     part = same[~whole].mean(axis=0)
     alone = 0.0
-    for _ in range(200):  # the smallest fixed point of P = prod(part (1 - P) + P)
-        alone = float(np.prod(part * (1.0 - alone) + alone))
+    for _ in range(200):  # the smallest fixed point of P = prod(part (1 - P) + P), approached from below
+        step = float(np.prod(part * (1.0 - alone) + alone))
+        settled = step - alone <= 1e-12
+        alone = step
+        if settled:
+            break
     logger = bool(rows > HELD_MIN_FRACTION and rows > 2 * alone)
     own = part * (1.0 - alone) + alone
     return bool(own.max() > GRID_REPEAT_SHARE), logger
