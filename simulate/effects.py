@@ -717,10 +717,16 @@ class TemperatureEffect(Effect):
                 if len(d) <= cls.LAG_REFINE_ROWS:
                     from scipy.optimize import minimize_scalar
 
-                    lo = np.log(side[j - 2] if j > 1 else side[0] / 3.0)
-                    hi = np.log(side[j] if 0 < j < len(side) else side[-1] * (3.0 if sign > 0 else 1.0) if j else side[0])
-                    opt = minimize_scalar(lambda v: sse(sign * float(np.exp(v))), bounds=(lo, hi), method="bounded",
-                                          options={"xatol": 0.02})
+                    # the best is [0, *side][j]: between its neighbours on the grid, on the log of the share
+                    lo = side[j - 2] if j > 1 else side[0] / 3.0
+                    if j == 0:  # the best is 0: up to the smallest share
+                        hi = side[0]
+                    elif j < len(side):
+                        hi = side[j]
+                    else:  # the largest share: a lag may go beyond the grid, a lead never (LEAD_P)
+                        hi = side[-1] * (3.0 if sign > 0 else 1.0)
+                    opt = minimize_scalar(lambda v: sse(sign * float(np.exp(v))), bounds=(np.log(lo), np.log(hi)),
+                                          method="bounded", options={"xatol": 0.02})
                     share = sign * float(np.exp(opt.x))
                     if sse(share) < scores[j] * (1 - 1e-9):
                         best = share

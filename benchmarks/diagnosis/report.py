@@ -7,9 +7,8 @@ import numpy as np
 
 from magbench.calibrators import make
 from magbench.simulate.dataset import ScalarSeries
-from magbench.simulate.sensor import MODELS, PARAM_NAMES
+from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
 
-from .model import base_correction
 from .scalar import scalar_residual, together_columns
 from .vector import Diagnosis
 
@@ -181,10 +180,7 @@ def _plot_vector(ax, data, result: dict) -> str:
     if degenerate is None:
         correct = make("lsq", model=d.base).fit(data).correct
     else:  # the calibrators refuse these attitudes: the diagnosis's own base correction (fitted with the weak prior)
-        m_mat, o = base_correction(np.array([result["base_params"][k] for k in PARAM_NAMES[d.base]], dtype=float))
-
-        def correct(raw):
-            return (np.asarray(raw, dtype=float) - o) @ m_mat.T
+        correct = ErrorParams.from_vector([result["base_params"][k] for k in PARAM_NAMES[d.base]], d.base).correct
     r = np.linalg.norm(correct(np.asarray(data.raw_nT)), axis=1) - np.asarray(data.f_ref_nT)
     if data.heading_deg is not None:
         x, label = np.asarray(data.heading_deg), "heading (deg)"
