@@ -37,6 +37,7 @@ from magbench.calibrators.methods.gradiometer import (
     true_calibration,
     uncalibrated,
 )
+from magbench.errors import InputError
 from magbench.simulate.gradiometer import (
     DEFAULT_DURATION_S,
     DEFAULT_FIELD,
@@ -168,6 +169,12 @@ def run_gradiometer(seed: int = 0, n_points: int = DEFAULT_POINTS, fluctuation_n
     n_points = check_int(n_points, "n_points (--points)", MIN_POINTS)
     fluctuation_nT = check_nonneg(fluctuation_nT, "fluctuation_nT")
     noise_nT = check_nonneg(noise_nT, "noise_nT")
+    limit = MAX_SHARE_OF_FIELD * DEFAULT_FIELD.total_nT
+    for name, value in (("fluctuation_nT (--fluctuation-nT)", fluctuation_nT), ("noise_nT (--noise-nT)", noise_nT)):
+        if value > limit:
+            raise InputError(f"{name} must be at most {limit:g} nT (a tenth of the {DEFAULT_FIELD.total_nT:g} nT "
+                             f"field: beyond it the paper's model of a small fluctuation and noise does not hold), "
+                             f"got {value:g}")
     ga = check_ga_options(ga_options, n_points)
     ds = simulate_gradiometer(None, n_points, fluctuation_nT, noise_nT, DEFAULT_FIELD, duration_s, attitude, seed)
     t_sim = time.perf_counter()
@@ -220,11 +227,24 @@ def _header(r: dict) -> list[str]:
             f"fluctuation up to {r['fluctuation_nT']:g} nT, noise {r['noise_nT']:g} nT per axis per sensor"]
 
 
+MAX_SHARE_OF_FIELD = 0.1
+"""The largest fluctuation and noise ``run_gradiometer`` simulates, as a share of the ambient field."""
+
+
+def _num(x: float, width: int, decimals: int, exp: bool = False) -> str:
+    """``x`` right-aligned in ``width`` characters with ``decimals`` (``e`` notation with ``exp``), in ``e``
+    notation when that would not leave a space before it (a column never runs into the next)."""
+    text = f"{x:.{decimals}{'e' if exp else 'f'}}"
+    if len(text) >= width:
+        text = f"{x:.3g}"
+    return text.rjust(width)
+
+
 def _gradient_table(r: dict) -> list[str]:
     lines = [f"{'gradient residual per axis (RMS, nT)':40s}{'x':>10s}{'y':>10s}{'z':>10s}"]
     for key, label in _GRADIENT_ROWS:
         v = r["paper_ga_rms_nT"] if key == "paper" else r["gradient_rms_nT"][key]
-        lines.append(f"  {label:38s}" + "".join(f"{x:10.3f}" for x in v))
+        lines.append(f"  {label:38s}" + "".join(_num(x, 10, 3) for x in v))
     return lines
 
 
@@ -232,7 +252,7 @@ def _sensor_table(r: dict) -> list[str]:
     lines = [f"{'per-sensor vector error, best rotation (nT)':46s}{'sensor 1':>12s}{'sensor 2':>12s}"]
     for key, label in _SENSOR_ROWS:
         s = r["sensor_rms_nT"][key]
-        lines.append(f"  {label:44s}{s[0]:12.2f}{s[1]:12.2f}")
+        lines.append(f"  {label:44s}{_num(s[0], 12, 2)}{_num(s[1], 12, 2)}")
     return lines
 
 
@@ -241,9 +261,10 @@ def _parameter_table(r: dict) -> list[str]:
              f"{'M2 max':>10s}{'|dB1h| nT':>11s}{'|dB2h| nT':>11s}"]
     for key in JUDGED:
         e = r["parameter_errors"][key]
-        lines.append(f"  {key:32s}{e['coupling_nT']:12.3f}{max(map(abs, e['bias_nT'])):15.3f}"
-                     f"{e['m1_max_error']:10.2e}{e['m2_max_error']:10.2e}"
-                     f"{np.linalg.norm(e['b1h_error_nT']):11.2f}{np.linalg.norm(e['b2h_error_nT']):11.2f}")
+        lines.append(f"  {key:32s}{_num(e['coupling_nT'], 12, 3)}{_num(max(map(abs, e['bias_nT'])), 15, 3)}"
+                     f"{_num(e['m1_max_error'], 10, 2, exp=True)}{_num(e['m2_max_error'], 10, 2, exp=True)}"
+                     f"{_num(float(np.linalg.norm(e['b1h_error_nT'])), 11, 2)}"
+                     f"{_num(float(np.linalg.norm(e['b2h_error_nT'])), 11, 2)}")
     lines.append("  (coupling, bias: the gradient error c.B + b, zero for every exact solution; M errors after the "
                  "best common rotation)")
     return lines

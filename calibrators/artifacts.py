@@ -556,6 +556,16 @@ CAL_COLUMNS = ("bx_cal", "by_cal", "bz_cal", "f_cal")
 """Columns ``apply`` adds: the corrected field and its magnitude, in the unit of the input's field columns."""
 
 
+def mixed_units(raw_nT: np.ndarray) -> str | None:
+    """Why the readings are not all in one unit (some rows a factor of 30 or more off the others), or None:
+    the calibrators' own check (``acceptance.reference_problems``) against a constant reference, so that a
+    file without ``f_ref`` is checked too (the median magnitude's plausibility is ``read_csv``'s)."""
+    from magbench.calibrators.acceptance import reference_problems
+
+    typical = float(np.median(np.sqrt(np.einsum("ij,ij->i", raw_nT, raw_nT))))
+    return reference_problems(raw_nT, np.full(len(raw_nT), typical if typical > 0 else 1.0))
+
+
 def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = False, cal_name: str = "",
                  inputs=()) -> dict:
     """Write ``out``: the data file ``src`` with the corrected field ``bx_cal, by_cal, bz_cal`` and its
@@ -564,13 +574,16 @@ def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = Fa
     two lines added after them (``# calibration:`` and ``# cal_units:``).  ``src`` is read once: the rows
     corrected and the lines copied come from the same bytes.  Refuses (``InputError``) an ``out`` that is
     ``src`` or one of ``inputs`` (by inode, hard links included) or exists (unless ``force``), a file that
-    already has those columns, and readings whose magnitude does not fit the calibration's reference
-    (wrong ``units``).  ``out`` is written atomically."""
+    already has those columns, readings whose magnitude does not fit the calibration's reference
+    (wrong ``units``) and rows in mixed units (``mixed_units``).  ``out`` is written atomically."""
     src, out = Path(src), Path(out)
     check_output(out, [src, *inputs], force)
     source = read_input(src, "data file")
     field = cal.field_nT if math.isfinite(cal.field_nT) and cal.field_nT > 0 else None
     data = read_csv(src, units=units, require_vector=True, expected_field_nT=field, source=source)
+    mixed = mixed_units(data.raw_nT)
+    if mixed:
+        raise InputError(f"{src}: {mixed}")
     head = _parse_head(source.data, str(src))
     sep, names = _header(src, head.header)
     clash = [c for c in CAL_COLUMNS if c in names]

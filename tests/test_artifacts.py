@@ -191,7 +191,12 @@ def test_apply_refuses_bad_input(recordings, tmp_path, capsys):
     nocols = tmp_path / "nocols.csv"
     nocols.write_text("t,bx,by\n0,1,2\n")
     (tmp_path / "exists.csv").write_text("x\n")
+    mixed = tmp_path / "mixed.csv"  # every 5th row in uT among nT rows, no f_ref column: refused all the same
+    data = simulate("sphere9", 1)
+    raw = data.raw_nT * np.where(np.arange(len(data.raw_nT)) % 5 == 0, 1e-3, 1.0)[:, None]
+    mixed.write_text("t,bx,by,bz\n" + "".join(f"{i},{x!r},{y!r},{z!r}\n" for i, (x, y, z) in enumerate(raw)))
     cases = [
+        ("apply", cal_path, mixed, "--out", tmp_path / "o4.csv"),  # rows in mixed units
         ("apply", tmp_path / "bad.json", b, "--out", tmp_path / "o1.csv"),  # newer schema
         ("apply", cal_path, nocols, "--out", tmp_path / "o2.csv"),  # missing columns
         ("apply", cal_path, b, "--out", b),  # the input itself

@@ -2,11 +2,12 @@
 experiment and command (benchmarks/gradiometer.py)."""
 import argparse
 import json
+import re
 
 import numpy as np
 import pytest
 
-from magbench.benchmarks.gradiometer import gradient_rms, run_gradiometer
+from magbench.benchmarks.gradiometer import format_report, gradient_rms, run_gradiometer
 from magbench.benchmarks.gradiometer_cli import add_gradiometer_command
 from magbench.calibrators.core.evaluator import Budget, Evaluator
 from magbench.calibrators.methods.gradiometer import (
@@ -198,13 +199,26 @@ def test_command_table(capsys):
 
 @pytest.mark.parametrize("argv", [
     ["--points", "-5"], ["--points", "0"], ["--fluctuation-nT", "-1"], ["--noise-nT", "-0.1"],
-    ["--noise-nT", "nan"],
+    ["--noise-nT", "nan"], ["--noise-nT", "1e12"], ["--fluctuation-nT", "1e9"], ["--noise-nT", "5001"],
 ])
 def test_command_refuses_bad_input(argv):
     args = _parser().parse_args(["gradiometer", *argv])
     with pytest.raises(InputError) as exc:
         args.func(args)
     assert "\n" not in str(exc.value) and str(exc.value)
+
+
+def test_report_columns_never_run_together():
+    """A value too wide for its column (here 1e12 nT) is written in e notation, a space before it; the
+    largest noise the command simulates (a tenth of the field) is the negative control: fixed point."""
+    from magbench.benchmarks.gradiometer import _num
+
+    assert _num(1414488371581.2891, 10, 3) == "  1.41e+12"
+    assert _num(7047.174, 10, 3) == "  7047.174"
+    assert _num(2.92e-2, 10, 2, exp=True) == "  2.92e-02"
+    out = format_report(run_gradiometer(n_points=40, noise_nT=5000.0))
+    for line in out.splitlines():
+        assert not re.search(r"\d\.\d+\.\d", line), line  # two numbers glued: 123.456789.0
 
 
 def test_command_refuses_a_negative_seed_as_usage(capsys):
