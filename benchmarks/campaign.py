@@ -105,10 +105,18 @@ class MethodSpec:
             if "=" not in item:
                 raise InputError(f"method {text!r}: parameter {item!r} is not key=value")
             k, v = item.split("=", 1)
+            if k.strip() in OWN_SETTINGS:
+                raise InputError(f"method {text!r}: {k.strip()} is not a method's parameter in a campaign: "
+                                 f"{OWN_SETTINGS[k.strip()]}")
             with suppress(json.JSONDecodeError):
                 v = json.loads(v)
             params.append((k, v))
         return cls(name.strip(), tuple(params))
+
+
+OWN_SETTINGS = {"seed": "each run's seed comes from --seed and the run's identity (scenario, trial, configuration)",
+                "model": "each scenario fixes the model its runs estimate"}
+"""Constructor arguments a campaign sets itself, never from a ``name:key=value`` specification."""
 
 
 def _name_key(name: str) -> int:

@@ -197,6 +197,8 @@ def _parse_params(items) -> dict:
         if "=" not in item:
             raise InputError(f"--param wants KEY=VALUE, got {item!r}")
         key, value = item.split("=", 1)
+        if key.strip() in ("seed", "model"):
+            raise InputError(f"--param {item}: {key.strip()} has its own option, --{key.strip()}")
         try:
             params[key.strip()] = json.loads(value)
         except json.JSONDecodeError:

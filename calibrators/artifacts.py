@@ -79,6 +79,7 @@ from typing import Any
 import numpy as np
 
 from magbench import __version__
+from magbench.calibrators.acceptance import reference_problems
 from magbench.errors import InputError
 from magbench.safeio import InputBytes, atomic_output, atomic_write, check_output, read_input
 from magbench.simulate.dataset import UNIT_FACTORS_NT, _header, _parse_head, read_csv
@@ -560,8 +561,6 @@ def mixed_units(raw_nT: np.ndarray) -> str | None:
     """Why the readings are not all in one unit (some rows a factor of 30 or more off the others), or None:
     the calibrators' own check (``acceptance.reference_problems``) against a constant reference, so that a
     file without ``f_ref`` is checked too (the median magnitude's plausibility is ``read_csv``'s)."""
-    from magbench.calibrators.acceptance import reference_problems
-
     typical = float(np.median(np.sqrt(np.einsum("ij,ij->i", raw_nT, raw_nT))))
     return reference_problems(raw_nT, np.full(len(raw_nT), typical if typical > 0 else 1.0))
 

@@ -283,6 +283,16 @@ class Calibrator(metaclass=_Sealed):
             names = {t.__name__ for t in allowed} - {"NoneType"} | ({"None"} if type(None) in allowed else set())
             wanted = " or ".join(sorted(names))
             raise InputError(f"{cls.name}: hyper-parameter {name} must be {wanted}, not {value!r}")
+        problem = cls._params_together({**_init_defaults(cls), **params})
+        if problem:
+            raise InputError(f"{cls.name}: {problem}")
+
+    @classmethod
+    def _params_together(cls, params: dict) -> str | None:
+        """What is wrong with hyper-parameters that are valid one by one but not together (``elitism`` of
+        ``population``), or None; ``params`` holds every hyper-parameter (the defaults where not given).  A
+        subclass with such constraints overrides it; a limit that depends on the data stays in ``_solve``."""
+        return None
 
     def set_params(self, **params) -> Calibrator:
         """A new calibrator with some hyper-parameters changed (the original is untouched)."""
@@ -709,6 +719,12 @@ def _uncertainty(objective: ScalarObjective, x: np.ndarray, noise_nT: float | No
 def _init_signature(cls) -> inspect.Signature:
     """A calibrator class's constructor signature, read once per class (every fit reads its parameters)."""
     return inspect.signature(cls.__init__)
+
+
+@functools.cache
+def _init_defaults(cls) -> dict:
+    """A calibrator class's constructor defaults, read once per class (read-only by convention)."""
+    return {p.name: p.default for p in _init_signature(cls).parameters.values() if p.default is not inspect.Parameter.empty}
 
 
 @functools.cache

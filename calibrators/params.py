@@ -64,6 +64,14 @@ class Options:
 BUDGET = (Interval(Integral, 1, None), Budget, None)
 """An evaluation budget: a number of evaluation-equivalents (an int), a ``Budget``, or None (none)."""
 SEED = (Interval(Integral, 0, None), None)
+PROBABILITY = [Interval(Real, 0, 1)]
+AT_LEAST_ONE = [Interval(Integral, 1, None)]
+NON_NEGATIVE = [Interval(Real, 0, None)]
+POSITIVE = [Interval(Real, 0, None, "neither")]
+BOX = {"angle_range_rad": [Interval(Real, 0, math.pi / 2, "right")], "scale_range": [Interval(Real, 0, 1, "neither")],
+       "offset_range_nT": [*POSITIVE, None]}
+"""The population methods' search box (``core.problem.population_box``): angles within +-90 degrees, scales
+1 +- ``scale_range`` (positive), offsets within +- ``offset_range_nT`` (None: from the field)."""
 
 
 def _accepts(constraint, value) -> bool:

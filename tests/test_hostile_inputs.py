@@ -175,10 +175,10 @@ CASES = [
     # options
     ("seed-negative", GOOD, ["--seed", "-5"], 2, "negative"),
     ("seed-text", GOOD, ["--seed", "x"], 2, "not an integer"),
-    ("param-not-int", GOOD, ["--method", "aga", "--param", "population=abc"], 2, "must be int"),
+    ("param-not-int", GOOD, ["--method", "aga", "--param", "population=abc"], 2, "population must be an int >= 2"),
     ("param-no-equals", GOOD, ["--param", "population"], 2, "KEY=VALUE"),
     ("param-unknown", GOOD, ["--param", "colour=3"], 2, "no hyper-parameter"),
-    ("param-bool-as-int", GOOD, ["--param", "bounded=1"], 2, "must be bool"),
+    ("param-bool-as-int", GOOD, ["--param", "bounded=1"], 2, "bounded must be a bool"),
     ("method-unknown", GOOD, ["--method", "nope"], 2, "unknown calibrator"),
     ("model-unknown", GOOD, ["--model", "ten"], 2, "invalid choice"),
     ("units-unknown", GOOD, ["--units", "kT"], 2, "invalid choice"),

@@ -18,13 +18,14 @@ over the box (a search that has not found the basin) never stops early.
 """
 from __future__ import annotations
 
-import numpy as np
+from numbers import Integral
 
-from magbench.errors import InputError
+import numpy as np
 
 from ..base import Calibrator
 from ..core import loop
 from ..core.problem import Problem, SolveOutput, population_box
+from ..params import AT_LEAST_ONE, BOX, NON_NEGATIVE, POSITIVE, Interval
 
 TOL = 1e-6
 
@@ -37,6 +38,10 @@ class AntColony(Calibrator):
     summary = "ant colony optimization for continuous domains (ACO_R, Socha & Dorigo 2008)"
     stochastic = True
     check_tolerance = {"angle_rad": 2e-4, "scale": 2e-4, "offset_nT": 5.0}
+
+    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "archive_size": [Interval(Integral, 2, None)],
+                              "ants": AT_LEAST_ONE, "q": POSITIVE, "xi": POSITIVE, "iterations": AT_LEAST_ONE,
+                              "tol": NON_NEGATIVE}
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, archive_size: int = 50,
                  ants: int = 20, q: float = 0.1, xi: float = 0.85, iterations: int = 4000,
@@ -68,8 +73,6 @@ class AntColony(Calibrator):
 
     def _solve(self, problem: Problem):
         k, m = self.archive_size, self.ants
-        if k < 2 or m < 1 or self.q <= 0 or self.xi <= 0 or not self.tol >= 0:
-            raise InputError("aco: archive_size >= 2, ants >= 1, q > 0, xi > 0 and tol >= 0 are required")
         rng = problem.rng
         lo, hi = problem.lower, problem.upper
         span, p = hi - lo, len(lo)

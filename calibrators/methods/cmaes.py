@@ -19,13 +19,14 @@ only sort rounding noise; an excess ``dF`` over the optimum moves the estimate b
 """
 from __future__ import annotations
 
-import numpy as np
+from numbers import Integral, Real
 
-from magbench.errors import InputError
+import numpy as np
 
 from ..base import Calibrator
 from ..core import loop
 from ..core.problem import Problem, SolveOutput, population_box
+from ..params import AT_LEAST_ONE, BOX, NON_NEGATIVE, Interval
 
 TOLFUN_REL = 1e-6
 
@@ -40,6 +41,10 @@ class CMAES(Calibrator):
     summary = "CMA-ES (pycma), the reference black-box evolution strategy; one objective call per generation"
     stochastic = True
     check_tolerance = {"angle_rad": 2e-4, "scale": 2e-4, "offset_nT": 5.0}
+
+    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "population": [Interval(Integral, 0, None)],
+                              "sigma0": [Interval(Real, 0, 1, "right")], "max_evaluations": AT_LEAST_ONE,
+                              "tolfun": NON_NEGATIVE, "tolx": NON_NEGATIVE, "tolfun_rel": NON_NEGATIVE}
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, population: int = 0,
                  sigma0: float = 0.3, max_evaluations: int = 20000, tolfun: float = 1e-9, tolx: float = 1e-8,
@@ -66,9 +71,6 @@ class CMAES(Calibrator):
     termination_params = {"max_evaluations": "max_evaluations", "tol": "tolfun_rel"}
 
     def termination_settings(self) -> dict:
-        if not (0 < self.sigma0 <= 1 and self.max_evaluations >= 1 and self.population >= 0 and self.tolfun_rel >= 0):
-            raise InputError("cmaes: 0 < sigma0 <= 1, max_evaluations >= 1, population >= 0 and tolfun_rel >= 0 "
-                             "are required")
         return {"max_evaluations": int(self.max_evaluations), "tol": float(self.tolfun_rel),
                 "tol_meaning": "spread of the population's values and of the best values over pycma's tolfun window, "
                                "relative to the best value"}

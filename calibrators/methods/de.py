@@ -15,6 +15,7 @@ from magbench.errors import InputError
 from ..base import Calibrator
 from ..core import loop
 from ..core.problem import Problem, SolveOutput, population_box
+from ..params import AT_LEAST_ONE, BOX, NON_NEGATIVE, PROBABILITY
 
 
 class DifferentialEvolution(Calibrator):
@@ -26,6 +27,9 @@ class DifferentialEvolution(Calibrator):
     summary = "differential evolution (SciPy, vectorized: one objective call per generation)"
     stochastic = True
     check_tolerance = {"angle_rad": 2e-4, "scale": 2e-4, "offset_nT": 5.0}
+
+    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "popsize": AT_LEAST_ONE,
+                              "generations": AT_LEAST_ONE, "recombination": PROBABILITY, "tol": NON_NEGATIVE}
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, strategy: str = "best1bin",
                  popsize: int = 15, generations: int = 1000, mutation: float = 0.7, recombination: float = 0.9,
@@ -57,8 +61,6 @@ class DifferentialEvolution(Calibrator):
                 "tol_meaning": f"SciPy's own: std of the population's values <= {self.tol:g} x |their mean|"}
 
     def _solve(self, problem: Problem):
-        if self.popsize < 1 or self.generations < 1 or not 0 <= self.recombination <= 1:
-            raise InputError("de: popsize >= 1, generations >= 1 and 0 <= recombination <= 1 are required")
         from scipy.optimize import differential_evolution  # imported on use: the registry stays light
 
         lo, hi = problem.lower, problem.upper

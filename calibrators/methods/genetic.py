@@ -9,6 +9,8 @@ their own array operators.
 """
 from __future__ import annotations
 
+from numbers import Integral
+
 import numpy as np
 
 from magbench.errors import InputError
@@ -16,6 +18,7 @@ from magbench.errors import InputError
 from ..base import Calibrator
 from ..core import loop
 from ..core.problem import Problem, SolveOutput, population_box
+from ..params import AT_LEAST_ONE, BOX, NON_NEGATIVE, POSITIVE, PROBABILITY, Interval, Options
 from . import _gakernel
 from ._gakernel import adaptive_probability  # noqa: F401  (seed 000's eq. 4-5, part of this module's API)
 from .lsq import levenberg_marquardt
@@ -49,6 +52,11 @@ class AdaptiveGA(Calibrator):
     # halves the residual.  The tolerances say so; aga-lm is the variant that recovers them.
     check_tolerance = {"angles": {"angle_rad": 3e-3, "scale": 0.0, "offset_nT": 0.0},
                        "nine": {"angle_rad": 3e-2, "scale": 3e-2, "offset_nT": 400.0}}
+    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "population": [Interval(Integral, 2, None)],
+                              "bits": [Interval(Integral, 1, 62)], "pc1": PROBABILITY, "pc2": PROBABILITY,
+                              "pm1": PROBABILITY, "pm2": PROBABILITY, "k_max": AT_LEAST_ONE, "delta_g": NON_NEGATIVE,
+                              "max_generations": AT_LEAST_ONE, "mutation": [Options(("single_bit", "per_bit"))],
+                              "elitism": [Interval(Integral, 0, None)], "polish": [bool]}
 
     def __init__(self, model: str = "angles", seed: int | None = 0, budget=None, population: int = 80,
                  bits: int = 10, angle_range_rad: float = 0.1, scale_range: float = 0.1,
@@ -82,15 +90,15 @@ class AdaptiveGA(Calibrator):
         return {"max_iterations": int(self.max_generations), "tol": float(self.delta_g),
                 "tol_meaning": "step 6: |mean G(k) - mean G(k-1)| at k >= k_max (the generation count doubles)"}
 
+    @classmethod
+    def _params_together(cls, params: dict) -> str | None:
+        if params["population"] % 2:
+            return f"population must be even (the roulette's spins are paired), not {params['population']}"
+        if params["elitism"] > params["population"]:
+            return f"elitism ({params['elitism']}) must be at most population ({params['population']})"
+        return None
+
     def _solve(self, problem: Problem):
-        if self.population < 2 or self.population % 2:
-            raise InputError("aga: population must be an even number >= 2")
-        if self.mutation not in ("single_bit", "per_bit"):
-            raise InputError("aga: mutation must be 'single_bit' or 'per_bit'")
-        if not 1 <= self.bits <= 62:
-            raise InputError("aga: bits must be between 1 and 62 (one int64 per gene)")
-        if not 0 <= self.elitism <= self.population:
-            raise InputError("aga: elitism must be between 0 and population")
         rng, m, nb = problem.rng, self.population, int(self.bits)
         lo = np.array(problem.lower, dtype=float)  # writable and contiguous: one kernel signature
         step = (problem.upper - lo) / (2**nb - 1)  # eq. 6
@@ -179,6 +187,10 @@ class RealGA(Calibrator):
     summary = "plain real-coded GA: tournament, BLX-alpha, non-uniform mutation, fixed Pc/Pm"
     stochastic = True
     check_tolerance = {"angle_rad": 2e-4, "scale": 2e-4, "offset_nT": 5.0}
+    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "population": [Interval(Integral, 4, None)],
+                              "generations": AT_LEAST_ONE, "pc": PROBABILITY, "pm": PROBABILITY,
+                              "blx_alpha": NON_NEGATIVE, "nonuniform_b": NON_NEGATIVE, "tournament": AT_LEAST_ONE,
+                              "elitism": [Interval(Integral, 0, None)]}
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, population: int = 80,
                  generations: int = 1000, pc: float = 0.9, pm: float = 0.1, blx_alpha: float = 0.3,
@@ -196,6 +208,12 @@ class RealGA(Calibrator):
         self.angle_range_rad = angle_range_rad
         self.scale_range = scale_range
         self.offset_range_nT = offset_range_nT
+
+    @classmethod
+    def _params_together(cls, params: dict) -> str | None:
+        if params["elitism"] >= params["population"]:
+            return f"elitism ({params['elitism']}) must be less than population ({params['population']})"
+        return None
 
     @classmethod
     def checking_params(cls) -> dict:
@@ -354,6 +372,8 @@ class ElitistRealGA(RealGA):
     name = "rga"
     summary = ("the real-coded elitist GA of the real-coded GA paper on three-component fluxgates (rank/SUS selection, "
                "scattered crossover, shrinking Gaussian)")
+
+    _parameter_constraints = {**RealGA._parameter_constraints, "mutation_scale": POSITIVE}
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, population: int = 80,
                  generations: int = 1000, pc: float = 0.8, pm: float = 0.2, blx_alpha: float = 0.0,

@@ -18,6 +18,7 @@ from magbench.numerics import lm_iterations
 from ..base import Calibrator
 from ..core import loop
 from ..core.problem import Problem, SolveOutput
+from ..params import AT_LEAST_ONE, NON_NEGATIVE, Options
 
 
 def levenberg_marquardt(problem: Problem, x_start: np.ndarray, tol: float = 1e-12, max_nfev: int = 200,
@@ -51,6 +52,9 @@ class LeastSquares(Calibrator):
     name = "lsq"
     summary = "Levenberg-Marquardt on the scalar residual, analytic Jacobian (maximum likelihood)"
 
+    _parameter_constraints = {**Calibrator._parameter_constraints, "init": [Options(("auto", "identity", "ellipsoid"))],
+                              "tol": NON_NEGATIVE, "max_nfev": AT_LEAST_ONE, "bounded": [bool]}
+
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, init: str = "auto",
                  tol: float = 1e-12, max_nfev: int = 200, bounded: bool = True):
         super().__init__(model=model, seed=seed, budget=budget)
@@ -60,8 +64,6 @@ class LeastSquares(Calibrator):
         self.bounded = bounded
 
     def _start(self, problem: Problem):
-        if self.init not in ("auto", "identity", "ellipsoid"):
-            raise InputError(f"lsq: init must be auto, identity or ellipsoid, not {self.init!r}")
         if self.init == "identity" or problem.model == "angles":
             return problem.x0
         start = yield loop.START  # the framework's ellipsoid fit, counted

@@ -8,15 +8,16 @@ algorithms are seeded with ``nlopt.srand(seed)``.
 """
 from __future__ import annotations
 
+from numbers import Integral
+
 import nlopt
 import numpy as np
-
-from magbench.errors import InputError
 
 from ..base import Calibrator
 from ..core import loop
 from ..core.evaluator import BudgetExhausted
 from ..core.problem import Problem, SolveOutput, population_box
+from ..params import AT_LEAST_ONE, BOX, NON_NEGATIVE, Interval
 
 RESULT_NAMES = {1: "success", 2: "stopval_reached", 3: "ftol_reached", 4: "xtol_reached", 5: "maxeval_reached",
                 6: "maxtime_reached"}
@@ -33,6 +34,16 @@ class NLoptCalibrator(Calibrator):
     summary = "NLopt algorithms (--algorithm; default LN_BOBYQA; GN_* global, LD_* analytic gradient)"
     stochastic = True
     check_tolerance = {"angle_rad": 5e-5, "scale": 5e-5, "offset_nT": 1.0}
+
+    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "max_evaluations": AT_LEAST_ONE,
+                              "ftol_rel": NON_NEGATIVE, "xtol_rel": NON_NEGATIVE, "population": [Interval(Integral, 0, None)]}
+
+    @classmethod
+    def _params_together(cls, params: dict) -> str | None:
+        algorithm = params["algorithm"]
+        if not isinstance(getattr(nlopt, str(algorithm), None), int) or str(algorithm)[:3] not in ("LN_", "LD_", "GN_", "GD_"):
+            return f"unknown algorithm {algorithm!r} (e.g. LN_BOBYQA, LD_LBFGS, GN_CRS2_LM, GN_ISRES, GN_ESCH)"
+        return None
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, algorithm: str = "LN_BOBYQA",
                  max_evaluations: int = 20000, ftol_rel: float = 1e-14, xtol_rel: float = 1e-10,
@@ -63,10 +74,6 @@ class NLoptCalibrator(Calibrator):
                                "in NLopt's calls"}
 
     def _solve(self, problem: Problem):
-        code = getattr(nlopt, str(self.algorithm), None)
-        if not isinstance(code, int) or str(self.algorithm)[:3] not in ("LN_", "LD_", "GN_", "GD_"):
-            raise InputError(f"nlopt: unknown algorithm {self.algorithm!r} (e.g. LN_BOBYQA, LD_LBFGS, GN_CRS2_LM, "
-                             "GN_ISRES, GN_ESCH)")
         lo, hi = problem.lower, problem.upper
         span = hi - lo
         uses_gradient = str(self.algorithm)[1] == "D"
@@ -76,7 +83,7 @@ class NLoptCalibrator(Calibrator):
 
         def run(ask):  # NLopt's loop, asking the framework for every value (recast: core/loop.py)
             nlopt.srand(int(self.seed) if self.seed is not None else 0)
-            opt = nlopt.opt(code, len(lo))
+            opt = nlopt.opt(getattr(nlopt, str(self.algorithm)), len(lo))
 
             def f(u, grad):  # NLopt's callback: a request to the framework and nothing else
                 x = lo + u * span

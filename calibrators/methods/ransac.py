@@ -17,6 +17,7 @@ and inlier fraction w.
 from __future__ import annotations
 
 import math
+from numbers import Integral, Real
 
 import numpy as np
 
@@ -26,6 +27,7 @@ from ..base import Calibrator
 from ..core import loop
 from ..core.algebra import ellipsoid_params
 from ..core.problem import ReadingsProblem, SolveOutput
+from ..params import AT_LEAST_ONE, POSITIVE, Interval
 
 
 def ransac_iterations(confidence: float, inlier_fraction: float, sample_size: int) -> int:
@@ -47,6 +49,17 @@ class RansacEllipsoid(Calibrator):
     robust = True  # the consensus set excludes outliers (seed 003)
     check_tolerance = {"angle_rad": 1e-4, "scale": 1e-4, "offset_nT": 2.0}
 
+    _parameter_constraints = {**Calibrator._parameter_constraints, "sample_size": [Interval(Integral, 0, None)],
+                              "confidence": [Interval(Real, 0, 1, "neither")],
+                              "inlier_fraction": [Interval(Real, 0, 1, "right")], "epsilon_sigma": POSITIVE,
+                              "max_iterations": AT_LEAST_ONE}
+
+    @classmethod
+    def _params_together(cls, params: dict) -> str | None:
+        if 0 < params["sample_size"] < 9:
+            return f"sample_size must be 0 (automatic) or at least 9 (nine unknowns), not {params['sample_size']}"
+        return None
+
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, sample_size: int = 0,
                  confidence: float = 0.9999, inlier_fraction: float = 0.9, epsilon_sigma: float = 0.25,
                  max_iterations: int = 10000):
@@ -66,8 +79,6 @@ class RansacEllipsoid(Calibrator):
         q = self.sample_size or max(9, min(12, n // 10))
         if not 9 <= q <= n // 10:
             raise InputError(f"ransac: sample size q = {q} is outside 9 <= q <= n/10 = {n // 10}")
-        if not (0 < self.confidence < 1 and 0 < self.inlier_fraction <= 1 and self.epsilon_sigma > 0):
-            raise InputError("ransac: 0 < confidence < 1, 0 < inlier_fraction <= 1 and epsilon_sigma > 0 required")
         rng = problem.rng
         plain = ellipsoid_params(raw, f_ref)
         r_plain = yield loop.residuals(plain.to_vector("nine"))  # every residual vector is counted

@@ -14,6 +14,8 @@ number of A is reported in the message.  The ellipsoid is then reported through 
 """
 from __future__ import annotations
 
+from numbers import Integral
+
 import numpy as np
 
 from magbench.errors import InputError
@@ -21,6 +23,7 @@ from magbench.errors import InputError
 from ..base import Calibrator
 from ..core.algebra import normalize, quadric_to_ellipsoid, shape_to_params
 from ..core.problem import ReadingsProblem, SolveOutput
+from ..params import Interval
 
 N_UNKNOWNS = 9
 CORNER_MIN_DISTANCE = 0.05
@@ -118,6 +121,8 @@ class TotalLeastSquares(_LinearizedFit):
     name = "tls"
     summary = "total least squares of the linearized ellipsoid equations (Zhang et al.)"
 
+    _parameter_constraints = {**Calibrator._parameter_constraints, "normalize": [bool]}
+
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, normalize: bool = False):
         super().__init__(model=model, seed=seed, budget=budget)
         self.normalize = normalize
@@ -129,6 +134,9 @@ class TruncatedTLS(_LinearizedFit):
     name = "ttls"
     summary = "truncated TLS with the L-curve truncation level (Zhang et al.)"
     truncate = True
+
+    _parameter_constraints = {**Calibrator._parameter_constraints, "truncation": [Interval(Integral, 0, N_UNKNOWNS)],
+                              "normalize": [bool]}
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, truncation: int = 0,
                  normalize: bool = False):
