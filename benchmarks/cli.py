@@ -607,6 +607,11 @@ def _compare_outputs(args, runs, out: Path, progress: bool) -> int:
     return EXIT_OK
 
 
+DIAGNOSIS_FIGURE_FORMATS = ("png", "svg", "pdf")
+"""What ``diagnose --figure`` writes, by the name's extension (checked before the diagnosis: an unknown one
+was an internal error after it)."""
+
+
 def cmd_diagnose(args) -> int:
     from magbench.benchmarks.diagnosis import diagnose, diagnosis_figure, diagnosis_text, read_gravity
 
@@ -615,6 +620,9 @@ def cmd_diagnose(args) -> int:
         data = load_dataset(args, require_vector=False)
     figure = Path(args.figure) if args.figure and not args.no_figure else None
     if figure is not None:
+        if figure.suffix.lower().lstrip(".") not in DIAGNOSIS_FIGURE_FORMATS:
+            raise InputError(f"--figure {figure}: the name must end in "
+                             f"{', '.join('.' + f for f in DIAGNOSIS_FIGURE_FORMATS)} (its format)")
         if figure.exists() and not args.force and not figure.is_dir():
             raise InputError(f"{figure} exists; refusing to overwrite it (use another --figure PATH or --force)")
         check_output(figure, [args.file], args.force, what="--figure file")

@@ -710,3 +710,28 @@ def test_diagnose_answers_the_fixed_and_level_records_of_those_negative_controls
         path.write_text(_csv(raw))
         assert main(["diagnose", str(path)]) == 0, (name, capsys.readouterr().err)
         capsys.readouterr()
+
+
+@pytest.mark.parametrize("extra,fragment", [
+    (["--figure", "{tmp}/fig.txt"], "the name must end in .png, .svg, .pdf"),
+    (["--figure", "{tmp}/fig"], "the name must end in .png, .svg, .pdf"),
+    (["--folds", "1000"], "--folds must be at most 100 for 300 readings"),
+])
+def test_diagnose_refuses_options_it_cannot_honour_before_diagnosing(tmp_path, capsys, extra, fragment):
+    """A figure name without a known format was an internal error (exit 1) after the whole diagnosis;
+    --folds 1000 on 300 readings ran (700 empty folds) and reported 1000 folds."""
+    path = tmp_path / "good.csv"
+    path.write_text(GOOD)
+    argv = ["diagnose", str(path), *[a.format(tmp=tmp_path) for a in extra]]
+    assert main(argv) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and fragment in err and len(err.strip().splitlines()) == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["good.csv"]
+
+
+def test_diagnose_writes_a_figure_named_in_capitals_and_takes_the_most_folds(tmp_path, capsys):
+    """The negative controls: .PNG is a PNG, and --folds at its limit (100 for 300 readings) runs."""
+    path = tmp_path / "good.csv"
+    path.write_text(GOOD)
+    assert main(["diagnose", str(path), "--figure", str(tmp_path / "fig.PNG"), "--folds", "100"]) == 0
+    assert (tmp_path / "fig.PNG").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

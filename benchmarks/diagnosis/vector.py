@@ -107,6 +107,11 @@ BEYOND_TIME_ROWS = 50_000
 """The temperature-beyond-time test fits on a systematic sample of at most this many rows (its z grows with the
 square root of the rows: at this size an effect that matters is far beyond the threshold)."""
 DEFAULT_FOLDS = 5
+MAX_FOLDS = 100
+"""The most folds ``--folds`` may ask for (each is a fit of every candidate effect)."""
+MIN_FOLD_ROWS = 3
+"""Readings a fold holds out at least, when ``--folds`` asks for more than ``DEFAULT_FOLDS``: more folds than
+a third of the readings were accepted (1000 folds of 300 readings, 700 of them empty) and reported as asked."""
 TANGENT_HELDOUT_MIN = 0.5
 """A held-out residual below this share of the same model's in-sample residual cannot come from a least-squares
 fit that its tangent space describes (held-out residuals are larger than in-sample ones)."""
@@ -184,6 +189,10 @@ class Diagnosis:
             raise InputError("no reference magnitude: give an f_ref column, --field NT, --igrf ..., or '# field_nT:'")
         if folds < 2:
             raise InputError(f"--folds must be at least 2, not {folds}")
+        most = max(DEFAULT_FOLDS, min(MAX_FOLDS, len(data) // MIN_FOLD_ROWS))
+        if folds > most:
+            raise InputError(f"--folds must be at most {most} for {len(data)} readings (each fold holds at least "
+                             f"{MIN_FOLD_ROWS} out, and every fold is a fit of every candidate), not {folds}")
         self.dataset, self.base, self.k, self.seed = data, base, folds, seed
         self.gravity = gravity
         self.rows_in_time_order = rows_in_time_order
