@@ -670,7 +670,21 @@ def cmd_reproduce(args) -> int:
 def _add_figure_options(p: argparse.ArgumentParser, default, help_text: str | None = None) -> None:
     p.add_argument("--format", nargs="+", choices=["png", "svg", "pdf"], default=default, metavar="FMT",
                    help=help_text or "figure file formats, one or more of png, svg, pdf")
-    p.add_argument("--dpi", type=_positive_int, default=300, help="resolution of PNG figures (print: 300)")
+    p.add_argument("--dpi", type=_dpi, default=300,
+                   help=f"resolution of PNG figures, {DPI_RANGE[0]} to {DPI_RANGE[1]} (print: 300)")
+
+
+DPI_RANGE = (20, 1200)
+"""The PNG resolutions ``--dpi`` takes: below 20 the fonts fail (FreeType refused 5 dpi, an internal error
+after the campaign), above 1200 a figure is hundreds of megabytes (100000 ran out of memory after it)."""
+
+
+def _dpi(text: str) -> int:
+    value = integer(text, DPI_RANGE[0], f"is below {DPI_RANGE[0]}: figures need at least {DPI_RANGE[0]} dpi")
+    if value > DPI_RANGE[1]:
+        raise argparse.ArgumentTypeError(f"{value} is above {DPI_RANGE[1]}: a figure at that resolution takes "
+                                         "hundreds of megabytes")
+    return value
 
 
 def _local_dask_cluster(workers: int, progress: bool):

@@ -735,3 +735,14 @@ def test_diagnose_writes_a_figure_named_in_capitals_and_takes_the_most_folds(tmp
     path.write_text(GOOD)
     assert main(["diagnose", str(path), "--figure", str(tmp_path / "fig.PNG"), "--folds", "100"]) == 0
     assert (tmp_path / "fig.PNG").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("dpi,fragment", [("5", "5 is below 20"), ("100000", "100000 is above 1200")])
+def test_compare_refuses_a_resolution_it_cannot_draw_before_any_run(tmp_path, capsys, dpi, fragment):
+    """--dpi 5 was an internal error (FreeType) and --dpi 100000 'not enough memory', both after the runs."""
+    out = tmp_path / "c"
+    assert main(["compare", "--scenarios", "sphere9", "--methods", "lsq", "--trials", "1", "--out", str(out),
+                 "--quiet", "--dpi", dpi]) == 2
+    err = capsys.readouterr().err
+    assert fragment in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
