@@ -122,7 +122,10 @@ def choose_model(dataset: Dataset, candidates=None, folds: int = FOLDS, seed: in
         rows.append(row)
     fitted = [r for r in rows if r["model"] in sq]
     if not fitted:
-        why = "; ".join(f"{r['model']}: {r['rejections'][0] if r['rejections'] else 'no fit'}" for r in rows)
+        reasons = [r["rejections"][0] if r["rejections"] else "no fit" for r in rows]
+        if len(set(reasons)) == 1 and reasons[0] != "no fit":  # one cause for every model (no reference, ...): said once
+            raise InputError(reasons[0])
+        why = "; ".join(f"{r['model']}: {reason}" for r, reason in zip(rows, reasons))
         raise InputError(f"model auto: no candidate model could be fitted to these data ({why})")
     best = min(fitted, key=lambda r: r["rms_heldout_nT"])
     for r in rows:

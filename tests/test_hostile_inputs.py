@@ -141,6 +141,9 @@ CASES = [
     ("meta-field-zero", _csv(RAW, header=("bx", "by", "bz"), meta=("# field_nT: 0",)), [], 2, "positive number"),
     ("meta-field-inf", _csv(RAW, header=("bx", "by", "bz"), meta=("# field_nT: inf",)), [], 2, "positive number"),
     ("no-reference", _csv(RAW, header=("bx", "by", "bz"), meta=()), [], 2, "no reference"),
+    # model auto said it once per candidate model, in the Python API's words (f_ref_nT=, field=)
+    ("no-reference-model-auto", _csv(RAW, header=("bx", "by", "bz"), meta=()), ["--model", "auto"], 2,
+     "no reference magnitude: give an f_ref column, --field NT"),
     ("meta-field-used", _csv(RAW, header=("bx", "by", "bz")), [], 0, ""),
     ("field-option-used", _csv(RAW, header=("bx", "by", "bz"), meta=()), ["--field", "50000"], 0, ""),
     ("field-option-negative", _csv(RAW, header=("bx", "by", "bz"), meta=()), ["--field", "-3"], 2, "positive"),
