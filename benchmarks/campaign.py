@@ -417,10 +417,19 @@ def _run_pool(tasks: list[dict], jobs: int, finish, pool=None) -> None:
     pool.shutdown(wait=True)
 
 
+DASK_CONNECT_S = 20
+"""How long a campaign waits for ``--dask ADDRESS``'s scheduler before it gives up (exit 2)."""
+
+
 def _run_dask(tasks: list[dict], address: str, finish) -> None:
     from distributed import Client, as_completed
 
-    client = Client(address, timeout="20s")
+    try:
+        client = Client(address, timeout=f"{DASK_CONNECT_S}s")
+    except (OSError, TimeoutError, ValueError) as exc:  # distributed says "Timed out trying to connect to ..."
+        raise InputError(f"cannot reach the Dask scheduler at {address} within {DASK_CONNECT_S} s "
+                         f"({type(exc).__name__}: {str(exc).splitlines()[0][:160] if str(exc) else 'no reason given'})"
+                         ) from None
     try:
         chunks = _chunks(list(range(len(tasks))), 8)
         futures = client.map(run_chunk, [[tasks[i] for i in idx] for idx in chunks], pure=False)

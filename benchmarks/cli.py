@@ -500,9 +500,13 @@ def _campaign_from_args(args):
     if holder is not None:
         raise InputError(f"{out} is in use by another campaign ({holder}); wait for it to end, or use another --out")
     if out.exists() and any(p.name != LOCK for p in out.iterdir()) and not (args.force or args.resume):
-        hint = (f"it holds an interrupted campaign ({CHECKPOINT}): use --resume to complete it or --force to start "
-                "over" if (out / CHECKPOINT).exists() else "use --resume to complete its campaign or --force to "
-                "overwrite it")
+        if _campaign_complete(out):
+            hint = ("it holds a complete campaign: --resume with more methods runs only those, --force starts over, "
+                    "or give another --out")
+        elif (out / CHECKPOINT).exists():
+            hint = f"it holds an interrupted campaign ({CHECKPOINT}): use --resume to complete it or --force to start over"
+        else:
+            hint = "use --resume to complete its campaign or --force to overwrite it"
         raise InputError(f"{out} exists and is not empty; refusing to overwrite it ({hint})")
     specs = tuple(MethodSpec.parse(m) for m in methods)
     if args.budgets:
@@ -521,6 +525,14 @@ def cmd_compare(args) -> int:
         if not (args.force or args.resume) and any(p.name != LOCK for p in out.iterdir()):
             raise InputError(f"{out} was filled by another process meanwhile; refusing to overwrite it")
         return _compare_locked(args, campaign, out, command)
+
+
+def _campaign_complete(out: Path) -> bool:
+    """Whether ``out`` holds a campaign its manifest calls complete (a damaged manifest: not known, so no)."""
+    try:
+        return json.loads((out / "manifest.json").read_text(encoding="utf-8")).get("complete") is True
+    except (OSError, ValueError, AttributeError):
+        return False
 
 
 def _compare_locked(args, campaign, out: Path, command: str) -> int:

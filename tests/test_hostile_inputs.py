@@ -749,3 +749,27 @@ def test_compare_refuses_a_resolution_it_cannot_draw_before_any_run(tmp_path, ca
     err = capsys.readouterr().err
     assert fragment in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_compare_calls_a_complete_campaign_complete(tmp_path, capsys):
+    """A finished campaign's folder was refused as 'an interrupted campaign (runs.partial.jsonl)'."""
+    out = tmp_path / "c"
+    argv = ["compare", "--scenarios", "sphere9", "--methods", "lsq", "--trials", "1", "--out", str(out), "--quiet",
+            "--no-figures"]
+    assert main(argv) == 0
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "it holds a complete campaign" in err and "interrupted" not in err
+
+
+def test_an_unreachable_dask_scheduler_is_named(tmp_path, capsys, monkeypatch):
+    """--dask with no scheduler there said 'cannot read or write OSError' (exit 2) after 20 s."""
+    from magbench.benchmarks import campaign
+
+    monkeypatch.setattr(campaign, "DASK_CONNECT_S", 1)
+    code = main(["compare", "--scenarios", "sphere9", "--methods", "lsq", "--trials", "1", "--out",
+                 str(tmp_path / "c"), "--quiet", "--no-figures", "--dask", "tcp://127.0.0.1:9"])
+    err = capsys.readouterr().err
+    assert code == 2 and "cannot reach the Dask scheduler at tcp://127.0.0.1:9 within 1 s" in err, err
+    assert len(err.strip().splitlines()) == 1
