@@ -20,7 +20,7 @@ import numpy as np
 
 from magbench.errors import InputError
 from magbench.numerics import lm_normal
-from magbench.simulate.dataset import UNIT_FACTORS_NT, Dataset
+from magbench.simulate.dataset import UNIT_FACTORS_NT, Dataset, real_array
 
 from .acceptance import least_covered_direction
 from .core.algebra import axis_ellipsoid_fit, ellipsoid_params, fit_ellipsoid, sphere_fit
@@ -44,7 +44,7 @@ def as_dataset(data, f_ref_nT=None, field=None, units: str = "nT", model: str = 
     elif _is_dataframe(data):
         dataset = _from_frame(data, factor)
     elif isinstance(data, (np.ndarray, list, tuple)):
-        raw = _real(data, "readings", "readings must be numbers: an (N, 3) array of bx, by, bz")
+        raw = real_array(data, "readings", "readings must be numbers: an (N, 3) array of bx, by, bz")
         if raw.ndim != 2 or raw.shape[1] != 3:
             raise InputError(f"readings must be an (N, 3) array of bx, by, bz, not of shape {raw.shape}")
         dataset = Dataset(raw * factor, meta={"source": "array"})
@@ -69,7 +69,7 @@ def as_dataset(data, f_ref_nT=None, field=None, units: str = "nT", model: str = 
                                        "reference_ignored": f"{given_as} was not used: the data's own f_ref comes "
                                                             "first (CONTRACT section 2)"})
     if ref is not None:
-        arr = _real(ref, "the reference", "the reference must be a number of nT or one number per row")
+        arr = real_array(ref, "the reference", "the reference must be a number of nT or one number per row")
         if arr.ndim > 1 or (arr.ndim == 1 and arr.shape[0] != len(dataset)):
             raise InputError(f"the reference has shape {arr.shape}; give a scalar or {len(dataset)} values")
         source = "f_ref_nT= (keyword)" if f_ref_nT is not None else f"field={float(np.median(arr)):g} (keyword)"
@@ -83,21 +83,6 @@ def _is_dataframe(data) -> bool:
     return type(data).__name__ == "DataFrame" and hasattr(data, "columns")
 
 
-def _real(values, what: str, not_numbers: str) -> np.ndarray:
-    """``values`` as floats, else ``InputError``: ``not_numbers`` when they are not numbers, and complex
-    values refused by name (a cast to float drops their imaginary parts with only a warning: a fit of x + iy
-    was answered as if the readings were x)."""
-    try:
-        arr = np.asarray(values)
-        if np.iscomplexobj(arr) or (arr.dtype == object and any(isinstance(v, complex) for v in arr.ravel())):
-            raise InputError(f"{what} must be real numbers, not complex")
-        return arr.astype(float)
-    except (TypeError, ValueError) as exc:
-        if isinstance(exc, InputError):
-            raise
-        raise InputError(not_numbers) from None
-
-
 def _from_frame(frame, factor: float) -> Dataset:
     cols = {str(c).strip().lower(): c for c in frame.columns}
     missing = [c for c in ("bx", "by", "bz") if c not in cols]
@@ -107,7 +92,7 @@ def _from_frame(frame, factor: float) -> Dataset:
     def col(name):
         if name not in cols:
             return None
-        return _real(frame[cols[name]].to_numpy(), f"DataFrame column {name}", f"DataFrame column {name} is not numeric")
+        return real_array(frame[cols[name]].to_numpy(), f"DataFrame column {name}", f"DataFrame column {name} is not numeric")
 
     raw = np.column_stack([col(c) for c in ("bx", "by", "bz")]) * factor
     f_ref = col("f_ref")

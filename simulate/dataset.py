@@ -25,11 +25,29 @@ from magbench.errors import InputError  # noqa: E402  (re-exported: magbench.sim
 from magbench.safeio import InputBytes, atomic_write, check_output, read_input  # noqa: E402
 
 
+def real_array(values, what: str, not_numbers: str | None = None) -> np.ndarray:
+    """``values`` as a float array, else ``InputError``: ``not_numbers`` (default: ``what`` must be numbers)
+    when they are not numbers, and complex values refused by name (a cast to float drops their imaginary
+    parts with only numpy's warning: a fit of x + iy was answered as if the readings were x)."""
+    try:
+        arr = np.asarray(values)
+        if np.iscomplexobj(arr) or (arr.dtype == object and any(isinstance(v, complex) for v in arr.ravel())):
+            raise InputError(f"{what} must be real numbers, not complex")
+        return arr.astype(float, copy=False)
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(not_numbers or f"{what} must be numbers") from None
+
+
 def readonly_copy(a, dtype=float, ndim=None, name="array"):
     """A read-only copy of ``a`` (None stays None); ``ndim`` is checked when given.  The one way the project
-    freezes an array it keeps (datasets, results, the views a calibrator gets)."""
+    freezes an array it keeps (datasets, results, the views a calibrator gets); a float copy of complex
+    values is refused (``real_array``)."""
     if a is None:
         return None
+    if dtype is float:
+        a = real_array(a, name)
     arr = np.array(a, dtype=dtype, copy=True)
     if ndim is not None and arr.ndim != ndim:
         raise InputError(f"{name} must have {ndim} dimension(s), got shape {arr.shape}")
@@ -99,7 +117,7 @@ class Dataset:
             value = getattr(self, name)
             if value is None:
                 continue
-            arr = np.asarray(value, dtype=float)
+            arr = real_array(value, name)
             if arr.ndim == 0:
                 arr = np.full(n, float(arr))
             arr = readonly_copy(arr, ndim=1, name=name)

@@ -36,3 +36,15 @@ def test_what_fit_takes_gives_the_same_answer(data):
     ref = make("lsq").fit(DATA.raw_nT, f_ref_nT=F)
     res = make("lsq").fit(data, f_ref_nT=F)
     assert res.rms_after_nT == pytest.approx(ref.rms_after_nT, rel=1e-4)  # float32 rounds 50000 nT to 0.004 nT
+
+
+@pytest.mark.parametrize("column", ["raw_nT", "f_ref_nT", "t_s", "temp_C", "heading_deg"])
+def test_a_dataset_refuses_complex_columns(column):
+    """``Dataset`` (what diagnose() and every calibrator read) refuses complex values in any column."""
+    from magbench.simulate.dataset import Dataset
+
+    kwargs = {"raw_nT": DATA.raw_nT, "f_ref_nT": DATA.f_ref_nT}
+    kwargs[column] = np.asarray(kwargs.get(column, np.zeros(len(DATA))), dtype=float) + 1j
+    with pytest.raises(InputError, match=f"{column} must be real numbers, not complex"):
+        Dataset(**kwargs)
+    Dataset(**{k: v.real for k, v in kwargs.items()})  # the control
