@@ -9,7 +9,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from magbench.benchmarks.styles import BOUND_GREY
+from magbench.benchmarks.styles import BOUND_GREY, log_scale
 
 MARK_EVERY = 6
 """A marker on every sixth point of a curve, so that methods sharing a colour stay apart."""
@@ -57,10 +57,10 @@ def _scenario_figure(frame: pd.DataFrame, styles: dict, draw, ylabel: str, title
                 draw(ax, part, styles[conf])
         if log_y:
             ax.axhline(1.0, color=BOUND_GREY, lw=1, ls="--")
-            ax.set_yscale("log")
+            log_scale(ax, "y")
         else:
             ax.set_ylim(-0.02, 1.02)
-        ax.set_xscale("log")
+        log_scale(ax, "x")
         ax.set_xlabel("objective evaluations")
         ax.set_ylabel(ylabel)
         ax.set_title(scenario)
@@ -111,10 +111,10 @@ def fig_profile(profile: pd.DataFrame, styles: dict) -> Figure | None:
         st = styles[conf]
         ax.step(part["tau"], part["fraction"], where="post", color=st["color"], ls=st["ls"], marker=st["marker"],
                 markevery=MARK_EVERY, ms=4)
-    ax.set_xscale("log")
+    log_scale(ax, "x")
     ax.set_ylim(-0.02, 1.02)
-    ax.set_xlabel(r"$\tau$: ERT to 1.01 × optimum, relative to the best method's")
-    ax.set_ylabel(r"fraction of scenarios with ratio $\leq \tau$")
+    ax.set_xlabel("τ: ERT to 1.01 × optimum, relative to the best method's")
+    ax.set_ylabel("fraction of scenarios with ratio ≤ τ")
     ax.set_title("Performance profile (Dolan & Moré) across scenarios")
     _legend(fig, confs, styles)
     return fig

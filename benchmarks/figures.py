@@ -40,7 +40,7 @@ from matplotlib.patches import Patch
 
 from magbench.benchmarks import comparison_figures
 from magbench.benchmarks.progress import BarSafeStream, progress_bar, slow_phase
-from magbench.benchmarks.styles import BOUND_GREY, RC, WARN_COLOUR, campaign_styles
+from magbench.benchmarks.styles import BOUND_GREY, RC, WARN_COLOUR, campaign_styles, log_scale
 from magbench.benchmarks.tables import MIN_TRIALS_EFFICIENCY, efficiency_interval
 from magbench.paper import ARCSEC_PER_RAD
 from magbench.simulate.scenarios import get_scenario
@@ -234,7 +234,7 @@ def fig_errors(runs: pd.DataFrame, scenario: str, styles: dict) -> Figure | None
                            marker=marker, alpha=0.75, lw=0 if MarkerStyle(marker).is_filled() else 1.0, zorder=3)
         else:
             ax.text(0.5, 0.5, "no data", transform=ax.transAxes, ha="center", va="center", color="0.4")
-        ax.set_xscale("log")
+        log_scale(ax, "x")
         ax.set_title(f"{GREEK[a]}")
         ax.set_xlabel("|estimate − truth| / Cramér-Rao σ" if relative else "|estimate − truth| (arcsec)")
     hi = max((float(np.max(v)) for v in every if v.size), default=1.0)
@@ -287,8 +287,7 @@ def fig_accuracy_runtime(runs: pd.DataFrame, scenario: str, styles: dict) -> Fig
     for c, (tx, tl, th), (ry, rl, rh), n in points:
         ax.errorbar([tx], [ry], xerr=[[tl], [th]], yerr=[[rl], [rh]], fmt=styles[c]["marker"],
                     color=styles[c]["color"], ms=7, capsize=3, lw=1.2, label=f"{_wrap(c, 34)} (n={n})")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+    log_scale(ax, "x", "y")
     _direct_labels(ax, [(c, tx, ry, styles[c]["color"]) for c, (tx, _, _), (ry, _, _), _ in points])
     ax.set_xlabel("median runtime per calibration (s)")
     ax.set_ylabel("median RMS angle error / Cramér-Rao σ" if relative else "median RMS angle error (arcsec)")
@@ -428,8 +427,7 @@ def fig_convergence(data: tuple, scenario: str, styles: dict) -> Figure | None:
         handles.append(Line2D([], [], color=st["color"], ls=st["ls"], lw=1.5, label=label))
     if not handles:
         return None
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+    log_scale(ax, "x", "y")
     ax.set_xlabel("objective evaluations")
     ax.set_ylabel("RMS total-field residual of the best point so far, √F (nT)")
     ax.set_title(f"Convergence — {scenario} (median over trials)")
@@ -545,7 +543,7 @@ def fig_efficiency(runs: pd.DataFrame, scenario: str, styles: dict) -> Figure | 
             hi = r["hi"] - y if np.isfinite(r["hi"]) else 0.0
             ax.errorbar([x], [y], yerr=[[max(lo, 0.0)], [max(hi, 0.0)]], fmt=ANGLE_MARKERS[r["angle"]],
                         color=styles[c]["color"], mec="black", mew=0.5, ms=6, capsize=2.5, lw=1.1)
-    ax.set_yscale("log")
+    log_scale(ax, "y")
     vals = _positive(np.r_[eff["lo"].to_numpy(float), eff["hi"].to_numpy(float), eff["efficiency"].to_numpy(float)])
     ax.set_ylim(min(vals.min(), 0.5) / 2, max(vals.max(), 2.0) * 2)
     ax.set_xticks(range(n), [_wrap(c, 18) for c in configs], rotation=25 if n > 6 else 0,

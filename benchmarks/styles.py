@@ -11,7 +11,9 @@ replaced by Tol's wine.
 """
 from __future__ import annotations
 
+import functools
 import json
+import re
 from pathlib import Path
 
 PALETTE = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#882255")
@@ -103,3 +105,38 @@ def swatch_svg(style: dict, title: str = "") -> str:
             f'stroke-width="1.4"{dash.get(ls, "")}/><path d="{" ".join(d)}" '
             f'fill="{escape(colour) if filled else "none"}" stroke="{escape(colour)}" '
             f'stroke-width="{0.6 if filled else 1.3}"/></svg>')
+
+
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+_MATHTEXT_LABEL = re.compile(r"^\$\\mathdefault\{(?P<body>.*)\}\$$")
+
+
+@functools.cache
+def _plain_log_formatter():
+    """matplotlib's ``LogFormatterSciNotation`` with its labels in plain text: ``10⁻³``, ``2×10⁻³``, ``1``
+    (a label it would write another way is kept as mathtext)."""
+    from matplotlib.ticker import LogFormatterSciNotation
+
+    class PlainLogFormatter(LogFormatterSciNotation):
+        def __call__(self, x, pos=None):
+            text = super().__call__(x, pos)
+            match = _MATHTEXT_LABEL.match(text)
+            if match is None:
+                return text
+            body = re.sub(r"\^\{(-?\d+)\}", lambda m: m.group(1).translate(_SUPERSCRIPT),
+                          match.group("body").replace(r"\times", "×"))
+            return text if any(c in body for c in "\\{}^$") else body
+
+    return PlainLogFormatter
+
+
+def log_scale(ax, *axes: str) -> None:
+    """A log scale on each of ``axes`` (``"x"``, ``"y"``) of ``ax``, its tick labels in plain text with
+    Unicode superscripts (``10⁻³``) instead of mathtext: parsing the mathtext labels (pyparsing, once per
+    label and resolution) was a fifth of the figures' time, and the labels look the same."""
+    formatter = _plain_log_formatter()
+    for name in axes:
+        getattr(ax, f"set_{name}scale")("log")
+        axis = getattr(ax, f"{name}axis")
+        axis.set_major_formatter(formatter())
+        axis.set_minor_formatter(formatter(labelOnlyBase=False))
