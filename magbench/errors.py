@@ -1,5 +1,43 @@
-"""The errors the command line maps to exit statuses (CONTRACT section 3)."""
+"""The errors the command line maps to exit statuses (CONTRACT section 3), and the checks of plain values
+that raise them from the library's entry points (seeds, counts, non-negative numbers)."""
+from __future__ import annotations
+
+import math
+from numbers import Integral
 
 
 class InputError(ValueError):
     """Bad input or usage: the command line reports it in one line and exits with status 2."""
+
+
+def check_nonneg(value, name: str) -> float:
+    """``value`` as a finite float >= 0, or ``InputError`` naming ``name``."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v) or v < 0:
+        raise InputError(f"{name} must be a finite number >= 0, got {value!r}")
+    return v
+
+
+def check_int(value, name: str, minimum: int) -> int:
+    """``value`` as an int >= ``minimum`` (a float with an integer value is accepted), or ``InputError``."""
+    if isinstance(value, bool) or not isinstance(value, Integral):
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        else:
+            raise InputError(f"{name} must be an integer, got {value!r}")
+    if value < minimum:
+        raise InputError(f"{name} must be at least {minimum}, got {value}")
+    return int(value)
+
+
+def check_seed(value, name: str = "seed") -> int | None:
+    """A seed: None (fresh entropy) or a non-negative integer (what ``np.random.default_rng`` and
+    ``nlopt.srand`` take), else ``InputError`` naming ``name`` (not numpy's ValueError or TypeError)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, Integral) or value < 0:
+        raise InputError(f"{name} must be a non-negative integer or None, got {value!r}")
+    return int(value)

@@ -40,7 +40,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from magbench import paper
-from magbench.errors import InputError
+from magbench.errors import InputError, check_int, check_nonneg  # noqa: F401  (check_int, check_nonneg: this module's API too)
 
 from .attitude import full_sphere, tumble
 from .dataset import readonly_copy
@@ -59,29 +59,6 @@ MIN_POINTS = paper.GRADIOMETER_MIN_POINTS
 
 ATTITUDES = ("tumble", "sphere")
 """Attitude sequences the simulator offers (see ``simulate_gradiometer``)."""
-
-
-def check_nonneg(value, name: str) -> float:
-    """``value`` as a finite float >= 0, or ``InputError`` naming ``name``."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v) or v < 0:
-        raise InputError(f"{name} must be a finite number >= 0, got {value!r}")
-    return v
-
-
-def check_int(value, name: str, minimum: int) -> int:
-    """``value`` as an int >= ``minimum`` (a float with an integer value is accepted), or ``InputError``."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        if isinstance(value, float) and value.is_integer():
-            value = int(value)
-        else:
-            raise InputError(f"{name} must be an integer, got {value!r}")
-    if value < minimum:
-        raise InputError(f"{name} must be at least {minimum}, got {value}")
-    return int(value)
 
 
 def nonorthogonality_matrix(alpha, beta, gamma) -> np.ndarray:

@@ -13,7 +13,7 @@ from functools import cache
 import numpy as np
 
 from magbench import paper
-from magbench.errors import InputError
+from magbench.errors import InputError, check_seed
 
 from . import attitude as att
 from .dataset import Dataset, Truth
@@ -70,8 +70,8 @@ class Scenario:
             "sphere": att.full_sphere, "cap": att.cap, "vehicle": att.vehicle, "tumble": att.tumble}
         return schedules[self.schedule](self.n_points, rng, **kw)
 
-    def build(self, seed: int = 0) -> Dataset:
-        rng = np.random.default_rng(seed)
+    def build(self, seed: int | None = 0) -> Dataset:
+        rng = np.random.default_rng(check_seed(seed))
         base = self.field_fn()
         attitudes = self.attitudes(rng)
         t = attitudes.t_s

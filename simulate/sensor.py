@@ -10,10 +10,13 @@ Two forward conventions, both named:
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
+
+from magbench.errors import InputError
 
 MODELS = ("offset", "diag", "angles", "nine")
 """Model names, simplest first: ``offset`` (ox, oy, oz; P = I, K = I: MATLAB magcal's ``eye``), ``diag``
@@ -80,6 +83,29 @@ def ul_factor(w: np.ndarray) -> np.ndarray:
     return j @ low.T @ j
 
 
+def _number(value, name: str) -> float:
+    """``value`` as a finite float, else ``InputError`` naming ``name``."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise InputError(f"{name} must be finite, got {v}")
+    return v
+
+
+def _three_numbers(values, name: str) -> tuple[float, float, float]:
+    """``values`` as three finite floats (x, y, z), else ``InputError`` naming ``name``."""
+    try:
+        items = tuple(values)
+    except TypeError:
+        raise InputError(f"{name} must be three numbers (x, y, z), got {values!r}") from None
+    if len(items) != 3:
+        raise InputError(f"{name} must be three numbers (x, y, z), got {len(items)}: {values!r}")
+    a, b, c = (_number(v, name) for v in items)
+    return a, b, c
+
+
 @dataclass(frozen=True)
 class ErrorParams:
     """The nine calibration parameters of CONTRACT section 1, in the paper's convention.
@@ -94,10 +120,12 @@ class ErrorParams:
     offset_nT: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self):
-        object.__setattr__(self, "scale", tuple(float(v) for v in self.scale))
-        object.__setattr__(self, "offset_nT", tuple(float(v) for v in self.offset_nT))
+        for name in ("scale", "offset_nT"):
+            object.__setattr__(self, name, _three_numbers(getattr(self, name), name))
         for name in ("alpha_rad", "beta_rad", "gamma_rad"):
-            object.__setattr__(self, name, float(getattr(self, name)))
+            object.__setattr__(self, name, _number(getattr(self, name), name))
+        if not all(k > 0 for k in self.scale):
+            raise InputError(f"scale must be three positive numbers (the axes' gains), got {self.scale}")
 
     @property
     def matrix(self) -> np.ndarray:

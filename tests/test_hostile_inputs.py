@@ -773,3 +773,18 @@ def test_an_unreachable_dask_scheduler_is_named(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert code == 2 and "cannot reach the Dask scheduler at tcp://127.0.0.1:9 within 1 s" in err, err
     assert len(err.strip().splitlines()) == 1
+
+
+def test_diagnose_refuses_broken_accelerometer_columns(tmp_path, capsys):
+    """A file whose ax, ay, az had an empty row was diagnosed without its gravity, saying nothing."""
+    lines = GOOD.splitlines()
+    header = [i for i, ln in enumerate(lines) if not ln.startswith("#")][0]
+    body = [ln + (",0,0,9.8" if i != header + 6 else ",,,") for i, ln in enumerate(lines[header + 1:], header + 1)]
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(lines[:header] + [lines[header] + ",ax,ay,az"] + body) + "\n")
+    assert main(["diagnose", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "accelerometer columns ax, ay, az" in err and "not a direction" in err and len(err.strip().splitlines()) == 1
+    good = tmp_path / "good.csv"
+    good.write_text(bad.read_text().replace(",,,", ",0,0,9.8"))
+    assert main(["diagnose", str(good)]) == 0

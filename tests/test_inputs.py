@@ -48,3 +48,48 @@ def test_a_dataset_refuses_complex_columns(column):
     with pytest.raises(InputError, match=f"{column} must be real numbers, not complex"):
         Dataset(**kwargs)
     Dataset(**{k: v.real for k, v in kwargs.items()})  # the control
+
+
+def _diagnose(**kwargs):
+    from magbench.benchmarks.diagnosis import diagnose
+
+    data = kwargs.pop("data", DATA)
+    return diagnose(data, **kwargs)
+
+
+@pytest.mark.parametrize("call,words", [
+    (lambda: simulate("sphere9", -1), "seed must be a non-negative integer or None, got -1"),
+    (lambda: simulate("sphere9", 1.5), "seed must be a non-negative integer or None, got 1.5"),
+    (lambda: _diagnose(folds=2.5), "folds must be an integer, got 2.5"),
+    (lambda: _diagnose(seed=-1), "seed must be at least 0, got -1"),
+    (lambda: _diagnose(data=DATA.raw_nT), "diagnose takes a Dataset"),
+    (lambda: _diagnose(gravity=np.ones((10, 3))), "gravity must be an (N, 3) array"),
+    (lambda: _diagnose(gravity=np.full((300, 3), np.nan)), "gravity has 300 row(s) that are not a direction"),
+    (lambda: _diagnose(gravity=np.zeros((300, 3))), "gravity has 300 row(s) that are not a direction"),
+])
+def test_library_entry_points_refuse_bad_values_in_their_own_words(call, words):
+    """Before: numpy's ValueError/TypeError for a seed, IndexError for a gravity array of the wrong shape,
+    LinAlgError (LAPACK printing on stderr) for NaN gravity, AttributeError for an array given to diagnose."""
+    with pytest.raises(InputError) as err:
+        call()
+    assert words in str(err.value)
+
+
+@pytest.mark.parametrize("kwargs,words", [
+    ({"alpha_rad": float("nan")}, "alpha_rad must be finite"), ({"scale": (0, 1, 1)}, "scale must be three positive"),
+    ({"scale": (1, 1)}, "scale must be three numbers (x, y, z), got 2"), ({"offset_nT": ("a", 0, 0)}, "must be a number"),
+])
+def test_error_params_refuse_what_is_not_a_sensor(kwargs, words):
+    """ErrorParams(scale=(1, 1)) and a NaN angle were accepted (and simulated)."""
+    from magbench.simulate.sensor import ErrorParams
+
+    with pytest.raises(InputError) as err:
+        ErrorParams(**kwargs)
+    assert words in str(err.value)
+    ErrorParams(alpha_rad=0.01, scale=(0.9, 1.0, 1.1), offset_nT=(5, -5, 0))  # the control
+
+
+def test_library_controls_pass():
+    """The negative controls of the refusals above."""
+    assert len(simulate("sphere9", None)) == 300 and len(simulate("sphere9", np.int64(3))) == 300
+    assert _diagnose(folds=5.0, seed=np.int64(2), gravity=np.tile([0.0, 0.0, 9.8], (300, 1)))["verdict"]

@@ -23,8 +23,8 @@ from magbench.calibrators.acceptance import reference_problems
 from magbench.calibrators.base import input_problems
 from magbench.calibrators.core.objective import ScalarObjective, identity_vector
 from magbench.calibrators.fisher import coverage
-from magbench.errors import InputError
-from magbench.simulate.dataset import ScalarSeries
+from magbench.errors import InputError, check_int
+from magbench.simulate.dataset import Dataset, ScalarSeries, real_array
 from magbench.simulate.sensor import PARAM_NAMES
 
 from .blind import blind_dataset, blind_kinds
@@ -48,6 +48,12 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
 
     # one BLAS thread: every product here is a tall-skinny block (65536 x <= 50); a second thread gains
     # nothing, and on a loaded machine spin-waiting BLAS threads made the Gram products up to 100x slower
+    folds, seed = check_int(folds, "folds", 2), check_int(seed, "seed", 0)
+    if not isinstance(data, (Dataset, ScalarSeries)):
+        raise InputError(f"diagnose takes a Dataset (readings, reference, times) or a ScalarSeries, not "
+                         f"{type(data).__name__}")
+    if gravity is not None and not isinstance(data, ScalarSeries):
+        gravity = gravity_problem_free(gravity, len(data))
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
         if isinstance(data, ScalarSeries):
             return diagnose_scalar(data, folds=folds, seed=seed)
@@ -109,8 +115,23 @@ def attitude_refusal(data, base: str) -> str | None:
     return report["refusal"]
 
 
+def gravity_problem_free(gravity, n: int) -> np.ndarray:
+    """``gravity`` as an (n, 3) float array of finite, non-zero directions (any unit), else ``InputError``
+    saying what is wrong (a wrong shape was an IndexError, NaN rows a LinAlgError with LAPACK on stderr)."""
+    g = real_array(gravity, "gravity")
+    if g.shape != (n, 3):
+        raise InputError(f"gravity must be an (N, 3) array of accelerometer directions, one per reading ({n}), "
+                         f"not of shape {g.shape}")
+    bad = np.flatnonzero(~np.all(np.isfinite(g), axis=1) | ~(np.einsum("ij,ij->i", g, g) > 0))
+    if len(bad):
+        raise InputError(f"gravity has {len(bad)} row(s) that are not a direction (NaN, infinite or zero), "
+                         f"e.g. row {int(bad[0])}")
+    return g
+
+
 def read_gravity(path) -> np.ndarray | None:
-    """The accelerometer columns ax, ay, az (else gx, gy, gz) of a CSV file, any unit; None without them."""
+    """The accelerometer columns ax, ay, az (else gx, gy, gz) of a CSV file, any unit; None without them,
+    ``InputError`` when a row of them is not a direction (NaN, empty, zero)."""
     import pandas as pd
 
     try:
@@ -121,7 +142,8 @@ def read_gravity(path) -> np.ndarray | None:
     for names in (("ax", "ay", "az"), ("gx", "gy", "gz")):
         if all(n in cols for n in names):
             frame = pd.read_csv(path, comment="#", usecols=[cols[n] for n in names])
-            g = frame[[cols[n] for n in names]].to_numpy(dtype=float)
-            ok = np.all(np.isfinite(g)) and np.all(np.linalg.norm(g, axis=1) > 0)
-            return g if ok else None
+            try:  # columns that are there but broken are refused, not silently left out of the diagnosis
+                return gravity_problem_free(frame[[cols[n] for n in names]].to_numpy(), len(frame))
+            except InputError as exc:
+                raise InputError(f"{path}: the accelerometer columns {', '.join(names)}: {exc}") from None
     return None
