@@ -118,12 +118,18 @@ perfectly from its twin and would pull the floor down."""
 
 def held_samples(raw_nT: np.ndarray, order: np.ndarray) -> np.ndarray:
     """Mask (in the record's rows) of readings identical to the previous one in time order."""
+    return consecutive_repeats(raw_nT, order)[0]
+
+
+def consecutive_repeats(raw_nT: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, bool, bool]:
+    """``held_samples`` (the mask, in the record's rows) and ``repeats`` (grid, logger) of the readings in time
+    order ``order``, from one comparison of each reading with the one before it."""
     x = raw_nT[order]
-    same = np.zeros(len(x), dtype=bool)
-    same[1:] = np.all(x[1:] == x[:-1], axis=1)
-    out = np.zeros(len(x), dtype=bool)
-    out[order] = same
-    return out
+    same = x[1:] == x[:-1]
+    whole = np.all(same, axis=1)
+    held = np.zeros(len(x), dtype=bool)
+    held[order[1:]] = whole
+    return (held, *_repeats_of(same, whole))
 
 
 GRID_TRIM = 0.9
@@ -161,7 +167,13 @@ def repeats(x: np.ndarray) -> tuple[bool, bool]:
     if len(x) < 2:
         return False, False
     same = x[1:] == x[:-1]
-    whole = np.all(same, axis=1)
+    return _repeats_of(same, np.all(same, axis=1))
+
+
+def _repeats_of(same: np.ndarray, whole: np.ndarray) -> tuple[bool, bool]:
+    """``repeats`` from ``same`` (n - 1, 3), each axis equal to its previous reading, and ``whole`` (all three)."""
+    if not len(whole):
+        return False, False
     rows = float(whole.mean())
     if not (~whole).any():
         return True, rows > HELD_MIN_FRACTION
@@ -187,9 +199,8 @@ def vector_floor(unit: np.ndarray, d: Columns, r: np.ndarray, rows_in_time_order
     n = len(r)
     if d.t_s is not None and np.ptp(d.t_s) > 0:
         order = np.argsort(d.t_s, kind="stable")
-        held = held_samples(d.raw_nT, order)
+        held, grid, logger = consecutive_repeats(d.raw_nT, order)  # held attitudes below the resolution: no logger
         share = float(held.mean())
-        grid, logger = repeats(d.raw_nT[order])  # held attitudes read below the resolution repeat without a logger
         if logger and (~held).sum() >= 10:
             keep = order[~held[order]]
             out = time_difference_floor(r[keep], d.t_s[keep], grid=grid)
@@ -327,8 +338,7 @@ def model_floor(fl: dict, r_model: np.ndarray, t_s: np.ndarray, raw_nT: np.ndarr
     a reading mixed with its neighbours leaves structure no library fit removes and no time difference cancels at
     random attitudes; outside-library structure the model cannot fit otherwise stays in both floors."""
     order = np.argsort(t_s, kind="stable")
-    held = held_samples(raw_nT, order)
-    grid, logger = repeats(raw_nT[order])
+    held, grid, logger = consecutive_repeats(raw_nT, order)
     drop = spikes | held if logger else spikes
     keep = order[~drop[order]]
     n = len(keep)

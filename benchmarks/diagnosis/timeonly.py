@@ -55,7 +55,7 @@ from magbench.errors import InputError
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.effects import SPIKE_SIGMA, OutlierEffect, f_test_p, first_order_lag, robust_sigma
 
-from .floor import held_samples, noise_spectrum, repeats, time_difference_floor
+from .floor import consecutive_repeats, noise_spectrum, time_difference_floor
 from .naming import STEP_SHARE, TEMPERATURE_FOLLOWS_TIME_R2, spike_signature, temperature_follows_time
 from .scoring import Z_SIGNIFICANT, rms, spike_z
 
@@ -155,7 +155,8 @@ def time_only(data: Dataset, reason: str) -> dict:
     # and pulls the floor down, so the floor comes from the distinct samples (as the vector floor's); a record of
     # almost nothing but repeats is a stuck sensor or logger, with no time question to answer.  A fixed sensor below
     # its resolution repeats values too, each axis on its own: those are its readings, not holds (``repeats``)
-    held = held_samples(raw, order)[order]  # in time order
+    held_rows, grid, logger = consecutive_repeats(raw, order)
+    held = held_rows[order]  # in time order
     distinct = int((~held).sum())
     if distinct < MIN_DISTINCT:
         raise InputError(f"{n - distinct} of {n} readings repeat the one before them exactly ({distinct} distinct): a "
@@ -164,7 +165,6 @@ def time_only(data: Dataset, reason: str) -> dict:
     spikes, spike_info = _spikes(r, trend_design, t, raw[order])
     keep = ~spikes
     held_share = float(held.mean())
-    grid, logger = repeats(raw[order])
     on = keep & ~held if logger and (keep & ~held).sum() >= MIN_DISTINCT else keep
     floor = time_difference_floor(r[on], t[on] if data.t_s is not None else None, grid=grid)
     if on is not keep:
