@@ -10,9 +10,14 @@ import math
 from dataclasses import dataclass
 from numbers import Integral, Real
 
-from magbench.errors import InputError
+from magbench.errors import MAX_SEED, InputError
 
 from .core.evaluator import Budget
+
+
+def _bound(x: float) -> str:
+    """An interval's end as written in a message: integers in full (2**64 - 1 is not 1.84467e+19), floats short."""
+    return str(x) if isinstance(x, int) else f"{x:g}"
 
 
 @dataclass(frozen=True)
@@ -28,23 +33,26 @@ class Interval:
     def accepts(self, value) -> bool:
         if isinstance(value, bool) or not isinstance(value, self.kind):
             return False
-        v = float(value)  # type: ignore[arg-type]  # an Integral or Real, checked above
-        if not math.isfinite(v):
-            return False
+        if self.kind is Integral:
+            v: float = int(value)  # type: ignore[call-overload]  # an Integral (checked above), compared exactly
+        else:
+            v = float(value)  # type: ignore[arg-type]  # a Real, checked above
+            if not math.isfinite(v):
+                return False
         lo_ok = self.left is None or (v >= self.left if self.closed in ("both", "left") else v > self.left)
         hi_ok = self.right is None or (v <= self.right if self.closed in ("both", "right") else v < self.right)
         return lo_ok and hi_ok
 
     def __str__(self) -> str:
         what = "an int" if self.kind is Integral else "a float"
-        lo = "" if self.left is None else ("[" if self.closed in ("both", "left") else "(") + f"{self.left:g}"
-        hi = "" if self.right is None else f"{self.right:g}" + ("]" if self.closed in ("both", "right") else ")")
+        lo = "" if self.left is None else ("[" if self.closed in ("both", "left") else "(") + _bound(self.left)
+        hi = "" if self.right is None else _bound(self.right) + ("]" if self.closed in ("both", "right") else ")")
         if self.left is not None and self.right is not None:
             return f"{what} in {lo}, {hi}"
         if self.left is not None:
-            return f"{what} {'>=' if self.closed in ('both', 'left') else '>'} {self.left:g}"
+            return f"{what} {'>=' if self.closed in ('both', 'left') else '>'} {_bound(self.left)}"
         if self.right is not None:
-            return f"{what} {'<=' if self.closed in ('both', 'right') else '<'} {self.right:g}"
+            return f"{what} {'<=' if self.closed in ('both', 'right') else '<'} {_bound(self.right)}"
         return what
 
 
@@ -63,7 +71,7 @@ class Options:
 
 BUDGET = (Interval(Integral, 1, None), Budget, None)
 """An evaluation budget: a number of evaluation-equivalents (an int), a ``Budget``, or None (none)."""
-SEED = (Interval(Integral, 0, None), None)
+SEED = (Interval(Integral, 0, MAX_SEED), None)
 PROBABILITY = [Interval(Real, 0, 1)]
 AT_LEAST_ONE = [Interval(Integral, 1, None)]
 NON_NEGATIVE = [Interval(Real, 0, None)]

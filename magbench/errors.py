@@ -33,11 +33,15 @@ def check_int(value, name: str, minimum: int) -> int:
     return int(value)
 
 
+MAX_SEED = 2**64 - 1
+"""The largest seed: ``nlopt.srand`` takes an unsigned 64-bit integer (a larger one was an OverflowError)."""
+
+
 def check_seed(value, name: str = "seed") -> int | None:
-    """A seed: None (fresh entropy) or a non-negative integer (what ``np.random.default_rng`` and
-    ``nlopt.srand`` take), else ``InputError`` naming ``name`` (not numpy's ValueError or TypeError)."""
+    """A seed: None (fresh entropy) or an integer from 0 to ``MAX_SEED`` (what ``np.random.default_rng`` and
+    ``nlopt.srand`` both take), else ``InputError`` naming ``name`` (not numpy's ValueError or TypeError)."""
     if value is None:
         return None
-    if isinstance(value, bool) or not isinstance(value, Integral) or value < 0:
-        raise InputError(f"{name} must be a non-negative integer or None, got {value!r}")
+    if isinstance(value, bool) or not isinstance(value, Integral) or not 0 <= int(value) <= MAX_SEED:
+        raise InputError(f"{name} must be an integer from 0 to 2**64 - 1, or None, got {value!r}")
     return int(value)

@@ -178,6 +178,8 @@ CASES = [
     # options
     ("seed-negative", GOOD, ["--seed", "-5"], 2, "negative"),
     ("seed-text", GOOD, ["--seed", "x"], 2, "not an integer"),
+    # NLopt's srand takes 64 bits: a larger seed was an internal error (OverflowError)
+    ("seed-above-64-bits", GOOD, ["--method", "nlopt", "--seed", str(2**64)], 2, "is above 2**64 - 1"),
     ("param-not-int", GOOD, ["--method", "aga", "--param", "population=abc"], 2, "population must be an int >= 2"),
     ("param-no-equals", GOOD, ["--param", "population"], 2, "KEY=VALUE"),
     ("param-unknown", GOOD, ["--param", "colour=3"], 2, "no hyper-parameter"),

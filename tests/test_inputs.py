@@ -58,8 +58,10 @@ def _diagnose(**kwargs):
 
 
 @pytest.mark.parametrize("call,words", [
-    (lambda: simulate("sphere9", -1), "seed must be a non-negative integer or None, got -1"),
-    (lambda: simulate("sphere9", 1.5), "seed must be a non-negative integer or None, got 1.5"),
+    (lambda: simulate("sphere9", -1), "seed must be an integer from 0 to 2**64 - 1, or None, got -1"),
+    (lambda: simulate("sphere9", 1.5), "seed must be an integer from 0 to 2**64 - 1, or None, got 1.5"),
+    (lambda: simulate("sphere9", 2**64), "seed must be an integer from 0 to 2**64 - 1, or None, got 18446744073709551616"),
+    (lambda: make("nlopt", seed=2**64), "seed must be an int in [0, 18446744073709551615] or None"),
     (lambda: _diagnose(folds=2.5), "folds must be an integer, got 2.5"),
     (lambda: _diagnose(seed=-1), "seed must be at least 0, got -1"),
     (lambda: _diagnose(data=DATA.raw_nT), "diagnose takes a Dataset"),
@@ -92,4 +94,5 @@ def test_error_params_refuse_what_is_not_a_sensor(kwargs, words):
 def test_library_controls_pass():
     """The negative controls of the refusals above."""
     assert len(simulate("sphere9", None)) == 300 and len(simulate("sphere9", np.int64(3))) == 300
+    assert make("nlopt", seed=2**64 - 1, budget=50).fit(DATA).n_evaluations <= 50  # the largest seed NLopt takes
     assert _diagnose(folds=5.0, seed=np.int64(2), gravity=np.tile([0.0, 0.0, 9.8], (300, 1)))["verdict"]

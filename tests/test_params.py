@@ -46,7 +46,7 @@ def test_bad_budget_is_refused_in_python_words(value, wanted):
 def test_constraints_are_checked_at_fit_too(data):
     cal = make("lsq")
     object.__setattr__(cal, "seed", -1)  # set after construction, around make()
-    with pytest.raises(InputError, match="seed must be an int >= 0 or None"):
+    with pytest.raises(InputError, match=r"seed must be an int in \[0, 18446744073709551615\] or None"):
         cal.fit(data)
 
 
