@@ -491,6 +491,8 @@ def _campaign_from_args(args):
         methods = sorted(available())
     if args.trials < 1 or args.jobs < 1:
         raise InputError("--trials and --jobs must be at least 1")
+    if args.dask in (None, "local"):  # a remote Dask cluster has its own workers
+        args.jobs = local_workers(args.jobs)
     if args.force and args.resume:
         raise InputError("--force starts the campaign over and --resume continues it: give one of them")
     out = Path(args.out)
@@ -663,7 +665,7 @@ def cmd_report(args) -> int:
     images: dict = {}
     progress = not args.json and not args.quiet
     written = make_figures(d, formats=tuple(args.format or ()), dpi=args.dpi, images=images, progress=progress,
-                           jobs=args.jobs)
+                           jobs=local_workers(args.jobs))
     path = write_report(d, images=images)
     _emit(args, {"report": str(path), "figures": [str(p) for p in written]},
           f"wrote {path}" + (f" and {len(written)} figure files in {d / 'figures'}" if written else ""))
@@ -673,7 +675,8 @@ def cmd_report(args) -> int:
 def cmd_reproduce(args) -> int:
     from magbench.benchmarks.reproduce import reproduce
 
-    written = reproduce(Path(args.out), quick=args.quick, jobs=args.jobs, progress=not (args.json or args.quiet))
+    written = reproduce(Path(args.out), quick=args.quick, jobs=local_workers(args.jobs),
+                        progress=not (args.json or args.quiet))
     _emit(args, {"out": args.out, "written": [str(p) for p in written]},
           "\n".join(f"wrote {p}" for p in written))
     return EXIT_OK
@@ -697,6 +700,16 @@ def _dpi(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{value} is above {DPI_RANGE[1]}: a figure at that resolution takes "
                                          "hundreds of megabytes")
     return value
+
+
+def local_workers(jobs: int) -> int:
+    """``--jobs`` as a number of local worker processes: at most this machine's CPUs, with a one-line notice
+    when fewer than asked (--jobs 200 on 2 cores forked 200 workers, each importing and warming up)."""
+    cpus = os.cpu_count() or 1
+    if jobs > cpus:
+        sys.stderr.write(f"magbench: --jobs {jobs} is more than this machine's {cpus} CPUs: running {cpus} workers\n")
+        return cpus
+    return jobs
 
 
 def _local_dask_cluster(workers: int, progress: bool):

@@ -5,6 +5,7 @@ that stdout stays clean on failure, and that the input file is not changed."""
 from __future__ import annotations
 
 import hashlib
+import json
 
 import numpy as np
 import pytest
@@ -790,3 +791,19 @@ def test_diagnose_refuses_broken_accelerometer_columns(tmp_path, capsys):
     good = tmp_path / "good.csv"
     good.write_text(bad.read_text().replace(",,,", ",0,0,9.8"))
     assert main(["diagnose", str(good)]) == 0
+
+
+def test_more_jobs_than_cpus_runs_as_many_workers_as_cpus(tmp_path, capsys, monkeypatch):
+    """--jobs 200 on a 2-core machine forked 200 workers, each importing and warming up."""
+    import os
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    out = tmp_path / "c"
+    assert main(["compare", "--scenarios", "sphere9", "--methods", "lsq", "--trials", "4", "--jobs", "200", "--out",
+                 str(out), "--quiet", "--no-figures"]) == 0
+    err = capsys.readouterr().err
+    assert "--jobs 200 is more than this machine's 2 CPUs: running 2 workers" in err
+    assert json.loads((out / "manifest.json").read_text())["jobs"] == 2
+    assert main(["compare", "--scenarios", "sphere9", "--methods", "lsq", "--trials", "4", "--jobs", "2", "--out",
+                 str(tmp_path / "d"), "--quiet", "--no-figures"]) == 0  # the control: no notice
+    assert "CPUs" not in capsys.readouterr().err
