@@ -234,10 +234,19 @@ def _parse_meta(lines: list[str], where: str = "input") -> dict:
     return meta
 
 
+PACKED_FORMATS = ((b"\x1f\x8b", "gzip-compressed"), (b"PK\x03\x04", "a zip archive (or an .xlsx/.ods workbook)"),
+                  (b"BZh", "bzip2-compressed"), (b"\xfd7zXZ\x00", "xz-compressed"), (b"\x28\xb5\x2f\xfd", "zstd-compressed"),
+                  (b"MATLAB 5.0 MAT-file", "a MATLAB .mat file"), (b"\x89HDF", "an HDF5 file"))
+"""Files a user may give for a CSV, recognized by their first bytes and named in the refusal."""
+
+
 def _parse_head(data: bytes, where: str) -> _Head:
     """The ``#`` metadata before the header, the number of lines before it, the header line and where the
     rows start; refuses what is not UTF-8 text, and an overlong header."""
     pos, skipped, meta_lines = 0, 0, []
+    for magic, kind in PACKED_FORMATS:
+        if data.startswith(magic):
+            raise InputError(f"{where} is {kind}, not a CSV text file: unpack it and give the CSV inside")
     if data.startswith(b"\xef\xbb\xbf"):
         pos = 3
     while pos < len(data):

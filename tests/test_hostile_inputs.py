@@ -4,8 +4,11 @@ stderr, 3 a calibration that ran but is rejected).  Every case also checks that 
 that stdout stays clean on failure, and that the input file is not changed."""
 from __future__ import annotations
 
+import gzip
 import hashlib
+import io
 import json
+import zipfile
 
 import numpy as np
 import pytest
@@ -48,6 +51,13 @@ def _csv(raw, f_ref=F_NT, header=("bx", "by", "bz", "f_ref"), sep=",", meta=("# 
     lines = list(meta) + [sep.join(header)]
     lines += [sep.join(fmt.format(v) for v in row) for row in zip(*cols)]
     return newline.join(lines) + newline
+
+
+def _zipped(text: str) -> bytes:
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as z:
+        z.writestr(zipfile.ZipInfo("data.csv", date_time=(2026, 1, 1, 0, 0, 0)), text)
+    return buf.getvalue()
 
 
 RAW = _sphere()
@@ -105,6 +115,9 @@ CASES = [
     ("utf16", GOOD.encode("utf-16"), [], 2, "not UTF-8"),
     ("latin1-comment", ("# site: Zürich\n" + GOOD).encode("latin-1"), [], 2, "not UTF-8"),
     ("binary-garbage", bytes(range(256)) * 4, [], 2, "not UTF-8"),
+    # packed files a user gives for the CSV: said what they are (they were 'NUL bytes: UTF-16 or binary?')
+    ("gzip", gzip.compress(GOOD.encode(), mtime=0), [], 2, "is gzip-compressed, not a CSV text file: unpack it"),
+    ("zip", _zipped(GOOD), [], 2, "is a zip archive (or an .xlsx/.ods workbook)"),
     # delimiters and layout
     ("semicolon", _csv(RAW, sep=";"), [], 0, ""),
     ("tab", _csv(RAW, sep="\t"), [], 0, ""),
