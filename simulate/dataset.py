@@ -9,6 +9,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -497,6 +498,10 @@ def _as_floats(values: np.ndarray) -> np.ndarray:
     return out
 
 
+DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+$")
+"""A number written with a decimal comma (a spreadsheet's export in many locales)."""
+
+
 def _numeric(path: Path, table: dict[str, np.ndarray], name: str, first_line: int) -> np.ndarray:
     """A column as finite floats within +-MAX_ABS_NT; refuses a bad value naming its line."""
     text = table[name]
@@ -512,7 +517,9 @@ def _numeric(path: Path, table: dict[str, np.ndarray], name: str, first_line: in
         raw_value = raw_value.item() if isinstance(raw_value, np.generic) else raw_value
         absurd = "beyond any magnetic field (1e9 nT)" if is_field else f"beyond any plausible value ({limit:g})"
         why = absurd if np.isfinite(values[bad[0]]) else "missing, non-numeric or non-finite"
-        raise InputError(f"{path}: column {name} has a value {why} ({raw_value!r}) on line {rows}{more}")
+        hint = ("; it has a decimal comma: write numbers with decimal points (and separate columns by commas, "
+                "semicolons or tabs)" if isinstance(raw_value, str) and DECIMAL_COMMA.match(raw_value.strip()) else "")
+        raise InputError(f"{path}: column {name} has a value {why} ({raw_value!r}) on line {rows}{more}{hint}")
     return values
 
 
@@ -561,7 +568,9 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
     if not has_vector and (require_vector or scalar_col is None):
         missing = [c for c in ("bx", "by", "bz") if c not in names]
         extra = " (it is a scalar-only series: use 'magbench diagnose')" if scalar_col else ""
-        raise InputError(f"{path} lacks column(s) {', '.join(missing)}{extra}")
+        raise InputError(f"{path} lacks column(s) {', '.join(missing)}{extra} (its columns: "
+                         f"{', '.join(names[:12])}{', ...' if len(names) > 12 else ''}; units go in --units or a "
+                         "'# units:' line, not in the column names)")
     frame = _table(path, data, head, sep, names, numeric)
     first_line = head.skipped + 2
     meta = head.meta

@@ -117,6 +117,10 @@ CASES = [
     ("binary-garbage", bytes(range(256)) * 4, [], 2, "not UTF-8"),
     # packed files a user gives for the CSV: said what they are (they were 'NUL bytes: UTF-16 or binary?')
     ("gzip", gzip.compress(GOOD.encode(), mtime=0), [], 2, "is gzip-compressed, not a CSV text file: unpack it"),
+    # a spreadsheet's export in a decimal-comma locale, and units written into the column names
+    ("decimal-comma", _csv(RAW, sep=";").replace(".", ","), [], 2, "it has a decimal comma: write numbers with decimal"),
+    ("units-in-header", GOOD.replace("bx,by,bz", "Bx (nT),By (nT),Bz (nT)"), [], 2,
+     "units go in --units or a '# units:' line"),
     ("zip", _zipped(GOOD), [], 2, "is a zip archive (or an .xlsx/.ods workbook)"),
     # delimiters and layout
     ("semicolon", _csv(RAW, sep=";"), [], 0, ""),
