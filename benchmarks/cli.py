@@ -24,6 +24,7 @@ from magbench.benchmarks.argtypes import integer, seed
 from magbench.benchmarks.campaign import (
     CHECKPOINT,
     LOCK,
+    OWN_SETTINGS,
     Campaign,
     CampaignInterrupted,
     MethodSpec,
@@ -197,7 +198,7 @@ def _parse_params(items) -> dict:
         if "=" not in item:
             raise InputError(f"--param wants KEY=VALUE, got {item!r}")
         key, value = item.split("=", 1)
-        if key.strip() in ("seed", "model"):
+        if key.strip() in OWN_SETTINGS:  # what a campaign sets itself has its own option here too
             raise InputError(f"--param {item}: {key.strip()} has its own option, --{key.strip()}")
         try:
             params[key.strip()] = json.loads(value)
@@ -695,11 +696,8 @@ after the campaign), above 1200 a figure is hundreds of megabytes (100000 ran ou
 
 
 def _dpi(text: str) -> int:
-    value = integer(text, DPI_RANGE[0], f"is below {DPI_RANGE[0]}: figures need at least {DPI_RANGE[0]} dpi")
-    if value > DPI_RANGE[1]:
-        raise argparse.ArgumentTypeError(f"{value} is above {DPI_RANGE[1]}: a figure at that resolution takes "
-                                         "hundreds of megabytes")
-    return value
+    return integer(text, DPI_RANGE[0], f"is below {DPI_RANGE[0]}: figures need at least {DPI_RANGE[0]} dpi",
+                   DPI_RANGE[1], f"is above {DPI_RANGE[1]}: a figure at that resolution takes hundreds of megabytes")
 
 
 def local_workers(jobs: int) -> int:

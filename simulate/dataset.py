@@ -32,12 +32,13 @@ def real_array(values, what: str, not_numbers: str | None = None) -> np.ndarray:
     parts with only numpy's warning: a fit of x + iy was answered as if the readings were x)."""
     try:
         arr = np.asarray(values)
-        if np.iscomplexobj(arr) or (arr.dtype == object and any(isinstance(v, complex) for v in arr.ravel())):
-            raise InputError(f"{what} must be real numbers, not complex")
+    except (TypeError, ValueError):
+        raise InputError(not_numbers or f"{what} must be numbers") from None
+    if np.iscomplexobj(arr) or (arr.dtype == object and any(isinstance(v, complex) for v in arr.ravel())):
+        raise InputError(f"{what} must be real numbers, not complex")
+    try:
         return arr.astype(float, copy=False)
-    except (TypeError, ValueError) as exc:
-        if isinstance(exc, InputError):
-            raise
+    except (TypeError, ValueError):
         raise InputError(not_numbers or f"{what} must be numbers") from None
 
 

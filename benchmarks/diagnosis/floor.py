@@ -164,10 +164,7 @@ def repeats(x: np.ndarray) -> tuple[bool, bool]:
     repeats its previous value on its own more than GRID_REPEAT_SHARE of the time (a resolution coarser than the
     noise).  The axes' own rates come from the rows that do not repeat whole, so that a logger's holds on a coarse
     grid are told from the grid alone."""
-    if len(x) < 2:
-        return False, False
-    same = x[1:] == x[:-1]
-    return _repeats_of(same, np.all(same, axis=1))
+    return consecutive_repeats(x, np.arange(len(x)))[1:]
 
 
 def _repeats_of(same: np.ndarray, whole: np.ndarray) -> tuple[bool, bool]:
