@@ -326,9 +326,12 @@ def _check_rows(where, data: bytes, offset: int, sep: str, n_names: int, first_l
         wrong = np.flatnonzero((fields != n_names) & ~blank)
     if wrong.size:
         i = int(wrong[0])
+        comment = bytes(arr[starts[i]:ends[i]]).lstrip().startswith(b"#")
         raise InputError(f"{where} is not a readable CSV file: line {first_line + i} has {int(fields[i])} "
                          f"field(s) but the header names {n_names} column(s)"
-                         + (f" (and {wrong.size - 1} more such lines)" if wrong.size > 1 else ""))
+                         + (f" (and {wrong.size - 1} more such lines)" if wrong.size > 1 else "")
+                         + ("; it is a '#' comment: comment and metadata lines go before the header"
+                            if comment else ""))
     return int((~blank).sum())
 
 
@@ -520,8 +523,36 @@ def _numeric(path: Path, table: dict[str, np.ndarray], name: str, first_line: in
         why = absurd if np.isfinite(values[bad[0]]) else "missing, non-numeric or non-finite"
         hint = ("; it has a decimal comma: write numbers with decimal points (and separate columns by commas, "
                 "semicolons or tabs)" if isinstance(raw_value, str) and DECIMAL_COMMA.match(raw_value.strip()) else "")
+        hint = hint or _line_hint(table, int(bad[0]))
         raise InputError(f"{path}: column {name} has a value {why} ({raw_value!r}) on line {rows}{more}{hint}")
     return values
+
+
+def _line_hint(table: dict[str, np.ndarray], i: int) -> str:
+    """What a refused line ``i`` is, when it is a line of another kind: the header again (files joined end to
+    end), or a '#' comment after the header."""
+    cells = {name: col[i].item() if isinstance(col[i], np.generic) else col[i] for name, col in table.items()}
+    text = {name: str(v).strip() for name, v in cells.items() if isinstance(v, str)}
+    if text and all(v.lower() == name for name, v in text.items()) and len(text) == len(cells):
+        return "; that line repeats the header (files joined end to end?): keep one header line"
+    if any(v.startswith("#") for v in text.values()):
+        return "; it is a '#' comment: comment and metadata lines go before the header"
+    return ""
+
+
+def _non_ascii(names: list[str], missing: list[str]) -> str:
+    """'; column NAME has a non-ASCII character (U+XXXX NAME) ...' for a column name that is a ``missing`` name
+    with non-ASCII letters in its place (``bх``, Cyrillic: it prints exactly like the name it is not), else ''."""
+    import unicodedata
+
+    for want in missing:
+        for name in names:
+            odd = [a for a, b in zip(name.lower(), want) if a != b]
+            if len(name) == len(want) and odd and all(ord(a) > 127 for a in odd):
+                return (f"; column {name!r} has a non-ASCII character (U+{ord(odd[0]):04X} "
+                        f"{unicodedata.name(odd[0], 'unnamed')}) where {want!r} has {want[name.lower().index(odd[0])]!r}: "
+                        "write the names in ASCII")
+    return ""
 
 
 def _meta_field_nT(path: Path, meta: dict) -> float | None:
@@ -571,7 +602,7 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
         extra = " (it is a scalar-only series: use 'magbench diagnose')" if scalar_col else ""
         raise InputError(f"{path} lacks column(s) {', '.join(missing)}{extra} (its columns: "
                          f"{', '.join(names[:12])}{', ...' if len(names) > 12 else ''}; units go in --units or a "
-                         "'# units:' line, not in the column names)")
+                         f"'# units:' line, not in the column names){_non_ascii(names, missing)}")
     frame = _table(path, data, head, sep, names, numeric)
     first_line = head.skipped + 2
     meta = head.meta

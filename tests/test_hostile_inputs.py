@@ -135,6 +135,16 @@ CASES = [
     ("duplicate-any-case", GOOD.replace("bx,by,bz,f_ref", "BX,bx,bz,f_ref"), [], 2, "more than once"),
     ("duplicate-same-case", GOOD.replace("bx,by,bz,f_ref", "bx,by,bx,f_ref"), [], 2, "more than once"),
     ("missing-bz", GOOD.replace("bx,by,bz,f_ref", "bx,by,bq,f_ref"), [], 2, "lacks column"),
+    # a look-alike letter prints exactly like the name it is not: said which character it is
+    ("cyrillic-x-in-bx", GOOD.replace("bx,by,bz,f_ref", "b\u0445,by,bz,f_ref"), [], 2,
+     "has a non-ASCII character (U+0445 CYRILLIC SMALL LETTER HA)"),
+    # files joined end to end (the header again), and a comment line after the header
+    ("header-repeated", GOOD + "\n".join(ln for ln in GOOD.splitlines() if not ln.startswith("#")) + "\n", [], 2,
+     "that line repeats the header (files joined end to end?)"),
+    ("comment-after-header", _edit_row(GOOD, 5, "# moved the sensor"), [], 2,
+     "it is a '#' comment: comment and metadata lines go before the header"),
+    ("comment-with-commas-after-header", _edit_row(GOOD, 5, "# moved, the, sensor, here"), [], 2,
+     "it is a '#' comment: comment and metadata lines go before the header"),
     ("no-header", "\n".join(GOOD.splitlines()[2:]) + "\n", [], 2, "lacks column"),
     ("extra-columns", GOOD.replace("\n", ",x\n").replace("bx,by,bz,f_ref,x", "bx,by,bz,f_ref,comment")
      .replace("# field_nT: 50000,x", "# field_nT: 50000"), [], 0, ""),
@@ -255,6 +265,18 @@ def _bad_igrf_is_an_ordinary_reference():
     from magbench.simulate.field import igrf_field
 
     return igrf_field(34.26, 108.94, 0.4, "2013-06-27").total_nT
+
+
+def test_a_non_ascii_name_is_pointed_at_only_where_it_stands_for_a_missing_one(tmp_path, capsys):
+    """Negative control of the look-alike hint: a non-ASCII name of another column (a temperature in French)
+    beside a missing bx is not blamed for it."""
+    path = tmp_path / "d.csv"
+    path.write_text(GOOD.replace("bx,by,bz,f_ref", "bq,by,bz,f_ref").replace("\n", ",20\n")
+                    .replace("bq,by,bz,f_ref,20", "bq,by,bz,f_ref,temp\u00e9rature")
+                    .replace("# field_nT: 50000,20", "# field_nT: 50000"), encoding="utf-8")
+    assert main(["calibrate", str(path), "--method", "lsq"]) == 2
+    err = capsys.readouterr().err
+    assert "lacks column(s) bx" in err and "non-ASCII" not in err
 
 
 def test_the_corpus_is_large_enough():
