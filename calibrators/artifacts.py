@@ -71,6 +71,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -501,7 +502,12 @@ def export_path(path, fmt: str) -> Path:
     px4 .params)."""
     if fmt not in FORMATS:
         raise InputError(f"unknown export format {fmt!r}: use one of {', '.join(FORMATS)}")
-    path = Path(path)
+    text = os.fspath(path)
+    if text.endswith(("/", os.sep)) or Path(text).is_dir():  # the extension would land beside the directory
+        what = "is a directory" if Path(text).is_dir() else "ends in a separator: it names a directory"
+        raise InputError(f"{text} {what}: give a file name in it (e.g. "
+                         f"{Path(text) / ('calibration' + EXTENSIONS[fmt])})")
+    path = Path(text)
     return path if path.suffix else path.with_name(path.name + EXTENSIONS[fmt])
 
 

@@ -246,6 +246,21 @@ def test_calibrate_refuses_to_overwrite_and_keeps_rejected_calibrations_unsaved(
     assert code == 3 and "not saved" in err and not (tmp_path / "r.json").exists()
 
 
+def test_save_to_a_directory_is_refused_not_written_beside_it(recordings, tmp_path, capsys):
+    """`--save DIR` and `--save DIR/` wrote DIR.json beside the directory (the extension added to its name):
+    refused, naming a file in it; a name without an extension still gets one (the control)."""
+    a, _ = recordings
+    folder = tmp_path / "out"
+    folder.mkdir()
+    for target in (str(folder), str(folder) + "/", str(tmp_path / "new") + "/"):
+        code, out, err = run(capsys, "calibrate", a, "--method", "lsq", "--save", target)
+        assert code == 2 and out == "" and "give a file name in it" in err, (target, err)
+    assert not (tmp_path / "out.json").exists() and not (tmp_path / "new").exists()
+    assert list(folder.iterdir()) == []
+    code, _, _ = run(capsys, "calibrate", a, "--method", "lsq", "--save", folder / "cal")
+    assert code == 0 and (folder / "cal.json").is_file()
+
+
 # -- models -------------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("model", ["offset", "diag"])
 def test_new_models_recover_their_errors_with_uncertainty(model):
