@@ -102,7 +102,7 @@ class MethodSpec:
         name, *items = text.split(":")
         params = []
         for item in items:
-            if "=" not in item:
+            if "=" not in item or not item.split("=", 1)[0].strip():
                 raise InputError(f"method {text!r}: parameter {item!r} is not key=value")
             k, v = item.split("=", 1)
             if k.strip() in OWN_SETTINGS:

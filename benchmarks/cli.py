@@ -488,6 +488,8 @@ def _campaign_from_args(args):
     for s in scenarios:
         get_scenario(s)
     methods = [m for item in args.methods for m in (item.split(",") if ":" not in item else [item]) if m]
+    if not scenarios or not methods:  # only commas or empty names: a campaign of no runs
+        raise InputError(f"--{'scenarios' if not scenarios else 'methods'} names none: give at least one name")
     if methods == ["all"]:
         methods = sorted(available())
     if args.trials < 1 or args.jobs < 1:

@@ -119,14 +119,19 @@ def test_igrf_reference_option(sphere_csv, tmp_path):
     (["calibrate", "{csv}", "--method", "ellipsoid", "--model", "angles"], "use --model nine"),
     (["calibrate", "{csv}", "--method", "lsq", "--param", "bogus=1"], "no hyper-parameter"),
     (["simulate", "--scenario", "nope", "--out", "x.csv"], "unknown scenario"),
+    # only commas: a campaign of no runs was an internal error (EmptyDataError) that left a 'complete' folder
+    (["compare", "--scenarios", ",", "--methods", "lsq", "--out", "{tmp}/c"], "--scenarios names none"),
+    (["compare", "--scenarios", "sphere9", "--methods", ",", "--out", "{tmp}/c"], "--methods names none"),
+    (["compare", "--scenarios", "sphere9", "--methods", "lsq:=3", "--out", "{tmp}/c"], "is not key=value"),
     (["calibrate"], "required"),
     (["frobnicate"], "invalid choice"),
 ])
-def test_usage_errors_are_one_line(sphere_csv, args, needle):
-    args = [a.replace("{csv}", str(sphere_csv)) for a in args]
+def test_usage_errors_are_one_line(sphere_csv, tmp_path, args, needle):
+    args = [a.replace("{csv}", str(sphere_csv)).replace("{tmp}", str(tmp_path)) for a in args]
     code, out, err = run(*args)
     _refused(code, out, err)
     assert needle in err
+    assert not (tmp_path / "c").exists()  # refused before anything is written
 
 
 def test_simulate_refuses_to_overwrite(sphere_csv):
