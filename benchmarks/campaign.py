@@ -155,6 +155,9 @@ class Campaign:
         """All runs as picklable dicts, and the (scenario, method) pairs skipped as not applicable."""
 
         n_runs = len(self.scenarios) * len(self.methods) * int(self.trials)
+        if n_runs < 1:  # no scenario, no method or no trial: a 'complete' campaign of nothing
+            raise InputError(f"a campaign needs at least one scenario, one method and one trial (it has "
+                             f"{len(self.scenarios)}, {len(self.methods)} and {int(self.trials)})")
         if n_runs > MAX_RUNS:  # a typed zero too many: refused before hours of seeding and gigabytes of tasks
             raise InputError(f"a campaign of {n_runs:,} runs ({len(self.scenarios)} scenario(s) x {len(self.methods)} "
                              f"method(s) x {int(self.trials):,} trials) is more than the limit of {MAX_RUNS:,} runs")
@@ -182,6 +185,10 @@ class Campaign:
                                   "configuration": spec.label, "model": model, "trial": trial,
                                   "data_seed": data_seed, "validation_seed": val_seed, "seed": seed,
                                   "keep_trace": self.traces, "keep_fields": self.traces and trial == 0})
+        if not tasks:  # every pair skipped: nothing would run, and the tables of nothing are no campaign
+            raise InputError("no method of the campaign applies to its scenarios: "
+                             + "; ".join(f"{s['configuration']} on {s['scenario']}: {s['reason']}" for s in skipped[:4])
+                             + ("; ..." if len(skipped) > 4 else ""))
         return tasks, skipped
 
 

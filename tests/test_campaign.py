@@ -177,3 +177,24 @@ def test_a_campaign_beyond_the_run_limit_is_refused_before_any_work(tmp_path, ca
     assert len(Campaign(("sphere9",), (MethodSpec("lsq"), MethodSpec("ga")), trials=2).tasks()[0]) == 4
     with pytest.raises(InputError, match="more than the limit of 4 runs"):
         Campaign(("sphere9",), (MethodSpec("lsq"),), trials=5).tasks()
+
+
+def test_a_campaign_of_no_runs_is_refused_before_anything_is_written(tmp_path, capsys):
+    """No scenario, no method, no trial, or only methods that do not apply to the scenarios: the tables of
+    nothing were written and called a complete campaign, and the CLI's output phase then failed with pandas'
+    EmptyDataError (exit 1).  Refused with the reason, and nothing written; one applicable pair runs (the control)."""
+    from magbench.benchmarks.cli import main as cli_main
+    from magbench.errors import InputError
+
+    for camp in (Campaign((), (MethodSpec("lsq"),), trials=2), Campaign(("sphere9",), (), trials=2),
+                 Campaign(("sphere9",), (MethodSpec("lsq"),), trials=0)):
+        with pytest.raises(InputError, match="at least one scenario, one method and one trial"):
+            run_campaign(camp, tmp_path / "none", progress=False)
+    assert not (tmp_path / "none").exists()
+    out = tmp_path / "skipped"
+    assert cli_main(["compare", "--scenarios", "lu2014", "--methods", "merayo", "--trials", "2", "--out", str(out),
+                     "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "no method of the campaign applies" in err and "merayo does not estimate the angles model" in err
+    assert not out.exists()
+    assert len(Campaign(("lu2014",), (MethodSpec("merayo"), MethodSpec("lsq")), trials=2).tasks()[0]) == 2
