@@ -32,9 +32,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from magbench.numerics import lm_normal, median, median_and_sigma, systematic_rows
-from magbench.simulate.sensor import PARAM_NAMES
+from magbench.simulate.sensor import PARAM_NAMES, embed
 
 from .core.objective import ScalarObjective
+from .core.problem import PHYSICAL_BOX, search_bounds
 from .fisher import PassAt, crb_std, one_pass, std_from_information
 
 PROFILE_ATOL = 0.02
@@ -266,6 +267,49 @@ def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, f
             f"refitting the rest) raises the squared error by only {max(worst, 0.0):.3g} noise variances{sampled} "
             f"(a determined offset needs {limits.profile_chi2:g}); the readings lie close to a plane (out-of-plane "
             f"spread {100 * ratio:.2g} % of the in-plane spread): tilt the sensor more or use model='angles'"]
+
+
+MISFIT_RATIO = 2.0
+"""A model nested in the nine-parameter one (``offset``, ``diag``, ``angles``) does not describe readings on which
+the nine-parameter model leaves less than 1 / MISFIT_RATIO of its residual RMS (beyond ``STRUCTURE_FLOOR_FRACTION``
+of the field), when the F test of the extra parameters is significant at ``MISFIT_P``: the sensor has errors the
+chosen model leaves out, and its corrected field is off by what it leaves."""
+MISFIT_P = 1e-6
+MISFIT_ROWS = 20_000
+"""Rows the nested comparison fits on (a systematic sample of longer records: a ratio of two RMS values)."""
+
+
+def nested_misfit(objective: ScalarObjective, x: np.ndarray, rms_nT: float, field_nT: float) -> str | None:
+    """For a model nested in the nine-parameter one, a rejection when the nine-parameter model fits these readings
+    far better (``MISFIT_RATIO``, ``MISFIT_P``): the judge's nine-parameter optimum inside the physical box, from the
+    answer embedded in the nine-vector; None for ``nine`` and when the restricted model describes the readings."""
+    model = objective.model
+    if model == "nine":
+        return None
+    n = objective.raw_nT.shape[0]
+    rows = systematic_rows(n, MISFIT_ROWS) if n > MISFIT_ROWS else slice(None)
+    raw, f_ref = objective.raw_nT[rows], objective.f_ref_nT[rows]
+    m, p = raw.shape[0], len(PARAM_NAMES[model])
+    if m <= 2 * 9:
+        return None
+    restricted = rms_nT if n <= MISFIT_ROWS else float(np.sqrt(np.mean(
+        ScalarObjective(raw, f_ref, model).residuals(x) ** 2)))
+    nine = ScalarObjective(raw, f_ref, "nine")
+    _, rms9 = reference_fit(nine, embed(x, model), search_bounds("nine", field_nT, **PHYSICAL_BOX))
+    if not restricted > MISFIT_RATIO * rms9 + STRUCTURE_FLOOR_FRACTION * field_nT:
+        return None
+    from scipy.special import fdtrc  # only here, on the rare way to a rejection
+
+    ss_r, ss_9 = m * restricted ** 2, m * rms9 ** 2
+    stat = (ss_r - ss_9) / (9 - p) / (ss_9 / (m - 9)) if ss_9 > 0 else np.inf
+    p_value = float(fdtrc(9 - p, m - 9, stat)) if np.isfinite(stat) else 0.0
+    if p_value >= MISFIT_P:
+        return None
+    shown = f"p {p_value:.1g}" if p_value > 0 else "p < 1e-300"
+    return (f"the {model} model does not describe these readings: the nine-parameter model leaves {rms9:.3g} nT where "
+            f"it leaves {restricted:.3g} nT ({restricted / max(rms9, 1e-12):.3g} times; F test of its {9 - p} more "
+            f"parameters {shown}): the sensor has errors the {model} model leaves out, and its corrected field "
+            "is off by what it leaves; use model='nine' (or 'auto')")
 
 
 STRUCTURE_RATIO = 10.0
@@ -662,6 +706,9 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     info["noise_nT"], info["inliers"] = float(noise), inliers
     with np.errstate(all="ignore"):
         ref = on_inliers if on_inliers is not None and np.array_equal(x_ref, on_inliers.x) else one_pass(inliers, x_ref)
+    misfit = nested_misfit(inliers, x_ref, rms_ref, field_nT)
+    if misfit is not None:
+        rejections.append(misfit)
     rows = np.arange(n) if not n_out else np.flatnonzero(~mask)
     geometry = None
     if memo is not None and not n_out and n <= GEOMETRY_CACHE_ROWS:  # the record's own, kept with its data
@@ -678,6 +725,8 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
         std = std_from_information(ref.fisher, max(noise, 1e-9 * field_nT))
     info["crb_std_at"] = (x_ref, std)  # the uncertainty of an answer at (or next to) x_ref is this
     rejections += identifiability(inliers, x_ref, noise, field_nT, limits, std=std)
+    if misfit is not None:  # the profile test's 'noise' would be the model's misfit: its plane would be a guess
+        return rejections, warnings
     covered = None
     if memo is not None and not n_out:
         covered = memo("least_covered", lambda: least_covered_direction(
