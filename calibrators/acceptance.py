@@ -31,7 +31,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from magbench.numerics import lm_normal, median, median_and_sigma, systematic_rows
+from magbench.numerics import lm_normal, median, median_and_sigma, roughness, systematic_rows
 from magbench.simulate.sensor import PARAM_NAMES, embed
 
 from .core.objective import ScalarObjective
@@ -317,6 +317,12 @@ STRUCTURE_RATIO = 10.0
 field) is structure the model lacks, not noise (1/f sensor noise leaves a ratio of 1 to 3)."""
 STRUCTURE_FLOOR_FRACTION = 2e-5
 """Below 2e-5 of the field (1 nT at 50,000 nT) a residual is not judged for structure (quantization)."""
+UNRELATED_ROUGHNESS = 1.25
+"""Consecutive readings whose direction's second differences have more than this RMS over their central
+differences' are at unrelated attitudes (sqrt(3) for random attitudes; at most about 1 on a continuous path or
+about held attitudes: ``numerics.roughness``, the diagnosis's ROUGHNESS_MAX)."""
+ROUGHNESS_ROWS = 20_000
+"""Rows (in windows of consecutive samples) the roughness is computed on in a longer record."""
 REPEAT_FRACTION = 1e-3
 """Two readings closer than 0.1 % of the field are one attitude measured twice."""
 MIN_REPEATS = 10
@@ -615,6 +621,14 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
     if how == "rows":
         warnings.append("the noise could not be estimated independently of the fit (no t column and no repeated "
                         "attitudes): it was estimated from neighbouring rows taken in file order")
+    rough = roughness(t_in, objective.raw_nT, order, ROUGHNESS_ROWS) if how == "time" else None
+    if rough is not None and rough > UNRELATED_ROUGHNESS:
+        info["noise_independent_from"] = "time, consecutive samples at unrelated attitudes"
+        warnings.append(f"the noise could not be estimated independently of the fit: consecutive samples are at "
+                        f"unrelated attitudes (roughness {rough:.2g}, sqrt(3) for random ones), so whatever the model "
+                        f"misses that follows the attitude is in the time neighbours' differences too; the residual "
+                        f"{rms_nT:.3g} nT is not judged against the sensor's noise (repeated attitudes, or a continuous "
+                        "path, would judge it)")
     if not rms_nT > STRUCTURE_RATIO * sigma + STRUCTURE_FLOOR_FRACTION * field_nT:
         # consecutive samples at unrelated attitudes (a shuffled or sparse record) put the model's misfit into
         # the time neighbours' differences too, so that estimate is not independent of a structure that

@@ -112,3 +112,31 @@ def median_and_sigma(x: np.ndarray) -> tuple[float, float]:
     return m, MAD_TO_SIGMA * median(np.abs(x - m))
 
 
+
+
+def roughness(t_s: np.ndarray | None, raw_nT: np.ndarray, order: np.ndarray | None = None,
+              max_rows: int | None = None) -> float | None:
+    """How unrelated consecutive readings are: the RMS of the second differences of the reading's direction over
+    that of its central differences, in time order (``order``, when the caller has it): sqrt(3) for unrelated
+    samples (random attitudes), at most about 1 for a continuous path or noise about held attitudes.  None without
+    time or with fewer than 5 samples.  ``max_rows``: on a longer record, 40 evenly spaced windows of consecutive
+    samples holding that many rows in all (a ratio of sums: the windows estimate it as the whole does)."""
+    if t_s is None or len(t_s) < 5:
+        return None
+    order = np.argsort(t_s, kind="stable") if order is None else order
+    n = len(order)
+    if max_rows is not None and n > max_rows:
+        width = max(5, max_rows // 40)
+        starts = np.linspace(0, n - width, 40).astype(np.int64)
+        windows = [order[s:s + width] for s in starts]
+    else:
+        windows = [order]
+    num = den = 0.0
+    for idx in windows:
+        x = raw_nT[idx]
+        u = x / np.maximum(np.linalg.norm(x, axis=1), 1e-12)[:, None]
+        d1 = u[2:] - u[:-2]
+        d2 = u[2:] - 2 * u[1:-1] + u[:-2]
+        num += float(np.sum(d2 ** 2))
+        den += float(np.sum(d1 ** 2))
+    return float(np.sqrt(num / den)) if den > 0 else None

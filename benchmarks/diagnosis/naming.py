@@ -81,6 +81,7 @@ import numpy as np
 from numpy.polynomial import legendre
 from scipy.stats import kstest, norm
 
+from magbench.numerics import roughness  # noqa: F401  (re-exported: the diagnosis reads it from here)
 from magbench.simulate.effects import (  # noqa: F401  (clipped, holds and their constants: re-exported)
     CLIP_MIN_REPEATS,
     EFFECTS,
@@ -574,19 +575,6 @@ ROUGHNESS_MAX = 1.25
 """A time shift is told only where the readings change continuously: the RMS of the second differences of the
 field direction (in time order) over that of its central differences is sqrt(3) for unrelated samples (random
 attitudes) and at most about 1 for a random walk or noise about held attitudes."""
-
-
-def roughness(t_s: np.ndarray | None, raw_nT: np.ndarray) -> float | None:
-    """RMS of the second differences of the reading's direction over that of its central differences, in time
-    order (None without time or with fewer than 5 samples)."""
-    if t_s is None or len(t_s) < 5:
-        return None
-    x = raw_nT[np.argsort(t_s, kind="stable")]
-    u = x / np.maximum(np.linalg.norm(x, axis=1), 1e-12)[:, None]
-    d1 = u[2:] - u[:-2]
-    d2 = u[2:] - 2 * u[1:-1] + u[:-2]
-    den = float(np.sum(d1 ** 2))
-    return float(np.sqrt(np.sum(d2 ** 2) / den)) if den > 0 else None
 
 
 def shift_share(sse_without: float, sse_first_order: float, sse_with: float) -> float:
