@@ -354,6 +354,9 @@ class NoiseGeometry:
     order: np.ndarray | None = None
     weights: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
     pairs: tuple[np.ndarray, np.ndarray] | None = None
+    roughness: float | None = None
+    """``numerics.roughness`` of the readings in time order ("time" only): above UNRELATED_ROUGHNESS, consecutive
+    samples are at unrelated attitudes and the time neighbours' differences hold what follows the attitude."""
 
 
 def noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float) -> NoiseGeometry:
@@ -370,7 +373,8 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
     n = raw_nT.shape[0]
     if t_s is not None and np.ptp(t_s) > 0:
         order = np.argsort(t_s, kind="stable")
-        return NoiseGeometry("time", order, _interpolation_weights(t_s[order]))
+        return NoiseGeometry("time", order, _interpolation_weights(t_s[order]),
+                             roughness=roughness(t_s, raw_nT, order, ROUGHNESS_ROWS))
     from scipy.spatial import cKDTree
 
     dist, idx = cKDTree(raw_nT).query(raw_nT, k=2)
@@ -615,13 +619,15 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
     if len(r) < MIN_NOISE_POINTS:
         return [], [f"only {len(r)} points: the noise could not be estimated independently of the fit"]
     t_in = None if t_s is None else np.asarray(t_s, dtype=float)[rows]
+    if geometry is None:
+        geometry = noise_geometry(objective.raw_nT, t_in, field_nT)
     sigma, how, order = independent_noise(r, objective.raw_nT, t_in, field_nT, geometry)
     info["noise_independent_nT"], info["noise_independent_from"] = float(sigma), how
     warnings = []
     if how == "rows":
         warnings.append("the noise could not be estimated independently of the fit (no t column and no repeated "
                         "attitudes): it was estimated from neighbouring rows taken in file order")
-    rough = roughness(t_in, objective.raw_nT, order, ROUGHNESS_ROWS) if how == "time" else None
+    rough = geometry.roughness
     if rough is not None and rough > UNRELATED_ROUGHNESS:
         info["noise_independent_from"] = "time, consecutive samples at unrelated attitudes"
         warnings.append(f"the noise could not be estimated independently of the fit: consecutive samples are at "

@@ -112,8 +112,6 @@ def median_and_sigma(x: np.ndarray) -> tuple[float, float]:
     return m, MAD_TO_SIGMA * median(np.abs(x - m))
 
 
-
-
 def roughness(t_s: np.ndarray | None, raw_nT: np.ndarray, order: np.ndarray | None = None,
               max_rows: int | None = None) -> float | None:
     """How unrelated consecutive readings are: the RMS of the second differences of the reading's direction over
