@@ -778,7 +778,7 @@ def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray) -> str | None:
     typical = median(ratio)
     if not MAGNITUDE_RATIO_RANGE[0] <= typical <= MAGNITUDE_RATIO_RANGE[1]:
         return (f"the readings' magnitude (median {np.median(mag):.4g}) is {typical:.3g} times the reference "
-                f"(median {np.median(f_ref_nT):.6g} nT): wrong units=, raw ADC counts, or a wrong reference")
+                f"(median {np.median(f_ref_nT):.6g} nT): wrong units (read with units=), raw ADC counts, or a wrong reference")
     off = (ratio > typical * UNIT_OUTLIER_FACTOR) | (ratio < typical / UNIT_OUTLIER_FACTOR)
     if off.mean() >= MIXED_UNITS_FRACTION:
         rows = np.flatnonzero(off)

@@ -125,6 +125,10 @@ class Dataset:
             arr = readonly_copy(arr, ndim=1, name=name)
             if arr.shape[0] != n:
                 raise InputError(f"{name} has {arr.shape[0]} rows but raw_nT has {n}")
+            bad = np.flatnonzero(~np.isfinite(arr)) if name != "f_ref_nT" else ()
+            if len(bad):  # a NaN time would sort last and reorder the judge's time neighbours without a word
+                rows = ", ".join(map(str, bad[:5])) + (f" and {len(bad) - 5} more" if len(bad) > 5 else "")
+                raise InputError(f"{name} has NaN or infinite values in row(s) {rows}")
             object.__setattr__(self, name, arr)
         object.__setattr__(self, "meta", dict(self.meta))
 

@@ -128,3 +128,16 @@ def test_calibrating_a_small_file_does_not_import_pandas(tmp_path):
     done = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert "NO-PANDAS" in done.stderr
+
+
+@pytest.mark.parametrize("column", ["t_s", "temp_C", "heading_deg"])
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_times_temperatures_and_headings_are_refused(column, bad):
+    """The CSV reader refused them, a Dataset built in Python took them: a NaN time sorts last and reorders the
+    acceptance judge's time neighbours without a word.  The control: the same column finite is taken."""
+    d = simulate("sphere9", 0)
+    values = np.linspace(0.0, 299.0, 300)
+    Dataset(d.raw_nT, f_ref_nT=d.f_ref_nT, **{column: values})
+    values[[5, 7]] = bad
+    with pytest.raises(InputError, match=rf"{column} has NaN or infinite values in row\(s\) 5, 7"):
+        Dataset(d.raw_nT, f_ref_nT=d.f_ref_nT, **{column: values})
