@@ -323,6 +323,14 @@ differences' are at unrelated attitudes (sqrt(3) for random attitudes; at most a
 about held attitudes: ``numerics.roughness``, the diagnosis's ROUGHNESS_MAX)."""
 ROUGHNESS_ROWS = 20_000
 """Rows (in windows of consecutive samples) the roughness is computed on in a longer record."""
+KNN_NEIGHBOURS = 5
+KNN_ROWS = 2000
+"""Random attitudes: the noise from each reading's residual about the mean of its KNN_NEIGHBOURS nearest attitudes
+(the reading's direction), on a systematic sample of at most KNN_ROWS rows (brute force, in blocks)."""
+ATTITUDE_STRUCTURE_WARN = 3.0
+"""A residual at least this many times its scatter about the nearest attitudes is structure that follows the
+attitude (a clean record gives 1.0; a strong nonlinearity on 300 random attitudes 4 to 5): said in a warning up to
+STRUCTURE_RATIO, rejected beyond it."""
 REPEAT_FRACTION = 1e-3
 """Two readings closer than 0.1 % of the field are one attitude measured twice."""
 MIN_REPEATS = 10
@@ -357,6 +365,8 @@ class NoiseGeometry:
     roughness: float | None = None
     """``numerics.roughness`` of the readings in time order ("time" only): above UNRELATED_ROUGHNESS, consecutive
     samples are at unrelated attitudes and the time neighbours' differences hold what follows the attitude."""
+    neighbours: tuple[slice, np.ndarray] | None = None
+    """``attitude_neighbours`` of the readings, when consecutive samples are at unrelated attitudes."""
 
 
 def noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float) -> NoiseGeometry:
@@ -373,8 +383,10 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
     n = raw_nT.shape[0]
     if t_s is not None and np.ptp(t_s) > 0:
         order = np.argsort(t_s, kind="stable")
-        return NoiseGeometry("time", order, _interpolation_weights(t_s[order]),
-                             roughness=roughness(t_s, raw_nT, order, ROUGHNESS_ROWS))
+        rough = roughness(t_s, raw_nT, order, ROUGHNESS_ROWS)
+        unrelated = rough is not None and rough > UNRELATED_ROUGHNESS
+        return NoiseGeometry("time", order, _interpolation_weights(t_s[order]), roughness=rough,
+                             neighbours=attitude_neighbours(raw_nT) if unrelated else None)
     from scipy.spatial import cKDTree
 
     dist, idx = cKDTree(raw_nT).query(raw_nT, k=2)
@@ -405,6 +417,37 @@ def independent_noise(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray | None,
     assert g.order is not None and g.weights is not None
     ro = r if g.how == "rows" else r[g.order]
     return _interpolation_sigma(ro, g.weights), g.how, g.order
+
+
+def attitude_neighbours(raw_nT: np.ndarray) -> tuple[slice, np.ndarray] | None:
+    """The rows sampled (a systematic sample of at most KNN_ROWS) and, for each, its KNN_NEIGHBOURS nearest
+    attitudes among them (the readings' directions; brute force in blocks of 500 rows).  None on fewer than 10
+    neighbourhoods' worth of rows.  A property of the readings alone: computed once per record."""
+    n = raw_nT.shape[0]
+    if n < 10 * (KNN_NEIGHBOURS + 1):
+        return None
+    rows = systematic_rows(n, KNN_ROWS)
+    u = raw_nT[rows]
+    u = u / np.maximum(np.sqrt(np.einsum("ij,ij->i", u, u)), 1e-300)[:, None]
+    m = u.shape[0]
+    nearest = np.empty((m, KNN_NEIGHBOURS), dtype=np.int64)
+    for start in range(0, m, 500):
+        sims = u[start:start + 500] @ u.T
+        sims[np.arange(sims.shape[0]), np.arange(start, start + sims.shape[0])] = -np.inf  # not itself
+        nearest[start:start + 500] = np.argpartition(-sims, KNN_NEIGHBOURS, axis=1)[:, :KNN_NEIGHBOURS]
+    nearest.setflags(write=False)
+    return rows, nearest
+
+
+def attitude_neighbour_noise(r: np.ndarray, neighbours: tuple[slice, np.ndarray]) -> float:
+    """The robust scatter of each residual about the mean of its nearest attitudes (``attitude_neighbours``),
+    scaled to one sample's noise: a structure that is a smooth function of the attitude cancels between
+    neighbours, noise does not."""
+    rows, nearest = neighbours
+    rr = r[rows]
+    spread = rr - rr[nearest].mean(axis=1)
+    # robust: at the edge of a cap the neighbours are one-sided, and an RMS there hides half of a nonlinearity
+    return median_and_sigma(spread)[1] * float(np.sqrt(KNN_NEIGHBOURS / (KNN_NEIGHBOURS + 1.0)))
 
 
 def _interpolation_weights(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -629,27 +672,42 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
                         "attitudes): it was estimated from neighbouring rows taken in file order")
     rough = geometry.roughness
     if rough is not None and rough > UNRELATED_ROUGHNESS:
-        info["noise_independent_from"] = "time, consecutive samples at unrelated attitudes"
-        warnings.append(f"the noise could not be estimated independently of the fit: consecutive samples are at "
-                        f"unrelated attitudes (roughness {rough:.2g}, sqrt(3) for random ones), so whatever the model "
-                        f"misses that follows the attitude is in the time neighbours' differences too; the residual "
-                        f"{rms_nT:.3g} nT is not judged against the sensor's noise (repeated attitudes, or a continuous "
-                        "path, would judge it)")
+        # the time neighbours' differences hold whatever the model misses that follows the attitude: the
+        # scatter about the nearest attitudes is the better bound of the noise (both are upper bounds)
+        attitude = None if geometry.neighbours is None else attitude_neighbour_noise(r, geometry.neighbours)
+        if attitude is not None and attitude < sigma:
+            sigma, how = attitude, "attitudes"
+            info["noise_independent_nT"], info["noise_independent_from"] = float(sigma), how
+        ratio = rms_nT / max(sigma, 1e-12)
+        if how == "attitudes" and ratio >= ATTITUDE_STRUCTURE_WARN and ratio <= STRUCTURE_RATIO:
+            warnings.append(f"the residual {rms_nT:.3g} nT is {ratio:.2g} times its scatter about the "
+                            f"{KNN_NEIGHBOURS} nearest attitudes ({sigma:.3g} nT; consecutive samples are at unrelated "
+                            "attitudes): structure that follows the attitude, which the model lacks (a nonlinearity, "
+                            "a field that turns with the platform); it is rejected above "
+                            f"{STRUCTURE_RATIO:g} times, neighbours a few degrees apart holding part of it; "
+                            "magbench diagnose says where it lies")
+        elif ratio <= STRUCTURE_RATIO:
+            warnings.append(f"consecutive samples are at unrelated attitudes (roughness {rough:.2g}, sqrt(3) for "
+                            "random ones): the residual was judged against its scatter about the nearest attitudes "
+                            f"({sigma:.3g} nT), which holds whatever the model misses that follows time (a drift); "
+                            "a continuous path or repeated attitudes would judge that too")
     if not rms_nT > STRUCTURE_RATIO * sigma + STRUCTURE_FLOOR_FRACTION * field_nT:
         # consecutive samples at unrelated attitudes (a shuffled or sparse record) put the model's misfit into
         # the time neighbours' differences too, so that estimate is not independent of a structure that
         # follows the attitude, such as offsets that jump: a single step that explains most of what the fit
         # leaves is structure however the noise was estimated
-        if how == "time" and rms_nT > STRUCTURE_FLOOR_FRACTION * field_nT and order is not None:
+        if how in ("time", "attitudes") and rms_nT > STRUCTURE_FLOOR_FRACTION * field_nT and order is not None:
             step = best_step(objective, x, r, order, jacobian, gram)
             if step_dominates(step):
                 shape = describe_structure(step, order, 1e-300, rows, t_s, len(r))
                 return [f"the residual {rms_nT:.3g} nT is structured: {shape}"], warnings
         return [], warnings
-    source = {"time": "neighbouring samples in time", "repeats": "repeated attitudes",
-              "rows": "neighbouring rows"}[how]
+    source = {"time": "neighbouring samples in time", "repeats": "repeated attitudes", "rows": "neighbouring rows",
+              "attitudes": f"the {KNN_NEIGHBOURS} nearest attitudes; consecutive samples are at unrelated ones"}[how]
     step = best_step(objective, x, r, order, jacobian, gram) if order is not None else None
     shape = describe_structure(step, order, sigma, rows, t_s, len(r))
+    if how == "attitudes" and not (step is not None and step_dominates(step)):
+        shape = "structure that follows the attitude, which the model lacks (magbench diagnose says where it lies)"
     return [f"the residual {rms_nT:.3g} nT is {rms_nT / max(sigma, 1e-12):.3g} times the noise estimated independently "
             f"of the fit ({sigma:.3g} nT, from {source}): {shape}"], warnings
 

@@ -30,17 +30,40 @@ def test_negative_control_the_same_records_without_the_jump_are_accepted(seed):
     assert res.accepted, res.rejections
 
 
-def test_random_attitudes_say_the_noise_was_not_judged_independently():
+def test_random_attitudes_are_judged_against_their_nearest_attitudes():
     """Consecutive samples at unrelated attitudes: the time neighbours' differences hold the misfit of anything
     that follows the attitude (a nine-parameter fit leaving 44 nT of a nonlinearity on a 2 nT sensor was accepted
-    silently).  A warning says the residual was not judged against the sensor's noise; a continuous path (tumble9)
-    and a turntable (lu2014) do not get it (the controls)."""
+    silently).  The residual is judged against its scatter about the nearest attitudes instead: a clean record is
+    1.0 times it (a warning says a drift in time would not be seen), a strong nonlinearity 4-5 times (a warning
+    names it).  A continuous path (tumble9) and a turntable (lu2014) keep the time neighbours (the controls)."""
+    from magbench.simulate.effects import EFFECTS
+    from magbench.simulate.scenarios import get_scenario
+
     for scenario in ("sphere9", "cap9"):
         res = make("lsq").fit(simulate(scenario, seed=1))
-        assert any("consecutive samples are at unrelated attitudes" in w for w in res.warnings), res.warnings
+        assert res.accepted
+        assert any("judged against its scatter about the nearest attitudes" in w for w in res.warnings), res.warnings
+        bent = get_scenario(scenario).with_effects(EFFECTS["nonlinearity"](quadratic=(4e-3, -3e-3, 2.5e-3))).build(1)
+        res = make("lsq").fit(bent)
+        assert any("times its scatter about the 5 nearest attitudes" in w and "follows the attitude" in w
+                   for w in res.warnings), res.warnings
     for scenario, model in (("tumble9", "nine"), ("lu2014", "angles")):
         res = make("lsq", model=model).fit(simulate(scenario, seed=1))
-        assert not any("unrelated attitudes" in w for w in res.warnings), res.warnings
+        assert not any("attitudes (roughness" in w or "nearest attitudes" in w for w in res.warnings), res.warnings
+
+
+def test_attitude_neighbour_noise_is_the_noise_on_a_clean_sphere_and_cancels_smooth_structure():
+    from magbench.calibrators.acceptance import attitude_neighbour_noise, attitude_neighbours
+
+    rng = np.random.default_rng(0)
+    u = rng.normal(size=(3000, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    noise = rng.normal(0, 2.0, 3000)
+    smooth = 40.0 * (u[:, 0] ** 2 - 1 / 3)  # a quadratic in the direction
+    near = attitude_neighbours(u * 5e4)
+    assert attitude_neighbour_noise(noise, near) == pytest.approx(2.0, rel=0.1)
+    assert attitude_neighbour_noise(noise + smooth, near) < 3.0  # the structure mostly cancels
+    assert np.std(noise + smooth) > 5 * 2.0
 
 
 def test_roughness_on_windows_of_a_long_record_agrees_with_the_whole():
