@@ -687,10 +687,12 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
                             f"{STRUCTURE_RATIO:g} times, neighbours a few degrees apart holding part of it; "
                             "magbench diagnose says where it lies")
         elif ratio <= STRUCTURE_RATIO:
+            against = (f"its scatter about the {KNN_NEIGHBOURS} nearest attitudes" if how == "attitudes" else
+                       "the time neighbours' scatter (lower than its scatter about the nearest attitudes)")
             warnings.append(f"consecutive samples are at unrelated attitudes (roughness {rough:.2g}, sqrt(3) for "
-                            "random ones): the residual was judged against its scatter about the nearest attitudes "
-                            f"({sigma:.3g} nT), which holds whatever the model misses that follows time (a drift); "
-                            "a continuous path or repeated attitudes would judge that too")
+                            f"random ones): the residual was judged against {against} ({sigma:.3g} nT), which holds "
+                            "whatever the model misses that follows time (a drift); a continuous path or repeated "
+                            "attitudes would judge that too")
     if not rms_nT > STRUCTURE_RATIO * sigma + STRUCTURE_FLOOR_FRACTION * field_nT:
         # consecutive samples at unrelated attitudes (a shuffled or sparse record) put the model's misfit into
         # the time neighbours' differences too, so that estimate is not independent of a structure that
