@@ -90,19 +90,15 @@ def turned(data) -> bool:
 
 def reference_mismatch(data) -> str | None:
     """Why a vector record cannot be diagnosed (``input_problems``: readings or reference not finite, as the
-    calibrators say it; a time or temperature not finite; ``reference_problems``: wrong or mixed units, raw
-    counts, a reference that jumps), or None; checked before any path (the rotating one, the level vehicle's and
-    the fixed sensor's time-only answer), so that none of them answers on such input.  None without a reference:
-    the paths refuse that themselves, with the reference options named."""
+    calibrators say it; ``reference_problems``: wrong or mixed units, raw counts, a reference that jumps; a time
+    or temperature not finite is refused by the ``Dataset`` itself), or None; checked before any path (the rotating
+    one, the level vehicle's and the fixed sensor's time-only answer), so that none of them answers on such input.
+    None without a reference: the paths refuse that themselves, with the reference options named."""
     if not data.has_reference:
         return None
     bad = input_problems(data)  # non-finite readings or reference, as the calibrators say it
     if bad:
         return bad
-    for name, values in (("t_s", data.t_s), ("temp_C", data.temp_C)):
-        if values is not None and not np.all(np.isfinite(values)):
-            rows = np.flatnonzero(~np.isfinite(np.asarray(values, dtype=float)))
-            return f"{name} has NaN or infinite values in row(s) {', '.join(map(str, rows[:5]))}"
     return reference_problems(np.asarray(data.raw_nT, dtype=float), np.asarray(data.f_ref_nT, dtype=float))
 
 
