@@ -36,7 +36,7 @@ from magbench.simulate.sensor import PARAM_NAMES, embed
 
 from .core.objective import ScalarObjective
 from .core.problem import PHYSICAL_BOX, search_bounds
-from .fisher import PassAt, crb_std, one_pass, std_from_information
+from .fisher import PassAt, crb_std, one_pass, std_from_information, unit_scale
 
 PROFILE_ATOL = 0.02
 """The profile refit stops once an iteration lowers the sum of squares by less than this many noise
@@ -179,10 +179,12 @@ the profile test always refits."""
 
 
 def _pinv_form(a: np.ndarray, e: np.ndarray) -> float:
-    """``e^T pinv(a, hermitian=True) e`` for a symmetric ``a``, from its eigendecomposition (pinv's default cut:
-    eigenvalues below 1e-15 of the largest in magnitude count as zero)."""
-    ev, vec = np.linalg.eigh(a)
-    proj = vec.T @ e
+    """``e^T pinv(a) e`` for a symmetric ``a`` (normal equations), the pseudo-inverse cut as the Cramér-Rao
+    bound's is (``fisher.unit_scale``: on ``a`` scaled to unit diagonal, eigenvalues below 1e-15 of the largest
+    count as zero), from the eigendecomposition."""
+    scaled, s = unit_scale(a)
+    ev, vec = np.linalg.eigh(scaled)
+    proj = vec.T @ (s * e)
     keep = np.abs(ev) > 1e-15 * np.max(np.abs(ev), initial=0.0)
     return float(np.sum(proj[keep] ** 2 / ev[keep]))
 
@@ -312,9 +314,15 @@ def nested_misfit(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fiel
             "is off by what it leaves; use model='nine' (or 'auto')")
 
 
-STRUCTURE_RATIO = 10.0
+STRUCTURE_RATIO = 3.0
 """A residual RMS more than this many times the independent noise (plus ``STRUCTURE_FLOOR_FRACTION`` of the
-field) is structure the model lacks, not noise (1/f sensor noise leaves a ratio of 1 to 3)."""
+field) is structure the model lacks, not noise.  Measured with lsq (nine parameters) on the records of two
+forward models written apart from magbench (tests/independent_forward2.py and 3, cases 0-479 of root 2026),
+against each record's true calibration: clean records are 0.92-1.5 times it (one of 79 at 4.2, rejected for its
+outliers); of the calibrations then accepted at 3 to 10 times it (the former limit was 10), 97 of 130 had a
+parameter more than 5 stated deviations from the truth.  1/f sensor noise up to 5 times the white noise's RMS
+leaves 1.1-2.4 times it (tumble9, vehicle9, sphere9), the recordings shipped in simulate/data 0.7-1.9 times.  On
+held-out records (root 7) tests/test_acceptance_independent.py counts the wrong answers accepted."""
 STRUCTURE_FLOOR_FRACTION = 2e-5
 """Below 2e-5 of the field (1 nT at 50,000 nT) a residual is not judged for structure (quantization)."""
 UNRELATED_ROUGHNESS = 1.25
@@ -327,10 +335,6 @@ KNN_NEIGHBOURS = 5
 KNN_ROWS = 2000
 """Random attitudes: the noise from each reading's residual about the mean of its KNN_NEIGHBOURS nearest attitudes
 (the reading's direction), on a systematic sample of at most KNN_ROWS rows (brute force, in blocks)."""
-ATTITUDE_STRUCTURE_WARN = 3.0
-"""A residual at least this many times its scatter about the nearest attitudes is structure that follows the
-attitude (a clean record gives 1.0; a strong nonlinearity on 300 random attitudes 4 to 5): said in a warning up to
-STRUCTURE_RATIO, rejected beyond it."""
 REPEAT_FRACTION = 1e-3
 """Two readings closer than 0.1 % of the field are one attitude measured twice."""
 MIN_REPEATS = 10
@@ -679,14 +683,7 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
             sigma, how = attitude, "attitudes"
             info["noise_independent_nT"], info["noise_independent_from"] = float(sigma), how
         ratio = rms_nT / max(sigma, 1e-12)
-        if how == "attitudes" and ratio >= ATTITUDE_STRUCTURE_WARN and ratio <= STRUCTURE_RATIO:
-            warnings.append(f"the residual {rms_nT:.3g} nT is {ratio:.2g} times its scatter about the "
-                            f"{KNN_NEIGHBOURS} nearest attitudes ({sigma:.3g} nT; consecutive samples are at unrelated "
-                            "attitudes): structure that follows the attitude, which the model lacks (a nonlinearity, "
-                            "a field that turns with the platform); it is rejected above "
-                            f"{STRUCTURE_RATIO:g} times, neighbours a few degrees apart holding part of it; "
-                            "magbench diagnose says where it lies")
-        elif ratio <= STRUCTURE_RATIO:
+        if ratio <= STRUCTURE_RATIO:
             against = (f"its scatter about the {KNN_NEIGHBOURS} nearest attitudes" if how == "attitudes" else
                        "the time neighbours' scatter (lower than its scatter about the nearest attitudes)")
             warnings.append(f"consecutive samples are at unrelated attitudes (roughness {rough:.2g}, sqrt(3) for "

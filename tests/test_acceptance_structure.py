@@ -34,8 +34,9 @@ def test_random_attitudes_are_judged_against_their_nearest_attitudes():
     """Consecutive samples at unrelated attitudes: the time neighbours' differences hold the misfit of anything
     that follows the attitude (a nine-parameter fit leaving 44 nT of a nonlinearity on a 2 nT sensor was accepted
     silently).  The residual is judged against its scatter about the nearest attitudes instead: a clean record is
-    1.0 times it (a warning says a drift in time would not be seen), a strong nonlinearity 4-5 times (a warning
-    names it).  A continuous path (tumble9) and a turntable (lu2014) keep the time neighbours (the controls)."""
+    1.0 times it (a warning says a drift in time would not be seen), a strong nonlinearity 4-5 times (rejected,
+    beyond STRUCTURE_RATIO, as structure that follows the attitude).  A continuous path (tumble9) and a turntable
+    (lu2014) keep the time neighbours (the controls)."""
     from magbench.simulate.effects import EFFECTS
     from magbench.simulate.scenarios import get_scenario
 
@@ -47,8 +48,9 @@ def test_random_attitudes_are_judged_against_their_nearest_attitudes():
                          or "judged against the time neighbours' scatter (lower than" in said[0]), res.warnings
         bent = get_scenario(scenario).with_effects(EFFECTS["nonlinearity"](quadratic=(4e-3, -3e-3, 2.5e-3))).build(1)
         res = make("lsq").fit(bent)
-        assert any("times its scatter about the 5 nearest attitudes" in w and "follows the attitude" in w
-                   for w in res.warnings), res.warnings
+        assert not res.accepted
+        assert any("from the 5 nearest attitudes" in w and "follows the attitude" in w for w in res.rejections), \
+            res.rejections
     for scenario, model in (("tumble9", "nine"), ("lu2014", "angles")):
         res = make("lsq", model=model).fit(simulate(scenario, seed=1))
         assert not any("attitudes (roughness" in w or "nearest attitudes" in w for w in res.warnings), res.warnings
