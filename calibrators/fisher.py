@@ -80,9 +80,13 @@ def unit_scale(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     1e16, and a pseudo-inverse cut relative to its largest singular value would drop a direction the data
     do determine (an offset and a scale along the least-covered axis), stating a deviation hundreds of times
     too small.  The cut is made on the scaled matrix, where it drops only what no data determine."""
-    d = np.sqrt(np.clip(np.diag(a), 0.0, None))
-    s = np.divide(1.0, d, out=np.zeros_like(d), where=d > 0)
-    return a * s[:, None] * s[None, :], s
+    d = np.diag(a)
+    if d.min(initial=1.0) > 0:  # the usual case, in few operations (twice in every fit's checks)
+        s = 1.0 / np.sqrt(d)
+    else:
+        d = np.sqrt(np.clip(d, 0.0, None))
+        s = np.divide(1.0, d, out=np.zeros_like(d), where=d > 0)
+    return a * np.multiply.outer(s, s), s
 
 
 def _pinv_diagonal(a: np.ndarray) -> np.ndarray:
