@@ -36,7 +36,7 @@ from magbench.simulate.sensor import PARAM_NAMES, embed
 
 from .core.objective import ScalarObjective
 from .core.problem import PHYSICAL_BOX, search_bounds
-from .fisher import PassAt, crb_std, one_pass, std_from_information, unit_scale
+from .fisher import PassAt, crb_std, one_pass, pinv_eigen, std_from_information
 
 PROFILE_ATOL = 0.02
 """The profile refit stops once an iteration lowers the sum of squares by less than this many noise
@@ -180,13 +180,10 @@ the profile test always refits."""
 
 def _pinv_form(a: np.ndarray, e: np.ndarray) -> float:
     """``e^T pinv(a) e`` for a symmetric ``a`` (normal equations), the pseudo-inverse cut as the Cramér-Rao
-    bound's is (``fisher.unit_scale``: on ``a`` scaled to unit diagonal, eigenvalues below 1e-15 of the largest
-    count as zero), from the eigendecomposition."""
-    scaled, s = unit_scale(a)
-    ev, vec = np.linalg.eigh(scaled)
-    proj = vec.T @ (s * e)
-    keep = np.abs(ev) > 1e-15 * np.max(np.abs(ev), initial=0.0)
-    return float(np.sum(proj[keep] ** 2 / ev[keep]))
+    bound's is (``fisher.pinv_eigen``)."""
+    vectors, inv, s = pinv_eigen(a)
+    proj = vectors.T @ (s * e)
+    return float(proj ** 2 @ inv)
 
 
 def profile_offset(objective: ScalarObjective, x: np.ndarray, noise_nT: float, field_nT: float,

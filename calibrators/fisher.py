@@ -69,7 +69,7 @@ def one_pass(objective: ScalarObjective, x: np.ndarray, keep_jacobian_rows: int 
 
 def std_from_information(information: np.ndarray, noise_nT: float) -> np.ndarray:
     """Cramér-Rao standard deviations from the Fisher information per unit noise variance and the noise (as
-    ``crb_std`` computes them: the same pseudo-inverse, cut on the scaled information (``unit_scale``), its diagonal only)."""
+    ``crb_std`` computes them: the same pseudo-inverse, ``pinv_eigen``, its diagonal only)."""
     return np.sqrt(_pinv_diagonal(information / noise_nT ** 2))
 
 
@@ -89,15 +89,21 @@ def unit_scale(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return a * np.multiply.outer(s, s), s
 
 
-def _pinv_diagonal(a: np.ndarray) -> np.ndarray:
-    """The diagonal of the pseudo-inverse of a symmetric ``a`` (an information matrix) as ``crb_covariance``
-    takes it (``unit_scale``, then pinv's cut: singular values below 1e-15 of the largest count as zero),
-    without forming the whole inverse: from the eigendecomposition, whose absolute eigenvalues are the
-    singular values (``sum_j v_ij² / lambda_j`` over the kept ones; a third of the SVD's time)."""
+def pinv_eigen(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pseudo-inverse of a symmetric ``a`` (an information matrix, or normal equations) as the Cramér-Rao
+    bound takes it, in parts: ``pinv(a) = (s V) diag(inv) (s V)^T`` with ``V`` the eigenvectors of ``a`` scaled to
+    unit diagonal (``unit_scale``), ``inv`` the inverse eigenvalues (0 for those below 1e-15 of the largest in
+    magnitude: pinv's cut) and ``s`` the scale.  Returns (V, inv, s)."""
     scaled, s = unit_scale(a)
     values, vectors = np.linalg.eigh(scaled)
     keep = np.abs(values) > 1e-15 * np.max(np.abs(values), initial=0.0)
-    inv = np.divide(1.0, values, out=np.zeros_like(values), where=keep)
+    return vectors, np.divide(1.0, values, out=np.zeros_like(values), where=keep), s
+
+
+def _pinv_diagonal(a: np.ndarray) -> np.ndarray:
+    """The diagonal of ``pinv_eigen``'s pseudo-inverse of ``a`` without forming the whole inverse
+    (``sum_j v_ij² / lambda_j`` over the kept eigenvalues, scaled back; a third of the SVD's time)."""
+    vectors, inv, s = pinv_eigen(a)
     return ((vectors * vectors) @ inv) * s * s
 
 
@@ -108,7 +114,7 @@ def fisher_information(objective: ScalarObjective, x: np.ndarray, noise_nT: floa
 
 def crb_covariance(objective: ScalarObjective, x: np.ndarray, noise_nT: float) -> np.ndarray:
     """Cramér-Rao bound on the covariance of the parameters at ``x`` (pseudo-inverse if singular, cut on the
-    information scaled to unit diagonal: ``unit_scale``)."""
+    information scaled to unit diagonal, ``unit_scale``: the cut of ``pinv_eigen``)."""
     scaled, s = unit_scale(fisher_information(objective, x, noise_nT))
     return np.linalg.pinv(scaled, hermitian=True) * s[:, None] * s[None, :]
 
