@@ -464,6 +464,68 @@ def _interpolation_sigma(r: np.ndarray, weights: tuple[np.ndarray, np.ndarray, n
     return median_and_sigma(e)[1]
 
 
+DECORRELATION_PLATEAU = 1.1
+"""Noise correlated in time (a sensor logged faster than its bandwidth, an anti-alias filter): the errors of
+linear interpolation between the samples k before and k after grow with k until the noise decorrelates, then
+stay level.  The first spacing k from which doubling raises their scatter by at most this factor is that level
+(k = 1 for white noise)."""
+DECORRELATION_RISE = 1.5
+"""The noise is taken to be correlated over k > 1 samples only when that level is at least this many times the
+scatter at k = 1 (white noise: 1.0, within 0.1 on a few hundred samples; noise averaged over 2 samples 1.7)."""
+DECORRELATION_MAX_TURN_DEG = 5.0
+"""... and only where the readings' direction turns by less than this (median) over the doubled spacing: a
+structure that follows the attitude then cancels in the interpolation (a degree-5 ripple over the sphere to
+about a tenth), while the decorrelated noise does not; and every parameter's regressor is nearly constant over
+the k samples, so that the deviations grow as sqrt(k) (``assess``)."""
+DECORRELATION_MAX_SAMPLES = 256
+"""The widest spacing tried (samples)."""
+DECORRELATION_ROWS = 200_000
+"""On a longer record the level is found on this many consecutive samples in the middle of the time order."""
+DECORRELATED_RATIO = 1.2
+"""A residual beyond ``STRUCTURE_RATIO`` times the scatter at k = 1 is noise when its RMS is at most this many
+times the decorrelated level: the level holds whatever changes faster than its spacing, so it is an upper bound
+of the noise rather than an estimate apart from the fit, and only a residual that it accounts for is let pass,
+without ``STRUCTURE_FLOOR_FRACTION``'s allowance (clean records with noise averaged over 16 samples are
+0.93-1.05 times it; records of the independent forward models with an effect 1.28-3.9 times it where
+STRUCTURE_RATIO, or the floor, would have accepted a wrong calibration)."""
+
+
+def noise_correlation(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray, order: np.ndarray
+                      ) -> tuple[float, int] | None:
+    """Over how many samples the noise of a residual is correlated, and its level once decorrelated, as
+    ``(sigma, k)``: the robust scatter of the errors of linear interpolation between the samples k before and k
+    after (in time order, scaled to white noise as ``independent_noise`` does at k = 1) at the first spacing k
+    (1, 2, 4, ...) where doubling k raises it by at most ``DECORRELATION_PLATEAU`` (the larger of the two
+    scatters).  ``(sigma, 1)`` for white noise; None when there is no such level (a structure in time grows with
+    the spacing: a smooth one 4 times per doubling, a random walk 1.4 times), or when the direction turns by
+    ``DECORRELATION_MAX_TURN_DEG`` or more over the doubled spacing of a level at k > 1."""
+    n = len(r)
+    if n > DECORRELATION_ROWS:
+        order = order[(n - DECORRELATION_ROWS) // 2:][:DECORRELATION_ROWS]
+        n = DECORRELATION_ROWS
+    ro, t = r[order], np.asarray(t_s, dtype=float)[order]
+    t = t + np.arange(n) * 1e-9 * max(float(np.ptp(t)), 1.0)  # ties broken, as _interpolation_weights does
+    sig: list[float] = []
+    k = 1
+    while k <= 2 * DECORRELATION_MAX_SAMPLES and 4 * k < n // 2:
+        w = (t[2 * k:] - t[k:-k]) / (t[2 * k:] - t[:-2 * k])
+        e = (ro[k:-k] - (w * ro[:-2 * k] + (1 - w) * ro[2 * k:])) / np.sqrt(1.0 + w * w + (1 - w) ** 2)
+        sig.append(median_and_sigma(e)[1])
+        j = len(sig) - 2  # spacing 2**j, doubled: 2**(j + 1)
+        if j >= 0 and sig[j + 1] <= DECORRELATION_PLATEAU * sig[j]:
+            if j == 0:
+                return max(sig[0], sig[1]), 1
+            span = 2 ** (j + 1)
+            raw = raw_nT[order]
+            u = raw / np.maximum(np.linalg.norm(raw, axis=1), 1e-300)[:, None]
+            turn = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", u[span:], u[:-span]), -1.0, 1.0)))
+            if median(turn) >= DECORRELATION_MAX_TURN_DEG:
+                return None
+            return max(sig[j], sig[j + 1]), 2 ** j
+        k *= 2
+    return None
+
+
 @dataclass(frozen=True)
 class StepFit:
     """The best single step of a residual in time order (``best_step``): where, how much of the residual it
@@ -687,18 +749,46 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
                             f"random ones): the residual was judged against {against} ({sigma:.3g} nT), which holds "
                             "whatever the model misses that follows time (a drift); a continuous path or repeated "
                             "attitudes would judge that too")
-    if not rms_nT > STRUCTURE_RATIO * sigma + STRUCTURE_FLOOR_FRACTION * field_nT:
+    floor = STRUCTURE_FLOOR_FRACTION * field_nT
+    level = None
+    if how == "time" and t_in is not None and not (rough is not None and rough > UNRELATED_ROUGHNESS):
+        assert order is not None
+        level = noise_correlation(r, objective.raw_nT, t_in, order)
+        if level is not None and (level[1] == 1 or level[0] < DECORRELATION_RISE * sigma):
+            level = None  # white: the scatter at k = 1 is the noise
+    if level is not None:
+        assert order is not None
+        decorrelated, k = level
+        info["noise_correlated_samples"] = k
+        if rms_nT > STRUCTURE_RATIO * sigma + floor and rms_nT > DECORRELATED_RATIO * decorrelated:
+            info["noise_independent_nT"], info["noise_independent_from"] = float(decorrelated), "decorrelated"
+            sigma, how = decorrelated, "decorrelated"  # rejected below, said against the decorrelated level
+        else:
+            warnings.append(f"the noise is correlated over about {k} samples (band-limited, or logged faster than the "
+                            f"sensor's bandwidth; its scatter {k} samples apart is {decorrelated:.3g} nT, "
+                            f"{decorrelated / max(sigma, 1e-300):.2g} times that of neighbours): the stated deviations "
+                            f"are widened {np.sqrt(k):.3g} times for it (about 1 in {k} samples is independent)")
+            if rms_nT > STRUCTURE_RATIO * sigma + floor:  # noise, judged once decorrelated; a step is structure still
+                step = best_step(objective, x, r, order, jacobian, gram)
+                if step_dominates(step):
+                    return [f"the residual {rms_nT:.3g} nT is structured: "
+                            f"{describe_structure(step, order, 1e-300, rows, t_s, len(r))}"], warnings
+                return [], warnings
+    if how != "decorrelated" and not rms_nT > STRUCTURE_RATIO * sigma + floor:
         # consecutive samples at unrelated attitudes (a shuffled or sparse record) put the model's misfit into
         # the time neighbours' differences too, so that estimate is not independent of a structure that
         # follows the attitude, such as offsets that jump: a single step that explains most of what the fit
         # leaves is structure however the noise was estimated
-        if how in ("time", "attitudes") and rms_nT > STRUCTURE_FLOOR_FRACTION * field_nT and order is not None:
+        if how in ("time", "attitudes") and rms_nT > floor and order is not None:
             step = best_step(objective, x, r, order, jacobian, gram)
             if step_dominates(step):
                 shape = describe_structure(step, order, 1e-300, rows, t_s, len(r))
                 return [f"the residual {rms_nT:.3g} nT is structured: {shape}"], warnings
         return [], warnings
     source = {"time": "neighbouring samples in time", "repeats": "repeated attitudes", "rows": "neighbouring rows",
+              "decorrelated": f"samples {info.get('noise_correlated_samples')} apart in time, where the noise has "
+                              f"decorrelated; noise correlated in time accounts for at most {DECORRELATED_RATIO:g} times "
+                              "that level",
               "attitudes": f"the {KNN_NEIGHBOURS} nearest attitudes; consecutive samples are at unrelated ones"}[how]
     step = best_step(objective, x, r, order, jacobian, gram) if order is not None else None
     shape = describe_structure(step, order, sigma, rows, t_s, len(r))
@@ -795,17 +885,23 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     # with a reference estimated from the readings (field='auto') the overall gain is relative to it: a mean
     # scale away from 1 then says nothing about the reference or the units
     warnings += notes + ([] if reference_estimated else scale_warning(x, objective.model))
+    # noise correlated over k samples (structure_check's decorrelated level) holds about n / k independent
+    # samples: the deviations and the profile test take the noise sqrt(k) times larger (the attitude turns by
+    # less than DECORRELATION_MAX_TURN_DEG within k samples, so every parameter's regressor is nearly constant there)
+    inflation = float(np.sqrt(info.get("noise_correlated_samples", 1)))
+    info["uncertainty_inflation"] = inflation
+    noise_for_bounds = noise * inflation
     with np.errstate(all="ignore"):
-        std = std_from_information(ref.fisher, max(noise, 1e-9 * field_nT))
+        std = std_from_information(ref.fisher, max(noise_for_bounds, 1e-9 * field_nT))
     info["crb_std_at"] = (x_ref, std)  # the uncertainty of an answer at (or next to) x_ref is this
-    rejections += identifiability(inliers, x_ref, noise, field_nT, limits, std=std)
+    rejections += identifiability(inliers, x_ref, noise_for_bounds, field_nT, limits, std=std)
     if misfit is not None:  # the profile test's 'noise' would be the model's misfit: its plane would be a guess
         return rejections, warnings
     covered = None
     if memo is not None and not n_out:
         covered = memo("least_covered", lambda: least_covered_direction(
             objective.raw_nT[systematic_rows(n, PROFILE_ROWS)]))
-    rejections += profile_offset(inliers, x_ref, noise, field_nT, limits, base_ss=n * rms_ref ** 2, gram=ref.gram,
+    rejections += profile_offset(inliers, x_ref, noise_for_bounds, field_nT, limits, base_ss=n * rms_ref ** 2, gram=ref.gram,
                                  covered=covered, info=info)
     return rejections, warnings
 

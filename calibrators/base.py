@@ -430,7 +430,7 @@ class Calibrator(metaclass=_Sealed):
                                    info=info, t_s=dataset.t_s, at=at, memo=known.get,
                                    reference_estimated="reference_estimated" in dataset.meta)
         uncertainty, noise = _uncertainty(info.get("inliers", objective), x, info.get("noise_nT"),
-                                          info.get("crb_std_at"))
+                                          info.get("crb_std_at"), info.get("uncertainty_inflation", 1.0))
         if not self.closed_form:
             rejections += _at_bounds(x, lower, upper, model)
         rejections += _budget_breaches(evaluator, budget)
@@ -691,12 +691,13 @@ def _acceptance_sampling(coverage_report: dict | None, info: dict) -> dict:
 
 
 def _uncertainty(objective: ScalarObjective, x: np.ndarray, noise_nT: float | None,
-                 known: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[dict, float]:
+                 known: tuple[np.ndarray, np.ndarray] | None = None, inflation: float = 1.0) -> tuple[dict, float]:
     """Cramér-Rao standard deviation of every estimated parameter at ``x`` and the estimated noise (the
     residual RMS of the data's own optimum, degrees of freedom corrected; the estimate's own residual when
     the acceptance checks did not get that far), keyed by parameter name.  ``known``: (x', std) computed
     by the acceptance checks at the judge's optimum x' at that noise; used when ``x`` is within 1e-3
-    standard deviations of x' (the bound is smooth in x: it is then the same to 1e-3)."""
+    standard deviations of x' (the bound is smooth in x: it is then the same to 1e-3).  ``inflation``: the
+    factor the checks widened the deviations by for noise correlated in time (``assess``), applied here too."""
     names = PARAM_NAMES[objective.model]
     if known is not None and noise_nT is not None and np.isfinite(noise_nT):
         at, std = known
@@ -709,7 +710,7 @@ def _uncertainty(objective: ScalarObjective, x: np.ndarray, noise_nT: float | No
     field = float(np.median(objective.f_ref_nT))
     try:
         with np.errstate(all="ignore"):
-            std = crb_std(objective, x, max(noise_nT, 1e-9 * field))
+            std = crb_std(objective, x, max(noise_nT * inflation, 1e-9 * field))
     except (np.linalg.LinAlgError, ValueError):
         std = np.full(len(names), np.nan)
     return {name: float(v) for name, v in zip(names, std)}, float(noise_nT)

@@ -80,3 +80,74 @@ def test_roughness_on_windows_of_a_long_record_agrees_with_the_whole():
     for raw in (walk, shuffled):
         assert roughness(t, raw, max_rows=20_000) == pytest.approx(roughness(t, raw), rel=0.05)
     assert roughness(t, shuffled, max_rows=20_000) > 1.6 and roughness(t, walk, max_rows=20_000) < 1.1
+
+
+NINE = ("alpha_rad", "beta_rad", "gamma_rad", "kx", "ky", "kz", "ox_nT", "oy_nT", "oz_nT")
+
+
+def _oversampled(seed: int, *effects):
+    """tumble9 logged 10 times faster (6000 readings, the attitude turning 0.15 degrees per sample), noise-free."""
+    from dataclasses import replace
+
+    from magbench.simulate.scenarios import get_scenario
+
+    base = get_scenario("tumble9")
+    scenario = replace(base, sensor=replace(base.sensor, noise_nT=0.0, quantization_nT=0.0), n_points=6000)
+    return (scenario.with_effects(*effects) if effects else scenario).build(seed)
+
+
+def _band_limited(width: int, noise_nT: float, seed: int, *effects) -> Dataset:
+    """``_oversampled`` with white noise averaged over ``width`` samples (a sensor logged faster than its
+    bandwidth)."""
+    d = _oversampled(seed, *effects)
+    n = len(d.raw_nT)
+    white = np.random.default_rng(100 + seed).normal(size=(n + width - 1, 3))
+    kernel = np.ones(width) / np.sqrt(width)
+    coloured = np.column_stack([np.convolve(white[:, j], kernel, mode="valid") for j in range(3)]) * noise_nT
+    return Dataset(np.asarray(d.raw_nT) + coloured, f_ref_nT=d.f_ref_nT, t_s=d.t_s)
+
+
+def _worst_z(res, truth) -> float:
+    std = np.array([res.uncertainty[name] for name in NINE])
+    return float(np.max(np.abs(np.asarray(res.x, dtype=float) - truth) / std))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_band_limited_noise_is_judged_once_decorrelated_and_widens_the_deviations(seed, monkeypatch):
+    """Noise averaged over 8 or 16 samples: the time neighbours' interpolation errors see a third or a fifth of
+    it, and the white-noise Cramér-Rao deviations assume 6000 independent samples where about 6000 / k are.  Once
+    decorrelated (8 or 16 samples apart, the attitude turning 1.2-2.4 degrees) the scatter is level: the record is
+    about 1.0 times that level and accepted, with a warning, and its deviations widened sqrt(k) times cover the
+    truth (the noise-free record's fit).  The control, without the correlation found: the 16-sample record is
+    rejected as structure (4.6-5.1 times the neighbours' scatter), the 8-sample one accepted (3.3-3.5 times it,
+    within the 1 nT floor) stating deviations 5-7 times too small."""
+    from magbench.calibrators import acceptance
+
+    truth = make("lsq").fit(_oversampled(seed)).x
+    for width in (8, 16):
+        res = make("lsq").fit(_band_limited(width, 5.0, seed))
+        assert res.accepted, res.rejections
+        assert any(f"the noise is correlated over about {width} samples" in w for w in res.warnings), res.warnings
+        assert _worst_z(res, truth) < 4.0
+    monkeypatch.setattr(acceptance, "noise_correlation", lambda *a: None)
+    assert not make("lsq").fit(_band_limited(16, 5.0, seed)).accepted
+    former = make("lsq").fit(_band_limited(8, 5.0, seed))
+    assert former.accepted and _worst_z(former, truth) > 5.0
+
+
+def test_white_noise_widens_nothing():
+    """The same record with white noise: no correlation is found, the deviations are the white-noise bound."""
+    res = make("lsq").fit(_band_limited(1, 5.0, 0))
+    assert res.accepted and not any("correlated" in w for w in res.warnings), res.warnings
+
+
+def test_structure_with_band_limited_noise_is_still_rejected():
+    """The decorrelated level holds the noise, not what the model lacks: a nonlinearity that follows the attitude
+    cancels in interpolation over 2.4 degrees, an offset drift over a few samples, so both stay rejected."""
+    from magbench.simulate.effects import EFFECTS
+
+    for effect in (EFFECTS["nonlinearity"](quadratic=(4e-3, -3e-3, 2.5e-3)),
+                   EFFECTS["offset_drift"].random(np.random.default_rng(0), strength=5.0)):
+        res = make("lsq").fit(_band_limited(16, 5.0, 0, effect))
+        assert not res.accepted, (type(effect).__name__, res.rms_after_nT)
+        assert any("times the noise estimated independently" in w for w in res.rejections), res.rejections
