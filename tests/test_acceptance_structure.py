@@ -118,9 +118,9 @@ def test_band_limited_noise_is_judged_once_decorrelated_and_widens_the_deviation
     it, and the white-noise Cramér-Rao deviations assume 6000 independent samples where about 6000 / k are.  Once
     decorrelated (8 or 16 samples apart, the attitude turning 1.2-2.4 degrees) the scatter is level: the record is
     about 1.0 times that level and accepted, with a warning, and its deviations widened sqrt(k) times cover the
-    truth (the noise-free record's fit).  The control, without the correlation found: the 16-sample record is
-    rejected as structure (4.6-5.1 times the neighbours' scatter), the 8-sample one accepted (3.3-3.5 times it,
-    within the 1 nT floor) stating deviations 5-7 times too small."""
+    truth (the noise-free record's fit).  The control, without the correlation found: both are rejected as
+    structure (4.6-5.1 and 3.3-3.5 times the neighbours' scatter); with the former floor of 1 nT as well, the
+    8-sample one was accepted stating deviations 5-7 times too small."""
     from magbench.calibrators import acceptance
 
     truth = make("lsq").fit(_oversampled(seed)).x
@@ -131,6 +131,8 @@ def test_band_limited_noise_is_judged_once_decorrelated_and_widens_the_deviation
         assert _worst_z(res, truth) < 4.0
     monkeypatch.setattr(acceptance, "noise_correlation", lambda *a: None)
     assert not make("lsq").fit(_band_limited(16, 5.0, seed)).accepted
+    assert not make("lsq").fit(_band_limited(8, 5.0, seed)).accepted
+    monkeypatch.setattr(acceptance, "STRUCTURE_FLOOR_FRACTION", 2e-5)  # the former floor, 1 nT
     former = make("lsq").fit(_band_limited(8, 5.0, seed))
     assert former.accepted and _worst_z(former, truth) > 5.0
 
@@ -151,3 +153,74 @@ def test_structure_with_band_limited_noise_is_still_rejected():
         res = make("lsq").fit(_band_limited(16, 5.0, 0, effect))
         assert not res.accepted, (type(effect).__name__, res.rms_after_nT)
         assert any("times the noise estimated independently" in w for w in res.rejections), res.rejections
+
+
+def _held_quantized(scenario: str, seed: int, holds: int, noise_nT: float, step_nT: float):
+    """A clean record held at each of its attitudes for ``holds`` consecutive samples (0.1 s apart), with white
+    noise and readings rounded to ``step_nT``; and the noise-free record's fit (the truth)."""
+    from dataclasses import replace
+
+    from magbench.simulate.scenarios import get_scenario
+
+    base = get_scenario(scenario)
+    d = replace(base, sensor=replace(base.sensor, noise_nT=0.0, quantization_nT=0.0)).build(seed)
+    rng = np.random.default_rng(seed)
+    raw = np.repeat(np.asarray(d.raw_nT), holds, axis=0)
+    raw = np.round((raw + rng.normal(0.0, noise_nT, raw.shape)) / step_nT) * step_nT
+    data = Dataset(raw, f_ref_nT=np.repeat(np.asarray(d.f_ref_nT), holds), t_s=np.arange(len(raw)) * 0.1)
+    return data, make("lsq").fit(d).x
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_coarsely_quantized_held_record_is_accepted_with_deviations_that_cover_the_truth(seed, monkeypatch):
+    """sphere9's attitudes each held for 20 samples, 0.02 nT of noise, readings in steps of 1 nT: consecutive
+    readings repeat, the time neighbours' scatter is 0.  The noise is judged on the distinct readings, a residual
+    below half the readings' resolution is not judged, and the deviations are widened for the repeats and the
+    holds, so that they cover the truth.  The controls: not widened, the white-noise deviations are 5.9-10.7 times
+    off the truth (a held reading repeats its rounding 20 times); so they were with the former 1 nT floor."""
+    from magbench.calibrators import acceptance
+
+    data, truth = _held_quantized("sphere9", seed, 20, 0.02, 1.0)
+    res = make("lsq").fit(data)
+    assert res.accepted, res.rejections
+    assert _worst_z(res, truth) < 4.0
+    monkeypatch.setattr(acceptance, "widening", lambda info: 1.0)
+    assert _worst_z(make("lsq").fit(data), truth) > 5.0
+    monkeypatch.setattr(acceptance, "hold_design_effect", lambda *a: 1.0)
+    monkeypatch.setattr(acceptance, "STRUCTURE_FLOOR_FRACTION", 2e-5)  # the former floor: accepted, no wider
+    former = make("lsq").fit(data)
+    assert former.accepted and _worst_z(former, truth) > 5.0
+
+
+def test_readings_resolution_finds_the_step_of_rounded_readings_and_none_in_continuous_ones():
+    from magbench.calibrators.acceptance import readings_resolution
+
+    x = np.random.default_rng(0).normal(0.0, 30_000.0, (5000, 3))
+    assert readings_resolution(x) == 0.0
+    for step in (0.1, 1.0, 73.0):
+        assert readings_resolution(np.round(x / step) * step) == pytest.approx(step, rel=1e-9)
+    assert readings_resolution(np.round(x[:8], 1)) == 0.0  # too few distinct values to tell a grid
+
+
+@pytest.mark.parametrize("scenario, repeats", [("tumble9", 10), ("sphere9", 20), ("cap9", 5), ("tumble9", 2)])
+def test_readings_a_logger_repeats_are_judged_on_the_distinct_ones(scenario, repeats):
+    """A logger that writes its last reading again until a new one comes (issue 17's BROAD recording: 29.5 % of
+    its rows repeat): the time neighbours' differences are mostly 0, and the clean record was rejected as
+    "1.8e+12 times the noise (0 nT)".  The noise is judged on the distinct readings (the same estimate as without
+    the repeats), a warning says so, and the deviations, widened by the repeats, cover the truth."""
+    from dataclasses import replace
+
+    from magbench.simulate.scenarios import get_scenario
+
+    base = get_scenario(scenario)
+    d = replace(base, sensor=replace(base.sensor, noise_nT=0.0, quantization_nT=0.0)).build(0)
+    truth = make("lsq").fit(d).x
+    noisy = np.asarray(d.raw_nT) + np.random.default_rng(0).normal(0.0, 2.0, np.shape(d.raw_nT))
+    once = make("lsq").fit(Dataset(noisy, f_ref_nT=d.f_ref_nT, t_s=np.arange(len(noisy)) * 0.1 * repeats))
+    held = Dataset(np.repeat(noisy, repeats, axis=0), f_ref_nT=np.repeat(np.asarray(d.f_ref_nT), repeats),
+                   t_s=np.arange(len(noisy) * repeats) * 0.1)
+    res = make("lsq").fit(held)
+    assert res.accepted, res.rejections
+    assert any("repeat the one before them exactly" in w for w in res.warnings), res.warnings
+    assert _worst_z(res, truth) < 4.0
+    assert res.uncertainty["ox_nT"] == pytest.approx(once.uncertainty["ox_nT"], rel=0.25)
