@@ -32,7 +32,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from magbench.numerics import lm_normal, median, median_and_sigma, roughness, systematic_rows
-from magbench.simulate.effects import HOLD_MIN_SAMPLES, HOLD_SHARE, holds
+from magbench.simulate.effects import HOLD_ANGLE_RAD, HOLD_MIN_SAMPLES, HOLD_SHARE
 from magbench.simulate.sensor import PARAM_NAMES, embed
 
 from .core.objective import ScalarObjective
@@ -348,30 +348,54 @@ HOLD_SPREAD_RAD = 0.01
 readings differ by less than ``simulate.effects.HOLD_ANGLE_RAD`` too, wanders further)."""
 
 
-def held_attitudes(raw_nT: np.ndarray, t_s: np.ndarray | None) -> np.ndarray | None:
-    """The hold of each sample (labels; a sample outside every hold its own) when the record is one of held
-    attitudes: ``simulate.effects.holds``'s runs of consecutive readings, kept where they are at least
-    ``HOLD_MIN_SAMPLES`` long and stay within ``HOLD_SPREAD_RAD`` of their mean direction, and together hold at
-    least ``HOLD_SHARE`` of the samples; else None."""
-    if t_s is None or not np.ptp(t_s) > 0:
+HOLD_PROBE_ROWS = 20_000
+"""``held_attitudes`` looks at this many consecutive samples in the middle of a longer record first."""
+
+
+def _holds_in_order(unit: np.ndarray) -> np.ndarray | None:
+    """``held_attitudes`` on directions in time order: labels in that order, or None."""
+    n = len(unit)
+    if n < 2 * HOLD_MIN_SAMPLES:
         return None
-    unit = raw_nT / np.maximum(np.linalg.norm(raw_nT, axis=1), 1e-300)[:, None]
-    labels = holds(t_s, unit)
-    if labels is None:
-        return None
-    n = len(labels)
+    step = np.einsum("ij,ij->i", unit[1:], unit[:-1]) < np.cos(HOLD_ANGLE_RAD)  # as simulate.effects.holds
+    labels = np.concatenate([[0], np.cumsum(step)])
     counts = np.bincount(labels)
     mean: np.ndarray = np.stack([np.bincount(labels, weights=unit[:, a]) for a in range(3)], axis=1).astype(float)
     mean /= np.maximum(np.linalg.norm(mean, axis=1), 1e-300)[:, None]
     angle = np.arccos(np.clip(np.einsum("ij,ij->i", unit, mean[labels]), -1.0, 1.0))
     spread = np.zeros(len(counts))
     np.maximum.at(spread, labels, angle)
-    held = (counts >= HOLD_MIN_SAMPLES) & (spread <= HOLD_SPREAD_RAD)
-    inside = held[labels]
+    inside = ((counts >= HOLD_MIN_SAMPLES) & (spread <= HOLD_SPREAD_RAD))[labels]
     if inside.sum() < HOLD_SHARE * n:
         return None
-    out = np.where(inside, labels, len(counts) + np.arange(n))
-    return np.unique(out, return_inverse=True)[1]
+    return np.unique(np.where(inside, labels, len(counts) + np.arange(n)), return_inverse=True)[1]
+
+
+def held_attitudes(raw_nT: np.ndarray, t_s: np.ndarray | None, order: np.ndarray | None = None
+                   ) -> np.ndarray | None:
+    """The hold of each sample (labels; a sample outside every hold its own) when the record is one of held
+    attitudes: runs of consecutive readings (in time) whose directions differ by less than
+    ``simulate.effects.HOLD_ANGLE_RAD`` from one to the next, kept where they are at least ``HOLD_MIN_SAMPLES``
+    long and stay within ``HOLD_SPREAD_RAD`` of their mean direction (a slow continuous path wanders further), and
+    together hold at least ``HOLD_SHARE`` of the samples; else None.  A longer record is first looked at on
+    ``HOLD_PROBE_ROWS`` consecutive samples in its middle.  ``order``: the time order, when the caller has it."""
+    if t_s is None or not np.ptp(t_s) > 0:
+        return None
+    order = np.argsort(t_s, kind="stable") if order is None else order
+
+    def unit(rows: np.ndarray) -> np.ndarray:
+        x = raw_nT[rows]
+        return x / np.maximum(np.linalg.norm(x, axis=1), 1e-300)[:, None]
+
+    if len(order) > HOLD_PROBE_ROWS and _holds_in_order(unit(order[(len(order) - HOLD_PROBE_ROWS) // 2:]
+                                                             [:HOLD_PROBE_ROWS])) is None:
+        return None
+    in_order = _holds_in_order(unit(order))
+    if in_order is None:
+        return None
+    labels = np.empty(len(order), dtype=np.int64)
+    labels[order] = in_order
+    return labels
 
 
 def hold_design_effect(r: np.ndarray, labels: np.ndarray) -> float:
@@ -472,8 +496,9 @@ class NoiseGeometry:
 def noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float) -> NoiseGeometry:
     """The part of ``independent_noise`` that depends on the readings and times only (a dataset's quantity:
     computed once for every fit of the same record; its arrays read-only)."""
-    geometry = replace(_noise_geometry(raw_nT, t_s, field_nT), resolution_nT=readings_resolution(raw_nT),
-                       holds=held_attitudes(raw_nT, t_s))
+    geometry = _noise_geometry(raw_nT, t_s, field_nT)
+    time_order = None if geometry.how != "time" or geometry.distinct_share < 1.0 else geometry.order
+    geometry = replace(geometry, resolution_nT=readings_resolution(raw_nT), holds=held_attitudes(raw_nT, t_s, time_order))
     for part in (geometry.order, *(geometry.weights or ()), *(geometry.pairs or ()), geometry.holds):
         if part is not None:
             part.setflags(write=False)
@@ -486,8 +511,11 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
         order = np.argsort(t_s, kind="stable")
         # a reading that repeats the one before it exactly (a logger holding its last value) is no new sample:
         # the noise is judged on the distinct ones (with many repeats the neighbours' differences are mostly 0)
-        ro = raw_nT[order]
-        distinct = np.concatenate([[True], np.any(ro[1:] != ro[:-1], axis=1)])
+        distinct = np.zeros(len(order), dtype=bool)
+        distinct[0] = True
+        for axis in range(raw_nT.shape[1]):  # one column at a time: a long record's copy is a third
+            column = raw_nT[order, axis]
+            distinct[1:] |= column[1:] != column[:-1]
         share = float(distinct.mean())
         if share < 1.0 and distinct.sum() >= 3 and np.ptp(t_s[order[distinct]]) > 0:
             order = order[distinct]
