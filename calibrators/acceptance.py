@@ -459,6 +459,11 @@ STEP_CANDIDATES = 2000
 """Split points tried when locating a step (evenly spaced in time order)."""
 STEP_ROWS = 200_000
 """The step search reads at most this many rows (every k-th in time order) of a longer record."""
+STEP_MIN_ROWS_PER_PARAMETER = 2
+"""A step is looked for only on at least this many rows per parameter of the fit with the step (the whole
+record's p and the step's q): on fewer, the best of the splits explains most of what the fit leaves by chance
+(a clean 12-row record was rejected as 'a step in the residual'; a logger that repeats each of 10 readings
+three times, as one)."""
 STEP_SHARE = 0.5
 """A single step names the structure when it explains at least this share of the residual's excess over
 the noise."""
@@ -750,6 +755,8 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
         full, tail = np.column_stack([np.ones(len(r)), jo]), slice(0, 1)
     n = full.shape[0]
     q = tail.stop - tail.start
+    if n < STEP_MIN_ROWS_PER_PARAMETER * (full.shape[1] + q):
+        return None
     whole = gram if gram is not None and offsets else full.T @ full  # the pass's J^T J: a sum in any row order
     scale = np.sqrt(whole.diagonal() / n)
     scale[scale == 0] = 1.0  # columns of one size: the systems below are then well conditioned
@@ -1044,6 +1051,10 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     # with a reference estimated from the readings (field='auto') the overall gain is relative to it: a mean
     # scale away from 1 then says nothing about the reference or the units
     warnings += notes + ([] if reference_estimated else scale_warning(x, objective.model))
+    if "repeat_design_effect" in info:  # the residual's degrees of freedom are the distinct readings'
+        distinct = n / info["repeat_design_effect"]
+        noise = rms_ref * np.sqrt(distinct / (distinct - p)) if distinct > p else np.inf
+        info["noise_nT"] = float(noise)
     inflation = widening(info)
     info["uncertainty_inflation"] = inflation
     noise_for_bounds = noise * inflation

@@ -332,6 +332,11 @@ class Calibrator(metaclass=_Sealed):
         if not dataset.has_reference:  # non-finite readings first, else the missing reference
             raise InputError(input_problems(dataset))
         known = _DatasetCache.of(dataset)  # what follows depends on the readings and reference alone: once per record
+        distinct = known.get("distinct_rows", lambda: _distinct_rows(dataset.raw_nT))
+        if distinct < need:
+            raise InputError(f"only {distinct} distinct reading{'s' if distinct != 1 else ''} in {n} rows (every other "
+                             f"row repeats the reading before it exactly): too few for {self.name} with the {model} "
+                             f"model (it needs at least {need})")
         bad = known.get("input_problems", lambda: input_problems(dataset))
         if bad:
             raise InputError(bad)
@@ -490,6 +495,17 @@ class Calibrator(metaclass=_Sealed):
         generator that asks for evaluations (``core/loop.py``) and returns a ``SolveOutput``; or, for a
         closed-form method, the ``SolveOutput`` itself."""
         raise NotImplementedError
+
+
+def _distinct_rows(raw_nT: np.ndarray) -> int:
+    """How many readings differ from the one before them in the file (the first counted): a logger that writes
+    its last reading again until a new one comes adds rows, not readings."""
+    if len(raw_nT) == 0:
+        return 0
+    changed = np.zeros(len(raw_nT) - 1, dtype=bool)
+    for axis in range(raw_nT.shape[1]):  # one column at a time: no copy of a long record
+        changed |= raw_nT[1:, axis] != raw_nT[:-1, axis]
+    return 1 + int(changed.sum())
 
 
 def input_problems(dataset: Dataset) -> str | None:

@@ -224,3 +224,34 @@ def test_readings_a_logger_repeats_are_judged_on_the_distinct_ones(scenario, rep
     assert any("repeat the one before them exactly" in w for w in res.warnings), res.warnings
     assert _worst_z(res, truth) < 4.0
     assert res.uncertainty["ox_nT"] == pytest.approx(once.uncertainty["ox_nT"], rel=0.25)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_short_clean_record_is_not_rejected_as_a_step(seed, monkeypatch):
+    """12 readings for 9 parameters: the best of the splits, with 3 step columns, explains everything the fit
+    leaves, so every such record was rejected as 'a step in the residual'.  No step is looked for on fewer than
+    STEP_MIN_ROWS_PER_PARAMETER rows per parameter of the fit with the step (the control: with none, rejected)."""
+    from magbench.calibrators import acceptance
+
+    d = simulate("sphere9", seed=seed)
+    data = Dataset(np.asarray(d.raw_nT)[:12], f_ref_nT=np.asarray(d.f_ref_nT)[:12], t_s=np.arange(12.0))
+    assert make("lsq").fit(data).accepted
+    monkeypatch.setattr(acceptance, "STEP_MIN_ROWS_PER_PARAMETER", 0)
+    res = make("lsq").fit(data)
+    assert not res.accepted and "a step in the residual" in " ".join(res.rejections)
+
+
+def test_repeated_readings_do_not_count_towards_the_points_a_model_needs():
+    """Nine distinct readings written three times each: 27 rows, too few readings for nine parameters (exit 2
+    from the command line, with the count), where ten distinct ones are enough."""
+    from magbench.errors import InputError
+
+    d = simulate("sphere9", seed=0)
+    for k, ok in ((9, False), (10, True)):
+        data = Dataset(np.repeat(np.asarray(d.raw_nT)[:k], 3, axis=0), f_ref_nT=np.repeat(np.asarray(d.f_ref_nT)[:k], 3),
+                       t_s=np.arange(3.0 * k))
+        if ok:
+            make("lsq").fit(data)
+        else:
+            with pytest.raises(InputError, match="only 9 distinct readings in 27 rows"):
+                make("lsq").fit(data)
