@@ -713,7 +713,8 @@ def _uncertainty(objective: ScalarObjective, x: np.ndarray, noise_nT: float | No
     the acceptance checks did not get that far), keyed by parameter name.  ``known``: (x', std) computed
     by the acceptance checks at the judge's optimum x' at that noise; used when ``x`` is within 1e-3
     standard deviations of x' (the bound is smooth in x: it is then the same to 1e-3).  ``inflation``: the
-    factor the checks widened the deviations by for noise correlated in time (``assess``), applied here too."""
+    factor the checks widened the deviations by for samples that are not independent (``acceptance.widening``),
+    applied here too."""
     names = PARAM_NAMES[objective.model]
     if known is not None and noise_nT is not None and np.isfinite(noise_nT):
         at, std = known
