@@ -734,7 +734,7 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
     per-row products summed from the end.  None when the record is too short to split.  On more than
     ``STEP_ROWS`` rows the search runs on every k-th row in time order (the sums scaled to all rows; the step
     located to within k rows).  ``jacobian``, ``gram``: J at ``x`` (n, p) and J^T J, when the caller has them."""
-    n_all = len(r)
+    n_all = len(order)  # the rows searched: every row, or the distinct readings of a record that repeats some
     k = max(1, -(-n_all // STEP_ROWS))
     if k > 1:
         keep = order[::k]
@@ -759,7 +759,8 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
     q = tail.stop - tail.start
     if n < STEP_MIN_ROWS_PER_PARAMETER * (full.shape[1] + q):
         return None
-    whole = gram if gram is not None and offsets else full.T @ full  # the pass's J^T J: a sum in any row order
+    # the pass's J^T J: a sum in any row order, when every row is searched
+    whole = gram if gram is not None and offsets and len(order) == len(r) else full.T @ full
     scale = np.sqrt(whole.diagonal() / n)
     scale[scale == 0] = 1.0  # columns of one size: the systems below are then well conditioned
     a_all = whole / (scale[:, None] * scale)

@@ -255,3 +255,20 @@ def test_repeated_readings_do_not_count_towards_the_points_a_model_needs():
         else:
             with pytest.raises(InputError, match="only 9 distinct readings in 27 rows"):
                 make("lsq").fit(data)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_offsets_that_jump_in_a_record_of_repeated_readings_are_rejected_and_located(seed):
+    """The step search runs on the distinct readings of a record that repeats them; its whitening must come from
+    those rows: with the whole record's J^T J it accepted sphere9's readings, each written 3 times, whose offsets
+    jump by 1000 nT halfway (the negative control: the same record without the jump, accepted)."""
+    d = simulate("sphere9", seed=seed)
+    raw = np.array(d.raw_nT)
+    n = len(raw)
+    f_ref, t_s = np.repeat(np.asarray(d.f_ref_nT), 3), np.arange(3 * n) * 0.1
+    assert make("lsq").fit(Dataset(np.repeat(raw, 3, axis=0), f_ref_nT=f_ref, t_s=t_s)).accepted
+    raw[n // 2:] += [800.0, -600.0, 0.0]
+    res = make("lsq").fit(Dataset(np.repeat(raw, 3, axis=0), f_ref_nT=f_ref, t_s=t_s))
+    assert not res.accepted
+    text = " ".join(res.rejections)
+    assert f"a step in the residual at row {3 * (n // 2)}" in text and "jump by about" in text, text
