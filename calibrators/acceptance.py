@@ -535,12 +535,22 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
                              distinct_share=share)
     from scipy.spatial import cKDTree
 
-    dist, idx = cKDTree(raw_nT).query(raw_nT, k=2)
-    close = dist[:, 1] < REPEAT_FRACTION * field_nT
-    if close.sum() >= MIN_REPEATS:
-        i = np.flatnonzero(close)
-        return NoiseGeometry("repeats", pairs=(i, idx[i, 1]))
-    return NoiseGeometry("rows", np.arange(n), _interpolation_weights(np.arange(n, dtype=float)))
+    # identical readings are one reading written again, not a repeated attitude measured again: the pairs are
+    # of distinct readings (their first rows), and the rows in file order skip a row that repeats the one before
+    _, first = np.unique(raw_nT, axis=0, return_index=True)
+    first = np.sort(first)
+    share = len(first) / n
+    distinct = raw_nT[first]
+    if len(first) >= 2:
+        dist, idx = cKDTree(distinct).query(distinct, k=2)
+        close = dist[:, 1] < REPEAT_FRACTION * field_nT
+        if close.sum() >= MIN_REPEATS:
+            i = np.flatnonzero(close)
+            return NoiseGeometry("repeats", pairs=(first[i], first[idx[i, 1]]), distinct_share=share)
+    rows = np.arange(n)
+    if share < 1.0:
+        rows = rows[np.concatenate([[True], np.any(raw_nT[1:] != raw_nT[:-1], axis=1)])]
+    return NoiseGeometry("rows", rows, _interpolation_weights(rows.astype(float)), distinct_share=share)
 
 
 def independent_noise(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float,
@@ -561,7 +571,7 @@ def independent_noise(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray | None,
         i, j = g.pairs
         return median_and_sigma(r[i] - r[j])[1] / np.sqrt(2.0), "repeats", None
     assert g.order is not None and g.weights is not None
-    ro = r if g.how == "rows" else r[g.order]
+    ro = r if g.how == "rows" and len(g.order) == len(r) else r[g.order]
     return _interpolation_sigma(ro, g.weights), g.how, g.order
 
 
@@ -906,8 +916,9 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
         info["hold_design_effect"] = hold_design_effect(r, geometry.holds)
     if geometry.distinct_share < 1.0:
         info["repeat_design_effect"] = 1.0 / geometry.distinct_share  # n samples, n * share distinct readings
-        warnings.append(f"{100 * (1 - geometry.distinct_share):.3g} % of the readings repeat the one before them exactly "
-                        "(a logger holding its last value): the noise was judged on the distinct ones, and the stated "
+        warnings.append(f"{100 * (1 - geometry.distinct_share):.3g} % of the readings repeat another exactly (a logger "
+                        "writing its last value again, or rows written twice): the noise was judged on the distinct "
+                        "ones, and the stated "
                         f"deviations are widened {np.sqrt(1.0 / geometry.distinct_share):.3g} times for them")
     level = None
     if how == "time" and t_in is not None and not (rough is not None and rough > UNRELATED_ROUGHNESS):
