@@ -31,7 +31,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from magbench.numerics import lm_normal, median, median_and_sigma, roughness, systematic_rows
+from magbench.numerics import lm_normal, median, median_and_sigma, repeated_rows, roughness, systematic_rows
 from magbench.simulate.effects import HOLD_ANGLE_RAD, HOLD_MIN_SAMPLES, HOLD_SHARE
 from magbench.simulate.sensor import PARAM_NAMES, embed
 
@@ -496,8 +496,9 @@ class NoiseGeometry:
     holds: np.ndarray | None = None
     """The hold of each sample (``held_attitudes``) when the record is one of held attitudes, else None."""
     distinct_share: float = 1.0
-    """The share of the samples that do not repeat the reading before them exactly ("time" only: ``order`` then
-    holds the distinct ones)."""
+    """The share of the samples that are distinct readings: in time order, those that do not repeat the reading
+    before them ("time" and "rows": ``order`` then holds them); without times, "repeats", the distinct readings
+    anywhere in the record."""
 
 
 def noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float) -> NoiseGeometry:
@@ -518,11 +519,7 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
         order = np.argsort(t_s, kind="stable")
         # a reading that repeats the one before it exactly (a logger holding its last value) is no new sample:
         # the noise is judged on the distinct ones (with many repeats the neighbours' differences are mostly 0)
-        distinct = np.zeros(len(order), dtype=bool)
-        distinct[0] = True
-        for axis in range(raw_nT.shape[1]):  # one column at a time: a long record's copy is a third
-            column = raw_nT[order, axis]
-            distinct[1:] |= column[1:] != column[:-1]
+        distinct = ~repeated_rows(raw_nT, order)[order]  # in time order
         share = float(distinct.mean())
         if share < 1.0 and distinct.sum() >= 3 and np.ptp(t_s[order[distinct]]) > 0:
             order = order[distinct]
@@ -547,9 +544,7 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
         if close.sum() >= MIN_REPEATS:
             i = np.flatnonzero(close)
             return NoiseGeometry("repeats", pairs=(first[i], first[idx[i, 1]]), distinct_share=share)
-    rows = np.arange(n)
-    if share < 1.0:
-        rows = rows[np.concatenate([[True], np.any(raw_nT[1:] != raw_nT[:-1], axis=1)])]
+    rows = np.arange(n) if share == 1.0 else np.flatnonzero(~repeated_rows(raw_nT))
     return NoiseGeometry("rows", rows, _interpolation_weights(rows.astype(float)), distinct_share=share)
 
 
@@ -610,16 +605,18 @@ def attitude_neighbour_noise(r: np.ndarray, neighbours: tuple[slice | np.ndarray
     return median_and_sigma(spread)[1] * float(np.sqrt(KNN_NEIGHBOURS / (KNN_NEIGHBOURS + 1.0)))
 
 
-def _interpolation_weights(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The weight of the earlier neighbour ``w``, ``1 - w`` and the scale to white noise of times ``t``."""
+def _interpolation_weights(t: np.ndarray, k: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The weight of the earlier neighbour ``w``, ``1 - w`` and the scale to white noise of times ``t``, for
+    interpolating each sample between the samples ``k`` before and ``k`` after it."""
     t = t + np.arange(len(t)) * 1e-9 * max(float(np.ptp(t)), 1.0)  # ties broken
-    w = (t[2:] - t[1:-1]) / (t[2:] - t[:-2])  # weight of the earlier neighbour
+    w = (t[2 * k:] - t[k:-k]) / (t[2 * k:] - t[:-2 * k])  # weight of the earlier neighbour
     return w, 1 - w, np.sqrt(1.0 + w * w + (1 - w) ** 2)
 
 
-def _interpolation_sigma(r: np.ndarray, weights: tuple[np.ndarray, np.ndarray, np.ndarray]) -> float:
+def _interpolation_sigma(r: np.ndarray, weights: tuple[np.ndarray, np.ndarray, np.ndarray], k: int = 1) -> float:
+    """The robust scatter of the errors of that interpolation (``_interpolation_weights`` with the same ``k``)."""
     w, u, scale = weights
-    e = (r[1:-1] - (w * r[:-2] + u * r[2:])) / scale
+    e = (r[k:-k] - (w * r[:-2 * k] + u * r[2 * k:])) / scale
     return median_and_sigma(e)[1]
 
 
@@ -663,13 +660,10 @@ def noise_correlation(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray, order:
         order = order[(n - DECORRELATION_ROWS) // 2:][:DECORRELATION_ROWS]
         n = DECORRELATION_ROWS
     ro, t = r[order], np.asarray(t_s, dtype=float)[order]
-    t = t + np.arange(n) * 1e-9 * max(float(np.ptp(t)), 1.0)  # ties broken, as _interpolation_weights does
     sig: list[float] = []
     k = 1
     while k <= 2 * DECORRELATION_MAX_SAMPLES and 4 * k < n // 2:
-        w = (t[2 * k:] - t[k:-k]) / (t[2 * k:] - t[:-2 * k])
-        e = (ro[k:-k] - (w * ro[:-2 * k] + (1 - w) * ro[2 * k:])) / np.sqrt(1.0 + w * w + (1 - w) ** 2)
-        sig.append(median_and_sigma(e)[1])
+        sig.append(_interpolation_sigma(ro, _interpolation_weights(t, k), k))
         j = len(sig) - 2  # spacing 2**j, doubled: 2**(j + 1)
         if j >= 0 and sig[j + 1] <= DECORRELATION_PLATEAU * sig[j]:
             if j == 0:

@@ -24,7 +24,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from magbench.errors import InputError
-from magbench.numerics import median, systematic_rows
+from magbench.numerics import median, repeated_rows, systematic_rows
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
 
@@ -332,7 +332,7 @@ class Calibrator(metaclass=_Sealed):
         if not dataset.has_reference:  # non-finite readings first, else the missing reference
             raise InputError(input_problems(dataset))
         known = _DatasetCache.of(dataset)  # what follows depends on the readings and reference alone: once per record
-        distinct = known.get("distinct_rows", lambda: _distinct_rows(dataset.raw_nT))
+        distinct = known.get("distinct_rows", lambda: n - int(repeated_rows(dataset.raw_nT).sum()))
         if distinct < need:
             raise InputError(f"only {distinct} distinct reading{'s' if distinct != 1 else ''} in {n} rows (every other "
                              f"row repeats the reading before it exactly): too few for {self.name} with the {model} "
@@ -495,17 +495,6 @@ class Calibrator(metaclass=_Sealed):
         generator that asks for evaluations (``core/loop.py``) and returns a ``SolveOutput``; or, for a
         closed-form method, the ``SolveOutput`` itself."""
         raise NotImplementedError
-
-
-def _distinct_rows(raw_nT: np.ndarray) -> int:
-    """How many readings differ from the one before them in the file (the first counted): a logger that writes
-    its last reading again until a new one comes adds rows, not readings."""
-    if len(raw_nT) == 0:
-        return 0
-    changed = np.zeros(len(raw_nT) - 1, dtype=bool)
-    for axis in range(raw_nT.shape[1]):  # one column at a time: no copy of a long record
-        changed |= raw_nT[1:, axis] != raw_nT[:-1, axis]
-    return 1 + int(changed.sum())
 
 
 def input_problems(dataset: Dataset) -> str | None:

@@ -82,6 +82,24 @@ def _at_optimum(a: np.ndarray, g: np.ndarray, cost: float, tol: float, atol: flo
     return 0.0 <= decrement <= max(tol * cost, atol)
 
 
+def repeated_rows(x: np.ndarray, order: np.ndarray | None = None) -> np.ndarray:
+    """Mask (in the rows of ``x``) of the rows identical to the row before them in ``order`` (the file's order when
+    None): a logger writing its last reading again.  Compared one column at a time (no copy of a long record)."""
+    n = len(x)
+    if n == 0:
+        return np.zeros(0, dtype=bool)
+    same = np.ones(n - 1, dtype=bool)
+    for axis in range(x.shape[1]):
+        column = x[:, axis] if order is None else x[order, axis]
+        same &= column[1:] == column[:-1]
+    out = np.zeros(n, dtype=bool)
+    if order is None:
+        out[1:] = same
+    else:
+        out[order[1:]] = same
+    return out
+
+
 def systematic_rows(n: int, limit: int) -> slice:
     """Every k-th row, k the smallest step that keeps at most ``limit`` of ``n`` rows (all when n <= limit):
     a sample stratified in file order (time, and so attitude along the record)."""

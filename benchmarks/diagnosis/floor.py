@@ -19,7 +19,7 @@ from scipy.signal import lfilter
 from scipy.spatial import cKDTree
 from scipy.stats import norm, spearmanr
 
-from magbench.numerics import systematic_rows
+from magbench.numerics import repeated_rows, systematic_rows
 from magbench.simulate.effects import SPIKE_SIGMA, Columns, f_test_p, robust_sigma
 
 KNN_NEIGHBOURS = 6
@@ -118,7 +118,7 @@ perfectly from its twin and would pull the floor down."""
 
 def held_samples(raw_nT: np.ndarray, order: np.ndarray) -> np.ndarray:
     """Mask (in the record's rows) of readings identical to the previous one in time order."""
-    return consecutive_repeats(raw_nT, order)[0]
+    return repeated_rows(raw_nT, order)
 
 
 def consecutive_repeats(raw_nT: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, bool, bool]:
