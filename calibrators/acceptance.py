@@ -946,7 +946,7 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
         if how in ("time", "attitudes") and rms_nT > floor and order is not None:
             step = best_step(objective, x, r, order, jacobian, gram)
             if step_dominates(step):
-                shape = describe_structure(step, order, 1e-300, rows, t_s, len(r) if order is None else len(order))
+                shape = describe_structure(step, order, 1e-300, rows, t_s, len(order))
                 return [f"the residual {rms_nT:.3g} nT is structured: {shape}"], warnings
         return [], warnings
     source = {"time": "neighbouring samples in time", "repeats": "repeated attitudes", "rows": "neighbouring rows",
@@ -1040,8 +1040,6 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
                "the search stopped short (budget, premature convergence) or ended in a local minimum")
         rejections.append(f"the residual {rms_x:.3g} nT is {rms_x / max(rms_ref, floor):.3g} times the optimum these "
                           f"data allow ({rms_ref:.3g} nT): {why}")
-    noise = rms_ref * np.sqrt(n / (n - p))
-    info["noise_nT"], info["inliers"] = float(noise), inliers
     with np.errstate(all="ignore"):
         ref = on_inliers if on_inliers is not None and np.array_equal(x_ref, on_inliers.x) else one_pass(inliers, x_ref)
     misfit = nested_misfit(inliers, x_ref, rms_ref, field_nT)
@@ -1059,10 +1057,9 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     # with a reference estimated from the readings (field='auto') the overall gain is relative to it: a mean
     # scale away from 1 then says nothing about the reference or the units
     warnings += notes + ([] if reference_estimated else scale_warning(x, objective.model))
-    if "repeat_design_effect" in info:  # the residual's degrees of freedom are the distinct readings'
-        distinct = n / info["repeat_design_effect"]
-        noise = rms_ref * np.sqrt(distinct / (distinct - p)) if distinct > p else np.inf
-        info["noise_nT"] = float(noise)
+    distinct = n / info.get("repeat_design_effect", 1.0)  # the residual's degrees of freedom: the distinct readings'
+    noise = rms_ref * np.sqrt(distinct / (distinct - p)) if distinct > p else np.inf
+    info["noise_nT"], info["inliers"] = float(noise), inliers
     inflation = widening(info)
     info["uncertainty_inflation"] = inflation
     noise_for_bounds = noise * inflation

@@ -85,14 +85,19 @@ def test_roughness_on_windows_of_a_long_record_agrees_with_the_whole():
 NINE = ("alpha_rad", "beta_rad", "gamma_rad", "kx", "ky", "kz", "ox_nT", "oy_nT", "oz_nT")
 
 
-def _oversampled(seed: int, *effects):
-    """tumble9 logged 10 times faster (6000 readings, the attitude turning 0.15 degrees per sample), noise-free."""
+def _noise_free(scenario: str, **changes):
+    """The named scenario with neither noise nor quantization (and ``changes``, e.g. ``n_points``)."""
     from dataclasses import replace
 
     from magbench.simulate.scenarios import get_scenario
 
-    base = get_scenario("tumble9")
-    scenario = replace(base, sensor=replace(base.sensor, noise_nT=0.0, quantization_nT=0.0), n_points=6000)
+    base = get_scenario(scenario)
+    return replace(base, sensor=replace(base.sensor, noise_nT=0.0, quantization_nT=0.0), **changes)
+
+
+def _oversampled(seed: int, *effects):
+    """tumble9 logged 10 times faster (6000 readings, the attitude turning 0.15 degrees per sample), noise-free."""
+    scenario = _noise_free("tumble9", n_points=6000)
     return (scenario.with_effects(*effects) if effects else scenario).build(seed)
 
 
@@ -158,12 +163,7 @@ def test_structure_with_band_limited_noise_is_still_rejected():
 def _held_quantized(scenario: str, seed: int, holds: int, noise_nT: float, step_nT: float):
     """A clean record held at each of its attitudes for ``holds`` consecutive samples (0.1 s apart), with white
     noise and readings rounded to ``step_nT``; and the noise-free record's fit (the truth)."""
-    from dataclasses import replace
-
-    from magbench.simulate.scenarios import get_scenario
-
-    base = get_scenario(scenario)
-    d = replace(base, sensor=replace(base.sensor, noise_nT=0.0, quantization_nT=0.0)).build(seed)
+    d = _noise_free(scenario).build(seed)
     rng = np.random.default_rng(seed)
     raw = np.repeat(np.asarray(d.raw_nT), holds, axis=0)
     raw = np.round((raw + rng.normal(0.0, noise_nT, raw.shape)) / step_nT) * step_nT
@@ -208,12 +208,7 @@ def test_readings_a_logger_repeats_are_judged_on_the_distinct_ones(scenario, rep
     its rows repeat): the time neighbours' differences are mostly 0, and the clean record was rejected as
     "1.8e+12 times the noise (0 nT)".  The noise is judged on the distinct readings (the same estimate as without
     the repeats), a warning says so, and the deviations, widened by the repeats, cover the truth."""
-    from dataclasses import replace
-
-    from magbench.simulate.scenarios import get_scenario
-
-    base = get_scenario(scenario)
-    d = replace(base, sensor=replace(base.sensor, noise_nT=0.0, quantization_nT=0.0)).build(0)
+    d = _noise_free(scenario).build(0)
     truth = make("lsq").fit(d).x
     noisy = np.asarray(d.raw_nT) + np.random.default_rng(0).normal(0.0, 2.0, np.shape(d.raw_nT))
     once = make("lsq").fit(Dataset(noisy, f_ref_nT=d.f_ref_nT, t_s=np.arange(len(noisy)) * 0.1 * repeats))
