@@ -495,6 +495,9 @@ class NoiseGeometry:
     """``readings_resolution`` of the readings: below it a residual is not judged for structure."""
     holds: np.ndarray | None = None
     """The hold of each sample (``held_attitudes``) when the record is one of held attitudes, else None."""
+    revisits: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    """``revisit_neighbours`` of the readings on a continuous path ("time", not at unrelated attitudes): each sampled
+    reading's nearest attitudes visited at other times, for the check that the time neighbours' noise is noise."""
     distinct_share: float = 1.0
     """The share of the samples that are distinct readings: in time order, those that do not repeat the reading
     before them ("time" and "rows": ``order`` then holds them); without times, "repeats", the distinct readings
@@ -507,7 +510,12 @@ def noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float) 
     geometry = _noise_geometry(raw_nT, t_s, field_nT)
     time_order = None if geometry.how != "time" or geometry.distinct_share < 1.0 else geometry.order
     geometry = replace(geometry, resolution_nT=readings_resolution(raw_nT), holds=held_attitudes(raw_nT, t_s, time_order))
-    for part in (geometry.order, *(geometry.weights or ()), *(geometry.pairs or ()), geometry.holds):
+    if geometry.how == "time" and geometry.neighbours is None:  # a continuous path (or holds): not random attitudes
+        assert geometry.order is not None
+        geometry = replace(geometry, revisits=revisit_neighbours(raw_nT, geometry.order, REVISIT_SEPARATION,
+                                                                 geometry.holds))
+    for part in (geometry.order, *(geometry.weights or ()), *(geometry.pairs or ()), geometry.holds,
+                 *(geometry.revisits or ())):
         if part is not None:
             part.setflags(write=False)
     return geometry
@@ -594,15 +602,55 @@ def attitude_neighbours(raw_nT: np.ndarray, among: np.ndarray | None = None
     return rows, nearest
 
 
-def attitude_neighbour_noise(r: np.ndarray, neighbours: tuple[slice | np.ndarray, np.ndarray]) -> float:
-    """The robust scatter of each residual about the mean of its nearest attitudes (``attitude_neighbours``),
-    scaled to one sample's noise: a structure that is a smooth function of the attitude cancels between
-    neighbours, noise does not."""
-    rows, nearest = neighbours
+def attitude_neighbour_noise(r: np.ndarray, neighbours: tuple[slice | np.ndarray, np.ndarray]
+                             | tuple[np.ndarray, np.ndarray, np.ndarray]) -> float:
+    """The robust scatter of each residual about the mean of its nearest attitudes (``attitude_neighbours``, or
+    ``revisit_neighbours`` with the sampled rows that have them as a third entry), scaled to one sample's noise: a
+    structure that is a smooth function of the attitude cancels between neighbours, noise does not."""
+    rows, nearest = neighbours[0], neighbours[1]
     rr = r[rows]
-    spread = rr - rr[nearest].mean(axis=1)
+    spread = (rr if len(neighbours) == 2 else rr[neighbours[2]]) - rr[nearest].mean(axis=1)
     # robust: at the edge of a cap the neighbours are one-sided, and an RMS there hides half of a nonlinearity
     return median_and_sigma(spread)[1] * float(np.sqrt(KNN_NEIGHBOURS / (KNN_NEIGHBOURS + 1.0)))
+
+
+REVISIT_SEPARATION = 32
+"""Attitudes revisited at other times (``revisit_neighbours``) are at least this many samples apart in time order:
+beyond the time neighbours whose noise a band-limited sensor shares (noise correlated over k samples asks for 4 k,
+``structure_check``)."""
+
+
+def revisit_neighbours(raw_nT: np.ndarray, order: np.ndarray, separation: int, holds: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The rows sampled (a systematic sample of at most KNN_ROWS of ``order``, the rows in time order) that have
+    KNN_NEIGHBOURS attitudes visited at other times, and for each those nearest attitudes (the readings'
+    directions) among the sampled rows at least ``separation`` samples away in time order and, in a record of held
+    attitudes (``holds``), in another hold: the sensor came back to that attitude, it did not stay there.  None
+    when fewer than 10 neighbourhoods' worth of rows have them.  Returns (the sampled rows, the nearest of those that
+    have them as indices into the sampled rows, which sampled rows have them).  A property of the readings alone."""
+    m = len(order)
+    if m < 10 * (KNN_NEIGHBOURS + 1):
+        return None
+    position = np.arange(m)[systematic_rows(m, KNN_ROWS)]  # places in time order
+    rows = order[position]
+    u = raw_nT[rows]
+    u = u / np.maximum(np.sqrt(np.einsum("ij,ij->i", u, u)), 1e-300)[:, None]
+    hold = None if holds is None else holds[rows]
+    nearest = np.empty((len(rows), KNN_NEIGHBOURS), dtype=np.int64)
+    enough = np.empty(len(rows), dtype=bool)
+    for start in range(0, len(rows), 500):
+        block = slice(start, start + 500)
+        sims = u[block] @ u.T
+        near = np.abs(position[block, None] - position[None, :]) < separation  # itself among them
+        if hold is not None:
+            near |= hold[block, None] == hold[None, :]
+        sims[near] = -np.inf
+        enough[block] = (~near).sum(axis=1) >= KNN_NEIGHBOURS
+        nearest[block] = np.argpartition(-sims, KNN_NEIGHBOURS, axis=1)[:, :KNN_NEIGHBOURS]
+    if enough.sum() < 10 * (KNN_NEIGHBOURS + 1):
+        return None
+    keep = np.flatnonzero(enough)  # rows without enough revisits are left out as samples, kept as neighbours
+    return rows, nearest[keep], keep
 
 
 def _interpolation_weights(t: np.ndarray, k: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -937,7 +985,7 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
                 if step_dominates(step):
                     shape = describe_structure(step, order, 1e-300, rows, t_s, len(order))
                     return [f"the residual {rms_nT:.3g} nT is structured: {shape}"], warnings
-                return [], warnings
+                return _revisits_check(objective, r, rms_nT, floor, geometry, k, info), warnings
     if how != "decorrelated" and not rms_nT > STRUCTURE_RATIO * sigma + floor:
         # consecutive samples at unrelated attitudes (a shuffled or sparse record) put the model's misfit into
         # the time neighbours' differences too, so that estimate is not independent of a structure that
@@ -948,7 +996,7 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
             if step_dominates(step):
                 shape = describe_structure(step, order, 1e-300, rows, t_s, len(order))
                 return [f"the residual {rms_nT:.3g} nT is structured: {shape}"], warnings
-        return [], warnings
+        return _revisits_check(objective, r, rms_nT, floor, geometry, 1, info), warnings
     source = {"time": "neighbouring samples in time", "repeats": "repeated attitudes", "rows": "neighbouring rows",
               "decorrelated": f"samples {info.get('noise_correlated_samples')} apart in time, where the noise has "
                               f"decorrelated; noise correlated in time accounts for at most {DECORRELATED_RATIO:g} times "
@@ -960,6 +1008,35 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
         shape = "structure that follows the attitude, which the model lacks (magbench diagnose says where it lies)"
     return [f"the residual {rms_nT:.3g} nT is {rms_nT / max(sigma, 1e-12):.3g} times the noise estimated independently "
             f"of the fit ({sigma:.3g} nT, from {source}): {shape}"], warnings
+
+
+def _revisits_check(objective: ScalarObjective, r: np.ndarray, rms_nT: float, floor: float, geometry: NoiseGeometry,
+                    correlated: int, info: dict) -> list[str]:
+    """The residual against a second upper bound of the noise, where the time neighbours' passed it: its scatter
+    about the attitudes revisited at other times (``revisit_neighbours``), in which a structure that follows the
+    attitude cancels, as in the time neighbours' differences on a slow path, but not only there: a misfit that
+    changes fast along the path (a nonlinearity on a brisk tumble) lifts the time neighbours' differences to its
+    own size, so that the residual passes against them (on the independent forward models: 6 such calibrations
+    accepted with a parameter 29 to 314 deviations off).  Noise correlated over ``correlated`` samples asks the
+    revisits to be 4 times that apart.  A rejection (a list of at most one) when the residual is more than
+    STRUCTURE_RATIO times that scatter plus ``floor``."""
+    revisits = geometry.revisits
+    if revisits is None:
+        return []
+    if 4 * correlated > REVISIT_SEPARATION:
+        assert geometry.order is not None
+        revisits = revisit_neighbours(objective.raw_nT, geometry.order, 4 * correlated, geometry.holds)
+        if revisits is None:
+            return []
+    sigma = attitude_neighbour_noise(r, revisits)
+    info["noise_revisits_nT"] = float(sigma)
+    if not rms_nT > STRUCTURE_RATIO * sigma + floor:
+        return []
+    return [f"the residual {rms_nT:.3g} nT is {rms_nT / max(sigma, 1e-12):.3g} times the noise estimated from the "
+            f"attitudes the sensor came back to at other times ({sigma:.3g} nT, its scatter about the "
+            f"{KNN_NEIGHBOURS} nearest of them): structure that follows the attitude and changes too fast along the "
+            "path for the time neighbours to tell it from noise, which the model lacks (magbench diagnose says where "
+            "it lies)"]
 
 
 def widening(info: dict) -> float:

@@ -4,7 +4,7 @@ anything that follows the attitude, so a step of the offsets must be found by it
 import numpy as np
 import pytest
 
-from magbench.calibrators import make
+from magbench.calibrators import acceptance, make
 from magbench.simulate import simulate
 from magbench.simulate.dataset import Dataset
 
@@ -281,3 +281,32 @@ def test_rows_written_twice_without_times_are_not_repeated_attitudes(scenario):
         res = make("lsq").fit(Dataset(raw[rows], f_ref_nT=f_ref[rows]))
         assert res.accepted, res.rejections
         assert any("50 % of the readings repeat another exactly" in w for w in res.warnings), res.warnings
+
+
+def _revisit_ratio(data: Dataset) -> float:
+    """The residual of lsq's fit over its scatter about the attitudes revisited at other times."""
+    fit = make("lsq").fit(data)
+    assert fit.accepted, fit.rejections
+    objective = acceptance.ScalarObjective(np.asarray(data.raw_nT), data.f_ref_nT, "nine")
+    r = objective.residuals(fit.x)
+    rms = float(np.sqrt(np.mean(r ** 2)))
+    info: dict = {}
+    acceptance.structure_check(objective, fit.x, rms, float(np.median(data.f_ref_nT)), np.arange(len(r)), data.t_s, info)
+    return rms / info["noise_revisits_nT"]
+
+
+@pytest.mark.parametrize("width", [1, 16])
+def test_the_scatter_about_revisited_attitudes_is_the_noise_also_when_it_is_band_limited(width):
+    """On a smooth path the attitudes revisited at other times are REVISIT_SEPARATION (or 4 k) samples apart or more,
+    so noise shared by time neighbours does not cancel between them: a clean record's residual is about that scatter
+    (the check rejects at STRUCTURE_RATIO, 3), white or averaged over 16 samples."""
+    assert 0.75 < _revisit_ratio(_band_limited(width, 5.0, 0)) < 1.25
+
+
+def test_a_held_record_revisited_is_judged_against_other_holds():
+    """Readings held 20 samples at each attitude, rounded to 20 nT (10 times the noise): within a hold the rounded
+    readings barely change, so the revisits are taken in other holds only; the ratio stays near 1 (0.76 measured)."""
+    d = _noise_free("tumble9").build(0)
+    rng = np.random.default_rng(0)
+    raw = np.round((np.repeat(np.asarray(d.raw_nT), 20, axis=0) + rng.normal(0, 2.0, (20 * len(d.raw_nT), 3))) / 20) * 20
+    assert 0.5 < _revisit_ratio(Dataset(raw, f_ref_nT=np.repeat(d.f_ref_nT, 20), t_s=np.arange(len(raw)) * 0.1)) < 1.25
