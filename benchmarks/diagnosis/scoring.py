@@ -3,8 +3,9 @@ interval, the significance of what is left, and which effects the data can test 
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import norm, poisson
 
-from magbench.simulate.effects import Columns, Effect, library_effects, robust_sigma
+from magbench.simulate.effects import SPIKE_SIGMA, Columns, Effect, OutlierEffect, library_effects, robust_sigma
 
 from .floor import MAD_SE
 
@@ -127,6 +128,36 @@ def min_detectable_nT(floor: float, n: int) -> float:
     """RMS of an effect the paired held-out test sees with 90 % power: mean decrease s^2 against a
     standard deviation 2 sigma s of the per-sample difference, so s = 2 POWER_Z sigma / sqrt(n)."""
     return float(2.0 * POWER_Z * floor / np.sqrt(max(n, 1)))
+
+
+SHOULDER_SIGMA = 3.5
+SHOULDER_ALPHA = 0.01
+"""Fewer spikes than the selection's share of the samples (``OutlierEffect.enough``) are glitches only when their
+count is more than Gaussian noise gives (``spike_z`` above Z_SIGNIFICANT) and the residual's shoulder (between
+SHOULDER_SIGMA and SPIKE_SIGMA robust sigma) holds no more samples than Gaussian noise gives (Poisson, at this level):
+heavy-tailed noise (Student's t) puts many there, glitches of tens of sigma few."""
+
+
+def shoulder_p(resid: np.ndarray, spikes: np.ndarray) -> float:
+    """p-value (Poisson, upper tail) of the count of samples between SHOULDER_SIGMA and SPIKE_SIGMA robust sigma of
+    the residual (spikes left out of the scale) against Gaussian noise's."""
+    sigma = robust_sigma(resid[~spikes])
+    if not sigma > 0:
+        return 0.0
+    a = np.abs(resid - np.median(resid[~spikes])) / sigma
+    count = int(np.sum((a > SHOULDER_SIGMA) & (a <= SPIKE_SIGMA)))
+    expected = len(resid) * 2.0 * float(norm.sf(SHOULDER_SIGMA) - norm.sf(SPIKE_SIGMA))
+    return float(poisson.sf(count - 1, expected))
+
+
+def spikes_enough(n_spikes: int, n: int, count_z: float, shoulder: float) -> bool:
+    """The count test of spikes, one rule for the vector and the fixed-sensor paths: at least the selection's share
+    of the samples (``OutlierEffect.enough``); or, fewer (a long record's few glitches, or glitches the scalar
+    residual shows only in part: a spike across the field barely changes the magnitude), at least
+    ``OutlierEffect.MIN_SPIKES`` of them, a count Gaussian noise does not give (``count_z``, ``spike_z``) and a
+    Gaussian shoulder below them (``shoulder``, ``shoulder_p``, above SHOULDER_ALPHA)."""
+    return OutlierEffect.enough(n_spikes, n) or (
+        n_spikes >= OutlierEffect.MIN_SPIKES and count_z > Z_SIGNIFICANT and shoulder > SHOULDER_ALPHA)
 
 
 def coverage_pct(unit: np.ndarray, cells_az: int = 12, cells_z: int = 6) -> float:

@@ -49,15 +49,14 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.polynomial import legendre
-from scipy.stats import norm, poisson
 
 from magbench.errors import InputError
 from magbench.simulate.dataset import Dataset
-from magbench.simulate.effects import SPIKE_SIGMA, OutlierEffect, f_test_p, first_order_lag, robust_sigma
+from magbench.simulate.effects import SPIKE_SIGMA, OutlierEffect, f_test_p, first_order_lag
 
 from .floor import consecutive_repeats, noise_spectrum, time_difference_floor
 from .naming import STEP_SHARE, TEMPERATURE_FOLLOWS_TIME_R2, spike_signature, temperature_follows_time
-from .scoring import Z_SIGNIFICANT, rms, spike_z
+from .scoring import rms, shoulder_p, spike_z, spikes_enough
 
 SECONDS_PER_HOUR = 3600.0
 DRIFT_Z = 3.0
@@ -82,11 +81,6 @@ not named (a drift of the offsets beneath it cannot be told without a vector ref
 THERMAL_LAG_OF_SPAN = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0)
 """First-order thermal time constants tried (shares of the record's span) when asking whether the logged
 temperature fits a drift (radial or across) as well as the smooth trend does."""
-SHOULDER_SIGMA = 3.5
-SHOULDER_ALPHA = 0.01
-"""Fewer spikes than the selection's share of the samples are glitches only when the residual's shoulder (between
-SHOULDER_SIGMA and SPIKE_SIGMA robust sigma) holds no more samples than Gaussian noise gives (Poisson, at this level):
-heavy-tailed noise (Student's t) puts many there, glitches of tens of sigma few."""
 MIN_DISTINCT = 10
 """A fixed record needs at least this many readings that differ from the one before them (the floor's least
 number of distinct samples); fewer is a stuck sensor or logger, refused."""
@@ -271,27 +265,13 @@ def _spikes(r: np.ndarray, design: np.ndarray | None, t: np.ndarray, raw_nT: np.
     # noise crowds the shoulder, glitches far beyond it do not)
     n_spikes = int(mask.sum())
     count_z = spike_z(n_spikes, n, SPIKE_SIGMA)
-    shoulder_p = _shoulder_p(resid, mask)
-    enough = OutlierEffect.enough(n_spikes, n) or (
-        n_spikes >= OutlierEffect.MIN_SPIKES and count_z > Z_SIGNIFICANT and shoulder_p > SHOULDER_ALPHA)
-    named = bool(enough and glitches)
+    shoulder = shoulder_p(resid, mask)
+    named = bool(spikes_enough(n_spikes, n, count_z, shoulder) and glitches)
     return (mask if named else np.zeros(n, dtype=bool)), {
-        "n": n_spikes, "count_z": count_z, "shoulder_p": shoulder_p, "named": named, "neighbour_share": share,
+        "n": n_spikes, "count_z": count_z, "shoulder_p": shoulder, "named": named, "neighbour_share": share,
         "bulk_tail_ratio": ratio, "clipped_share": clip,
         "rule": "beyond 5 robust sigma of a smooth trend; named when more than noise gives, isolated and spread in "
                 "time, not readings at a repeated extreme (clipping), on a noise-like rest"}
-
-
-def _shoulder_p(resid: np.ndarray, spikes: np.ndarray) -> float:
-    """p-value (Poisson, upper tail) of the count of samples between SHOULDER_SIGMA and SPIKE_SIGMA robust sigma of
-    the residual (spikes left out of the scale) against Gaussian noise's."""
-    sigma = robust_sigma(resid[~spikes])
-    if not sigma > 0:
-        return 0.0
-    a = np.abs(resid - np.median(resid[~spikes])) / sigma
-    count = int(np.sum((a > SHOULDER_SIGMA) & (a <= SPIKE_SIGMA)))
-    expected = len(resid) * 2.0 * float(norm.sf(SHOULDER_SIGMA) - norm.sf(SPIKE_SIGMA))
-    return float(poisson.sf(count - 1, expected))
 
 
 def _f_p(sse0: float, sse1: float, extra: int, n_eff: float, n_params: int) -> float:

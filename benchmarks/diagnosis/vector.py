@@ -93,9 +93,11 @@ from .scoring import (
     paired_z,
     remainder,
     rms,
+    shoulder_p,
     shrink_interval,
     shrink_pct,
     spike_z,
+    spikes_enough,
     testable,
 )
 from .verdict import verdict
@@ -812,7 +814,7 @@ class Diagnosis:
                 ok = z > Z_SIGNIFICANT and (step >= MIN_SIGNIFICANT_SHRINK_PCT
                                             or (not settled and step >= MIN_STEP_OF_REMAINING * left))
                 if EFFECTS[name].robust:
-                    ok = ok and EFFECTS[name].enough(n_spk, n)
+                    ok = ok and spikes_enough(n_spk, n, z, shoulder_p(res, self.tangent.spikes))
                 scored.append((rms(res), name, z, step, ok, res))
             trail.append({"after": "+".join(selected) or "base",
                           "candidates": {nm: {"rms_heldout_nT": r_, "z": z_, "step_shrink_pct": s_, "significant": ok_}
