@@ -27,23 +27,26 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from magbench.numerics import lm_normal, median, median_and_sigma, repeated_rows, roughness, systematic_rows
+from magbench.numerics import at_optimum, lm_normal, median, median_and_sigma, repeated_rows, roughness, systematic_rows
 from magbench.simulate.effects import HOLD_ANGLE_RAD, HOLD_MIN_SAMPLES, HOLD_SHARE
 from magbench.simulate.sensor import PARAM_NAMES, embed
 
 from .core.objective import ScalarObjective
 from .core.problem import PHYSICAL_BOX, search_bounds
-from .fisher import PassAt, crb_std, one_pass, pinv_eigen, std_from_information
+from .fisher import PassAt, crb_std, eigh, one_pass, pinv_eigen, std_from_information
 
 PROFILE_ATOL = 0.02
 """The profile refit stops once an iteration lowers the sum of squares by less than this many noise
 variances (the test compares the increase with 9 of them)."""
 REFERENCE_MAX_ITER = 30
 """Iterations the judge's own least-squares polish may take (from a good answer it needs one or two)."""
+REFERENCE_TOL = 1e-10
+"""... and its relative tolerance (``numerics.lm_iterations``'s ``tol``)."""
 
 
 @dataclass(frozen=True)
@@ -102,7 +105,7 @@ def identifiability(objective: ScalarObjective, x: np.ndarray, noise_nT: float, 
         with np.errstate(all="ignore"):
             std = crb_std(objective, x, max(noise_nT, 1e-9 * field_nT))
     out = []
-    for name, s in zip(names, std):
+    for name, s in zip(names, np.asarray(std).tolist()):  # Python floats: the same numbers, compared faster
         tol = limits.tolerance(name, field_nT)
         if not s <= tol:
             unit = " rad" if name.endswith("_rad") else (" nT" if name.endswith("_nT") else "")
@@ -133,13 +136,17 @@ def reference_fit(objective: ScalarObjective, x: np.ndarray, physical_box: tuple
     Outside the counter: it measures the answer, it is not part of the contest.  From an answer already
     at the optimum it stops after one or two passes over the data.  ``rms_start``: the residual RMS at
     ``x`` on this objective when the caller has it (else it is computed); ``at``: the pass at ``x`` on this
-    objective, when the caller has it (its normal equations are then not computed again)."""
+    objective, when the caller has it (its normal equations are then not computed again, and where they say
+    that ``x`` is the optimum, the search is not started: it would return ``x`` and its sum of squares)."""
     lo, hi = physical_box
     start = np.clip(x, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
     n = objective.raw_nT.shape[0]
     with np.errstate(all="ignore"):
-        equations = objective.normal_equations if at is None else at.normal_equations(objective.normal_equations)
-        x_ref, cost, _ = lm_normal(equations, start, lo, hi, tol=1e-10, max_iter=max_iter)
+        if at is not None and np.array_equal(start, at.x) and at_optimum(at.gram, at.grad, at.ss, REFERENCE_TOL, 0.0):
+            x_ref, cost = start, float(at.ss)  # lm_normal's answer, from its first test
+        else:
+            equations = objective.normal_equations if at is None else at.normal_equations(objective.normal_equations)
+            x_ref, cost, _ = lm_normal(equations, start, lo, hi, tol=REFERENCE_TOL, max_iter=max_iter)
     if rms_start is None:
         rms_start = float(np.sqrt(np.mean(objective.residuals(x) ** 2)))
     rms_ref = float(np.sqrt(cost / n))
@@ -502,6 +509,9 @@ class NoiseGeometry:
     """The share of the samples that are distinct readings: in time order, those that do not repeat the reading
     before them ("time" and "rows": ``order`` then holds them); without times, "repeats", the distinct readings
     anywhere in the record."""
+    in_order: bool | None = None
+    """Whether ``order`` is ``0, 1, 2, ...`` (``in_file_order``: the rows lie in time order already); None when
+    not known."""
 
 
 def noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float) -> NoiseGeometry:
@@ -509,7 +519,8 @@ def noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float) 
     computed once for every fit of the same record; its arrays read-only)."""
     geometry = _noise_geometry(raw_nT, t_s, field_nT)
     time_order = None if geometry.how != "time" or geometry.distinct_share < 1.0 else geometry.order
-    geometry = replace(geometry, resolution_nT=readings_resolution(raw_nT), holds=held_attitudes(raw_nT, t_s, time_order))
+    geometry = replace(geometry, resolution_nT=readings_resolution(raw_nT), holds=held_attitudes(raw_nT, t_s, time_order),
+                       in_order=None if geometry.order is None else in_file_order(geometry.order))
     if geometry.how == "time" and geometry.neighbours is None:  # a continuous path (or holds): not random attitudes
         assert geometry.order is not None
         geometry = replace(geometry, revisits=revisit_neighbours(raw_nT, geometry.order, REVISIT_SEPARATION,
@@ -574,7 +585,7 @@ def independent_noise(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray | None,
         i, j = g.pairs
         return median_and_sigma(r[i] - r[j])[1] / np.sqrt(2.0), "repeats", None
     assert g.order is not None and g.weights is not None
-    ro = r if g.how == "rows" and len(g.order) == len(r) else r[g.order]
+    ro = r if (g.in_order or g.how == "rows") and len(g.order) == len(r) else r[g.order]
     return _interpolation_sigma(ro, g.weights), g.how, g.order
 
 
@@ -609,9 +620,10 @@ def attitude_neighbour_noise(r: np.ndarray, neighbours: tuple[slice | np.ndarray
     structure that is a smooth function of the attitude cancels between neighbours, noise does not."""
     rows, nearest = neighbours[0], neighbours[1]
     rr = r[rows]
-    spread = (rr if len(neighbours) == 2 else rr[neighbours[2]]) - rr[nearest].mean(axis=1)
+    centre = rr if len(neighbours) == 2 else rr[neighbours[2]]
+    spread = centre - np.add.reduce(rr[nearest], axis=1) / KNN_NEIGHBOURS  # the neighbours' mean (np.mean's sum)
     # robust: at the edge of a cap the neighbours are one-sided, and an RMS there hides half of a nonlinearity
-    return median_and_sigma(spread)[1] * float(np.sqrt(KNN_NEIGHBOURS / (KNN_NEIGHBOURS + 1.0)))
+    return median_and_sigma(spread)[1] * math.sqrt(KNN_NEIGHBOURS / (KNN_NEIGHBOURS + 1.0))
 
 
 REVISIT_SEPARATION = 32
@@ -732,22 +744,22 @@ class StepFit:
     """The best single step of a residual in time order (``best_step``): where, how much of the residual it
     explains beyond the whole-record directions (``gain``), what those directions explain (``base``), the
     residual's sum of squares (``total``) and the step's size (``jump``: the offsets' jump in nT, or the
-    residual's; solved when asked, from the best split's system ``system`` and the columns' ``column_scale``:
-    most checks only ask whether the step dominates)."""
+    residual's; solved when asked, from the best split's system ``system``, its Schur complement, ridge and
+    right-hand side, and the columns' ``column_scale``: most checks only ask whether the step dominates)."""
 
     index: int
     gain: float
     base: float
     total: float
     offsets: bool
-    system: tuple[np.ndarray, np.ndarray] = field(repr=False, compare=False)
+    system: tuple[np.ndarray, float, np.ndarray] = field(repr=False, compare=False)
     column_scale: np.ndarray = field(repr=False, compare=False)
 
     @property
     def jump(self) -> np.ndarray:
-        matrix, rhs = self.system
+        schur, ridge, rhs = self.system
         with np.errstate(all="ignore"):
-            return np.linalg.solve(matrix, rhs) / self.column_scale
+            return np.linalg.solve(schur + ridge * np.eye(len(rhs)), rhs) / self.column_scale
 
 
 def _sums_after(t: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -755,16 +767,27 @@ def _sums_after(t: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
     (``t``: (q, n), ``w``: (width, n), the rows' factors as columns), as (q, width, m): one contiguous row of m
     per entry, so that the systems built from them are vectors.  Short records from the per-row products
     summed from the end in one vectorized pass; long ones block by block between the split rows (at most
-    ``STEP_CANDIDATES`` blocks), so that memory stays a fraction of the record's."""
+    ``STEP_CANDIDATES`` blocks), so that memory stays a fraction of the record's.
+
+    The running sums of a short record are taken two entries at a time, as the real and imaginary parts of
+    complex numbers: a complex sum adds the two parts apart, each rounded as a real sum is, so that the sums
+    are bit for bit those of ``np.cumsum`` on each entry in the same (sequential) order, in half its steps
+    (a running sum's steps depend on each other: their count, not the arithmetic, sets its time)."""
     q, n = t.shape
     width = w.shape[0]
     if n * q * width <= 4_000_000:
-        from_end = np.multiply(t[:, None, ::-1], w[None, :, ::-1], order="C")  # (q, width, n), rows from the end
-        np.cumsum(from_end, axis=2, out=from_end)  # [..., j]: the sum over the last j + 1 rows
+        k = q * width
+        from_end = np.empty((n, k + k % 2))  # row j: the products of row n - 1 - j; an even count of columns
+        from_end[:, k:] = 0.0
+        np.multiply(t[:, None, ::-1], w[None, :, ::-1], out=from_end[:, :k].T.reshape(q, width, n))
+        pairs = from_end.view(np.complex128)
+        np.cumsum(pairs, axis=0, out=pairs)  # [j]: the sum over the last j + 1 rows
         m = len(edges)
         if m and edges[-1] - edges[0] == m - 1:  # a short record's every row: a slice, not a gather
-            return np.ascontiguousarray(from_end[:, :, n - 1 - edges[-1]:n - edges[0]][:, :, ::-1])
-        return from_end[:, :, n - 1 - edges]
+            picked = from_end[n - 1 - edges[-1]:n - edges[0]][::-1]
+        else:
+            picked = from_end[n - 1 - edges]
+        return np.ascontiguousarray(picked[:, :k].T).reshape(q, width, m)
     bounds = np.concatenate([edges, [n]])
     sums = np.empty((len(edges), q, width))
     for j in range(len(edges)):
@@ -773,8 +796,14 @@ def _sums_after(t: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
     return np.cumsum(sums[::-1], axis=0)[::-1].transpose(1, 2, 0)
 
 
+def in_file_order(order: np.ndarray) -> bool:
+    """Whether the time order ``order`` is ``0, 1, 2, ...``: the rows lie in time order already."""
+    return bool(len(order) and order[0] == 0 and np.array_equal(order, np.arange(len(order))))
+
+
 def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: np.ndarray,
-              jacobian: np.ndarray | None = None, gram: np.ndarray | None = None) -> StepFit | None:
+              jacobian: np.ndarray | None = None, gram: np.ndarray | None = None,
+              in_order: bool | None = None) -> StepFit | None:
     """The best single step in time order: a jump of the offsets (of the mean, for a model without
     offsets) after row k, ``[i >= k] (c + J_o d)``, on top of every parameter's direction ``J`` over the
     whole record, at ``STEP_CANDIDATES`` split points.  By the Frisch-Waugh-Lovell theorem the step's gain
@@ -785,7 +814,8 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
     ``B_k^T A^+ B_k = E_k^T E_k`` for ``E_k = Z^T T_k`` and ``c_k = T_k^T (r - Z Z^T r)``: one pass of
     per-row products summed from the end.  None when the record is too short to split.  On more than
     ``STEP_ROWS`` rows the search runs on every k-th row in time order (the sums scaled to all rows; the step
-    located to within k rows).  ``jacobian``, ``gram``: J at ``x`` (n, p) and J^T J, when the caller has them."""
+    located to within k rows).  ``jacobian``, ``gram``: J at ``x`` (n, p) and J^T J, when the caller has them;
+    ``in_order``: ``in_file_order(order)``, when the caller knows it (a record's ``NoiseGeometry``)."""
     n_all = len(order)  # the rows searched: every row, or the distinct readings of a record that repeats some
     k = max(1, -(-n_all // STEP_ROWS))
     if k > 1:
@@ -801,12 +831,15 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
     # a step of the offsets where there are offsets, else of the mean; the mean is never a column of the
     # whole record (with scales the residual |c| - F lies in the span of the scales' columns and a constant)
     jac = objective.jacobian(x) if jacobian is None else jacobian
-    in_order = order[0] == 0 and np.array_equal(order, np.arange(len(order)))  # rows in time order already
+    if in_order is None:
+        in_order = in_file_order(order)  # rows in time order already
+    # ... and all of them: the distinct readings of a record whose repeats all come last are 0, 1, ..., m - 1 too
+    in_order = in_order and len(order) == len(r)
     jo = jac if in_order else jac[order]
     if offsets:
         full, tail = jo, offsets
     else:
-        full, tail = np.column_stack([np.ones(len(r)), jo]), slice(0, 1)
+        full, tail = np.column_stack([np.ones(len(jo)), jo]), slice(0, 1)
     n = full.shape[0]
     q = tail.stop - tail.start
     if n < STEP_MIN_ROWS_PER_PARAMETER * (full.shape[1] + q):
@@ -814,7 +847,8 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
     # the pass's J^T J: a sum in any row order, when every row is searched
     whole = gram if gram is not None and offsets and len(order) == len(r) else full.T @ full
     scale = np.sqrt(whole.diagonal() / n)
-    scale[scale == 0] = 1.0  # columns of one size: the systems below are then well conditioned
+    if not scale.all():
+        scale[scale == 0] = 1.0  # columns of one size: the systems below are then well conditioned
     a_all = whole / (scale[:, None] * scale)
     ro = r if in_order else r[order]
     margin = max(1, n // 50)
@@ -825,7 +859,7 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
     if len(edges) < 2:
         return None
     with np.errstate(all="ignore"):
-        ev, vec = np.linalg.eigh(a_all)  # A^+ = V V^T over the eigenvalues above 1e-9 of the largest
+        ev, vec = eigh(a_all)  # A^+ = V V^T over the eigenvalues above 1e-9 of the largest
         kept = ev > 1e-9 * np.abs(ev).max()
         if kept.all():  # a regular A (the usual case): no columns to drop
             z = full @ (vec / np.sqrt(ev) / scale[:, None])  # the scaled columns, whitened
@@ -834,10 +868,10 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
         g = z.T @ ro
         base = float(g @ g)
         pz = z.shape[1]
-        # the per-row factors transposed, (q, n) and (p' + q + 1, n): one contiguous row per column
-        t = np.divide(full[:, tail].T, scale[tail, None], order="C")
+        # the per-row factors transposed, (p' + q + 1, n) and its rows t (q, n): one contiguous row per column
         w = np.empty((pz + q + 1, n))
-        w[:pz], w[pz:pz + q] = z.T, t
+        w[:pz] = z.T
+        t = np.divide(full[:, tail].T, scale[tail, None], out=w[pz:pz + q])
         np.subtract(ro, z @ g, out=w[-1])
         after = _sums_after(t, w, edges)  # (q, p' + q + 1, m)
         e_t = after[:, :pz]  # E_k^T, (q, p', m)
@@ -848,11 +882,12 @@ def best_step(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, order: n
         # span has S ~ 0 and c ~ 0 there, so that direction adds nothing)
         ridge = 1e-10 * schur.diagonal(axis1=1, axis2=2).sum(axis=1) / q + 1e-300
         gain = _quadratic_forms(schur, ridge, c)
-    gain[~np.isfinite(gain)] = -np.inf
+    finite = np.isfinite(gain)
+    if not finite.all():
+        gain[~finite] = -np.inf
     best = int(gain.argmax())
     return StepFit(index=int(edges[best]), gain=float(gain[best]), base=base, total=float(ro @ ro),
-                   offsets=bool(offsets), system=(schur[best] + ridge[best] * np.eye(q), c[best].copy()),
-                   column_scale=scale[tail])
+                   offsets=bool(offsets), system=(schur[best], ridge[best], c[best]), column_scale=scale[tail])
 
 
 @functools.cache
@@ -881,8 +916,9 @@ def _quadratic_forms(s: np.ndarray, ridge: np.ndarray, c: np.ndarray) -> np.ndar
     y2 = (c[:, 1] - l21 * y1) / l22
     y3 = (c[:, 2] - l31 * y1 - l32 * y2) / l33
     out = y1 * y1 + y2 * y2 + y3 * y3
-    bad = ~np.isfinite(out)
-    if bad.any():
+    finite = np.isfinite(out)
+    if not finite.all():
+        bad = ~finite
         ridged = s[bad] + ridge[bad][:, None, None] * np.eye(3)
         out[bad] = np.einsum("mi,mi->m", np.linalg.solve(ridged, c[bad][:, :, None])[:, :, 0], c[bad])
     return out
@@ -981,7 +1017,7 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
                             f"{decorrelated / max(sigma, 1e-300):.2g} times that of neighbours): the stated deviations "
                             f"are widened {np.sqrt(k):.3g} times for it (about 1 in {k} samples is independent)")
             if rms_nT > STRUCTURE_RATIO * sigma + floor:  # noise, judged once decorrelated; a step is structure still
-                step = best_step(objective, x, r, order, jacobian, gram)
+                step = best_step(objective, x, r, order, jacobian, gram, geometry.in_order)
                 if step_dominates(step):
                     shape = describe_structure(step, order, 1e-300, rows, t_s, len(order))
                     return [f"the residual {rms_nT:.3g} nT is structured: {shape}"], warnings
@@ -992,7 +1028,7 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
         # follows the attitude, such as offsets that jump: a single step that explains most of what the fit
         # leaves is structure however the noise was estimated
         if how in ("time", "attitudes") and rms_nT > floor and order is not None:
-            step = best_step(objective, x, r, order, jacobian, gram)
+            step = best_step(objective, x, r, order, jacobian, gram, geometry.in_order)
             if step_dominates(step):
                 shape = describe_structure(step, order, 1e-300, rows, t_s, len(order))
                 return [f"the residual {rms_nT:.3g} nT is structured: {shape}"], warnings
@@ -1002,7 +1038,7 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
                               f"decorrelated; noise correlated in time accounts for at most {DECORRELATED_RATIO:g} times "
                               "that level",
               "attitudes": f"the {KNN_NEIGHBOURS} nearest attitudes; consecutive samples are at unrelated ones"}[how]
-    step = best_step(objective, x, r, order, jacobian, gram) if order is not None else None
+    step = best_step(objective, x, r, order, jacobian, gram, geometry.in_order) if order is not None else None
     shape = describe_structure(step, order, sigma, rows, t_s, len(r) if order is None else len(order))
     if how == "attitudes" and not (step is not None and step_dominates(step)):
         shape = "structure that follows the attitude, which the model lacks (magbench diagnose says where it lies)"
@@ -1055,7 +1091,7 @@ def scale_warning(x: np.ndarray, model: str) -> list[str]:
     if "kx" not in names:
         return []
     i = names.index("kx")
-    mean = float(np.mean(x[i:i + 3]))
+    mean = float(np.add.reduce(x[i:i + 3]) / 3)  # np.mean's sum and division, without its wrapper
     if abs(mean - 1.0) <= SCALE_WARNING:
         return []
     return [f"the mean scale factor is {mean:.4g}, {100 * abs(mean - 1):.3g} % from unity: a fluxgate's scales are "

@@ -14,6 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+try:  # the gufunc behind np.linalg.eigh: a private module of numpy, so np.linalg.eigh stands in where it is missing
+    from numpy.linalg import _umath_linalg
+    _eigh_lo = getattr(_umath_linalg, "eigh_lo", None)
+except ImportError:  # pragma: no cover - depends on the numpy build
+    _eigh_lo = None
+
 from magbench.numerics import median, systematic_rows
 from magbench.simulate.sensor import PARAM_NAMES
 
@@ -80,7 +86,7 @@ def unit_scale(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     1e16, and a pseudo-inverse cut relative to its largest singular value would drop a direction the data
     do determine (an offset and a scale along the least-covered axis), stating a deviation hundreds of times
     too small.  The cut is made on the scaled matrix, where it drops only what no data determine."""
-    d = np.diag(a)
+    d = a.diagonal()
     if d.min(initial=1.0) > 0:  # the usual case, in few operations (twice in every fit's checks)
         s = 1.0 / np.sqrt(d)
     else:
@@ -89,14 +95,32 @@ def unit_scale(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return a * np.multiply.outer(s, s), s
 
 
+def _did_not_converge(err, flag):
+    raise np.linalg.LinAlgError("Eigenvalues did not converge")
+
+
+def eigh(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.linalg.eigh(a)`` (eigenvalues ascending, eigenvectors as columns) of a square float64 matrix: the
+    same gufunc under the same floating-point settings (the same numbers; ``LinAlgError`` where it does not
+    converge), without the wrapper's conversions and checks, which take a third of its time on the 9 x 9
+    matrices of every fit's checks.  Other input goes to ``np.linalg.eigh``, and all input does where numpy's
+    private module does not have the gufunc (``tests/test_acceptance_lean.py`` checks the two agree bit for bit)."""
+    if _eigh_lo is None or not (isinstance(a, np.ndarray) and a.dtype == np.float64 and a.ndim == 2
+                                and a.shape[0] == a.shape[1]):
+        return tuple(np.linalg.eigh(a))  # type: ignore[return-value]
+    with np.errstate(call=_did_not_converge, invalid="call", over="ignore", divide="ignore", under="ignore"):
+        return _eigh_lo(a, signature="d->dd")
+
+
 def pinv_eigen(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The pseudo-inverse of a symmetric ``a`` (an information matrix, or normal equations) as the Cramér-Rao
     bound takes it, in parts: ``pinv(a) = (s V) diag(inv) (s V)^T`` with ``V`` the eigenvectors of ``a`` scaled to
     unit diagonal (``unit_scale``), ``inv`` the inverse eigenvalues (0 for those below 1e-15 of the largest in
     magnitude: pinv's cut) and ``s`` the scale.  Returns (V, inv, s)."""
     scaled, s = unit_scale(a)
-    values, vectors = np.linalg.eigh(scaled)
-    keep = np.abs(values) > 1e-15 * np.max(np.abs(values), initial=0.0)
+    values, vectors = eigh(scaled)
+    size = np.abs(values)
+    keep = size > 1e-15 * size.max(initial=0.0)
     return vectors, np.divide(1.0, values, out=np.zeros_like(values), where=keep), s
 
 

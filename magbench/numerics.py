@@ -2,6 +2,7 @@
 Levenberg-Marquardt iteration on accumulated normal equations.  Imports nothing of magbench's."""
 from __future__ import annotations
 
+import math
 from collections.abc import Generator
 
 import numpy as np
@@ -40,7 +41,7 @@ def lm_iterations(x: np.ndarray, lower: np.ndarray | None = None, upper: np.ndar
     x = np.asarray(x, dtype=float).copy()
     a, g, cost = yield x
     calls, damping = 1, 1e-3
-    if _at_optimum(a, g, cost, tol, atol):
+    if at_optimum(a, g, cost, tol, atol):
         return x, float(cost), calls
     for _ in range(max_iter):
         diag = np.maximum(np.diag(a), 1e-300)
@@ -59,7 +60,7 @@ def lm_iterations(x: np.ndarray, lower: np.ndarray | None = None, upper: np.ndar
                     or np.linalg.norm(trial - x) <= tol * (np.linalg.norm(x) + tol))
             x, a, g, cost = trial, a_t, g_t, cost_t
             damping = max(damping / 3.0, 1e-15)
-            if done or _at_optimum(a, g, cost, tol, atol):
+            if done or at_optimum(a, g, cost, tol, atol):
                 break
         else:
             damping *= 4.0
@@ -68,7 +69,7 @@ def lm_iterations(x: np.ndarray, lower: np.ndarray | None = None, upper: np.ndar
     return x, float(cost), calls
 
 
-def _at_optimum(a: np.ndarray, g: np.ndarray, cost: float, tol: float, atol: float) -> bool:
+def at_optimum(a: np.ndarray, g: np.ndarray, cost: float, tol: float, atol: float) -> bool:
     """Whether the Gauss-Newton step from here would lower the sum of squares by at most ``tol`` of it (or
     ``atol``): the decrement ``g^T A^-1 g`` (the predicted decrease, half of it for a full step), so that
     no further point need be asked for.  Near the optimum of a long record the sum of squares changes by
@@ -114,8 +115,13 @@ def median(x: np.ndarray) -> float:
     n = x.size
     if n == 0 or np.isnan(x).any():
         return float(np.median(x))
+    return _middle(np.partition(x, n // 2))
+
+
+def _middle(part: np.ndarray) -> float:
+    """The median of values (1-D, none NaN) partitioned about their upper middle element (``n // 2``)."""
+    n = part.size
     k = n // 2
-    part = np.partition(x, k)
     if n % 2:
         return float(part[k])
     return float((part[:k].max() + part[k]) / 2.0)
@@ -127,7 +133,13 @@ def median_and_sigma(x: np.ndarray) -> tuple[float, float]:
     if x.size == 0:
         return float("nan"), 0.0
     m = median(x)
-    return m, MAD_TO_SIGMA * median(np.abs(x - m))
+    if not math.isfinite(m):  # NaN among the values, or infinite ones in the middle
+        return m, MAD_TO_SIGMA * median(np.abs(x - m))
+    # about a finite median the deviations are NaN only where a value is, and there is none (the median would
+    # be NaN): they are partitioned in place, a new array of their own
+    deviation = np.abs(x - m).ravel()
+    deviation.partition(deviation.size // 2)
+    return m, MAD_TO_SIGMA * _middle(deviation)
 
 
 def roughness(t_s: np.ndarray | None, raw_nT: np.ndarray, order: np.ndarray | None = None,

@@ -147,7 +147,7 @@ class ErrorParams:
     @classmethod
     def from_vector(cls, x, model: str = "nine") -> ErrorParams:
         """The parameters of a model's vector; the entries the model does not estimate are neutral."""
-        x = embed(np.asarray(x, dtype=float), model)
+        x = embed(np.asarray(x, dtype=float), model).tolist()  # Python floats, as the fields hold them
         return cls(x[0], x[1], x[2], tuple(x[3:6]), tuple(x[6:9]))
 
     @classmethod

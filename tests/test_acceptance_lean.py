@@ -310,3 +310,68 @@ def test_the_step_states_the_jump_that_was_made():
     step = acceptance.best_step(obj, x, obj.residuals(x), np.argsort(d.t_s, kind="stable"))
     assert step is not None and step.offsets
     assert np.linalg.norm(step.jump) == pytest.approx(np.linalg.norm(jump), rel=0.1)
+
+
+def test_the_lean_linear_algebra_gives_numpys_numbers_bit_for_bit():
+    """The checks' shortcuts compute what numpy's own calls compute, to the last bit: ``fisher.eigh`` (the gufunc
+    behind np.linalg.eigh, without its wrapper; the same error where it does not converge), the step search's
+    running sums (``_sums_after``: two entries at a time, as complex numbers) against np.cumsum of each entry,
+    and the medians against np.median."""
+    from magbench.numerics import median_and_sigma
+
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        a = rng.normal(size=(9, 14)) * 10.0 ** rng.uniform(-8, 8, size=(9, 1))
+        a = a @ a.T
+        for got, want in zip(fisher.eigh(a), np.linalg.eigh(a)):
+            assert got.tobytes() == want.tobytes() and got.strides == want.strides
+
+    def outcome(f, m):
+        try:
+            return [v.tobytes() for v in f(m)]
+        except np.linalg.LinAlgError as exc:
+            return str(exc)
+
+    raised = 0
+    for value in (np.nan, np.inf):
+        for size in (3, 9):
+            m = rng.normal(size=(size, size + 3))
+            m = m @ m.T
+            m[0, 0] = value
+            assert outcome(fisher.eigh, m) == outcome(np.linalg.eigh, m)
+            raised += isinstance(outcome(np.linalg.eigh, m), str)
+    assert raised  # the error path is compared too
+    for n, q, width in ((300, 3, 13), (301, 1, 11), (57, 3, 6), (40, 2, 5)):
+        t, w = rng.normal(size=(q, n)), rng.normal(size=(width, n)) * 1e3
+        w[:, ::7] = -0.0
+        for edges in (np.arange(2, n - 1), np.array([1, 5, 6, n // 2, n - 1])):
+            plain = np.cumsum(t[:, None, ::-1] * w[None, :, ::-1], axis=2)[:, :, n - 1 - edges]  # from the end
+            got = acceptance._sums_after(t, w, edges)
+            assert got.tobytes() == np.ascontiguousarray(plain).tobytes()
+    for n in (1, 2, 3, 300, 301):
+        x = rng.standard_t(2, size=n)
+        m, s = median_and_sigma(x)
+        assert m == np.median(x) and s == 1.4826 * np.median(np.abs(x - np.median(x)))
+    for odd in ([1.0, np.nan, 2.0], [np.inf, np.inf, 1.0]):  # NaN among the values, an infinite median
+        assert np.isnan(median_and_sigma(np.array(odd))[1])
+    assert median_and_sigma(np.array([np.inf, 1.0, 2.0, 3.0])) == (2.5, 1.4826 * 1.0)
+
+
+def test_hyper_parameters_found_valid_are_remembered_by_value_and_type():
+    """``check_param_values`` remembers values it found valid (every fit checks them again): a value equal in
+    Python but of another type (True for 1) is checked on its own and refused; an invalid value is never
+    remembered."""
+    from magbench.calibrators.base import _VALID_PARAMS
+    from magbench.errors import InputError
+
+    cls = type(make("lsq"))
+    params = make("lsq", seed=1).get_params()
+    cls.check_param_values(params)
+    assert any(key[0] is cls for key in _VALID_PARAMS)
+    for bad in (True, -1, 1.0):
+        with pytest.raises(InputError, match="seed"):
+            cls.check_param_values({**params, "seed": bad})
+    with pytest.raises(InputError, match="max_nfev"):
+        cls.check_param_values({**params, "max_nfev": 0})
+    with pytest.raises(InputError, match="max_nfev"):  # refused again: a refusal is not remembered
+        cls.check_param_values({**params, "max_nfev": 0})

@@ -310,3 +310,19 @@ def test_a_held_record_revisited_is_judged_against_other_holds():
     rng = np.random.default_rng(0)
     raw = np.round((np.repeat(np.asarray(d.raw_nT), 20, axis=0) + rng.normal(0, 2.0, (20 * len(d.raw_nT), 3))) / 20) * 20
     assert 0.5 < _revisit_ratio(Dataset(raw, f_ref_nT=np.repeat(d.f_ref_nT, 20), t_s=np.arange(len(raw)) * 0.1)) < 1.25
+
+
+@pytest.mark.parametrize("model", ["nine", "angles"])
+def test_the_step_search_of_a_record_whose_repeats_all_come_last_searches_its_distinct_readings(model):
+    """The distinct readings of a record whose repeated readings all come at its end are rows 0, 1, ..., m - 1, the
+    file's own order: that is no reason to search every row.  A residual that jumps inside the repeated tail (row m +
+    10 of n) is not searched there: the step found lies among the m distinct rows (it was found at m + 10, beyond the
+    order, and a model without offsets, whose step is the mean's, could not build its columns)."""
+    d = simulate("tumble9", 0)
+    m, n = 250, 300
+    objective = acceptance.ScalarObjective(np.asarray(d.raw_nT)[:n], np.asarray(d.f_ref_nT)[:n], model)
+    x = make("lsq", model=model).fit(Dataset(np.asarray(d.raw_nT)[:n], f_ref_nT=np.asarray(d.f_ref_nT)[:n])).x
+    r = np.random.default_rng(0).normal(0.0, 1.0, n)
+    r[m + 10:] += 50.0
+    step = acceptance.best_step(objective, x, r, np.arange(m))
+    assert step is not None and step.index < m

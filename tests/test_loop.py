@@ -223,10 +223,10 @@ def test_a_library_in_recast_sees_the_callers_context():
 
 
 def test_lm_does_not_take_a_negative_decrement_for_an_optimum():
-    from magbench.numerics import _at_optimum
+    from magbench.numerics import at_optimum
 
     a = np.array([[1.0, 0.0], [0.0, -1e-30]])  # numerically singular, solve does not raise
     g = np.array([0.0, 1e-10])
     assert float(g @ np.linalg.solve(a, g)) < 0
-    assert not _at_optimum(a, g, cost=1.0, tol=1e-12, atol=0.0)
-    assert _at_optimum(np.eye(2), np.array([1e-7, 0.0]), cost=1.0, tol=1e-12, atol=0.0)  # a true optimum
+    assert not at_optimum(a, g, cost=1.0, tol=1e-12, atol=0.0)
+    assert at_optimum(np.eye(2), np.array([1e-7, 0.0]), cost=1.0, tol=1e-12, atol=0.0)  # a true optimum

@@ -112,7 +112,13 @@ class ScalarObjective:
         if model not in PARAM_NAMES:
             raise ValueError(f"unknown model {model!r}")
         self.raw_nT = np.asarray(raw_nT, dtype=float)
-        self.f_ref_nT = np.broadcast_to(np.asarray(f_ref_nT, dtype=float), (self.raw_nT.shape[0],))
+        f_ref = np.asarray(f_ref_nT, dtype=float)
+        if f_ref.shape == self.raw_nT.shape[:1]:  # one per row already: a read-only view, as np.broadcast_to's (faster)
+            f_ref = f_ref.view()
+            f_ref.flags.writeable = False
+        else:
+            f_ref = np.broadcast_to(f_ref, (self.raw_nT.shape[0],))
+        self.f_ref_nT = f_ref
         # The computations read these private references only: the public attributes are what other modules
         # read (acceptance, Fisher information); the conformance battery's honeypot replaces them with decoys
         # while a solver runs (calibrators/checks.py, check_no_hidden_data).
