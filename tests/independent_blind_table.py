@@ -83,7 +83,10 @@ HISTORY = {
         "with its final code (`--start 3360 --cases 480`). Round 7 (this table) used 0-2879 as its regression "
         "set (a thermal lead: no verdict changed there), checked its level-vehicle path on the 4 records of 0-3839 whose "
         "turning the calibrators refuse, ran 2880-3839 once more, and held out cases 3840-4319, new, run once, with "
-        "its final code (`--start 3840 --cases 480`)."),
+        "its final code (`--start 3840 --cases 480`). Round 8 (one count test of spikes for the turning and the fixed "
+        "sensor) looked at the reasons for the misses on 0-1439, compared every verdict on 0-2879 with the code before "
+        "(none changed), ran 2880-4319 once more, and held out cases 4320-4799, new, run once, with its final code "
+        "(`--start 4320 --cases 480`)."),
     2: ("Written during round 4 by another hand, from the physics only (it read neither the diagnosis nor the "
         "first generator's effects). Round 4 looked at cases 0-479 (`--start 0 --cases 480`): the fixed-sensor "
         "changes were made on them, and the round's branches were compared there. Cases 480-1439 "
@@ -95,7 +98,10 @@ HISTORY = {
         "fixed sensor's glitches and temperature alternatives), ran 480-1439 once more, and held out cases 1440-2399, "
         "new, run once, with its final code (`--start 1440 --cases 960`). Round 7 developed on 0-479 again (a "
         "thermometer that lags the sensor: a thermal lead), ran 480-2399 once more, and held out cases 2400-3359, new, "
-        "run once, with its final code (`--start 2400 --cases 960`)."),
+        "run once, with its final code (`--start 2400 --cases 960`). Round 8 developed on 0-479 (the reasons for the "
+        "misses; the spike count), compared every verdict on 480-959 with the code before (4 changed, each to the "
+        "right answer), ran 960-3359 once more, and held out cases 3360-4319, new, run once, with its final code "
+        "(`--start 3360 --cases 960`)."),
     3: ("Written in round 5 by another hand, from the physics only (it read neither the diagnosis, the simulator, "
         "the calibrators nor the first two generators' effects and schedules): its own sensor parametrisation, "
         "schedules (a ship in a seaway, a quadcopter hover with yaw spins, a car on a closed circuit, a hand-rotated "
@@ -107,24 +113,31 @@ HISTORY = {
         "verdict changed) and developed its level-vehicle path on the 36 records of 0-2399 whose turning the "
         "calibrators refuse (a car or a quadcopter turning about one axis: so 480-2399 are not blind for those 36), "
         "ran 480-2399 once more, and held out cases 2400-3359, new, run once, with its final code "
-        "(`--start 2400 --cases 960`)."),
+        "(`--start 2400 --cases 960`). Round 8 looked at the reasons for the misses on 0-239, compared every verdict on "
+        "0-959 with the code before (14 changed: 12 to a full score, 2 partial as before), ran 960-3359 once more, and "
+        "held out cases 3360-4319, new, run once, with its final code (`--start 3360 --cases 960`)."),
 }
-SPLITS = {1: "1440,2640,2880,3360,3840", 2: "480,1440,2400", 3: "480,1440,2400"}
+SPLITS = {1: "1440,2640,2880,3360,3840,4320", 2: "480,1440,2400,3360", 3: "480,1440,2400,3360"}
 LABELS = {
     1: ["developed on in rounds 1-4 (rounds 2-3's development set)",
         "developed on in rounds 1-4 (round 3 checked every change on it; 2400-2639 was round 2's held-out block)",
         "held out for round 3: run once, with its final code",
-        "held out for round 4 (one change was made after seeing them); run once more in rounds 5, 6 and 7",
-        "held out for round 6: run once, with its final code; run once more in round 7",
-        "held out for round 7: new, run once, with its final code"],
-    2: ["developed on in rounds 4-7",
-        "held out (run in round 4 three times, in rounds 5, 6 and 7 once each; nothing tuned on them)",
-        "held out for round 6: new, run once, with its final code; run once more in round 7",
-        "held out for round 7: new, run once, with its final code"],
-    3: ["developed on in rounds 6-7 (written in round 5 from the physics only, and run once there)",
-        "run once in rounds 5, 6 and 7, not looked at case by case",
-        "held out for round 6: new, run once, with its final code; run once more in round 7",
-        "held out for round 7: new, run once, with its final code"],
+        "held out for round 4 (one change was made after seeing them); run once more in rounds 5, 6, 7 and 8",
+        "held out for round 6: run once, with its final code; run once more in rounds 7 and 8",
+        "held out for round 7: new, run once, with its final code; run once more in round 8",
+        "held out for round 8: new, run once, with its final code"],
+    2: ["developed on in rounds 4-8",
+        "held out (run in round 4 three times, in rounds 5, 6, 7 and 8 once each; nothing tuned on them; round 8 "
+        "compared 480-959 verdict by verdict with the code before)",
+        "held out for round 6: new, run once, with its final code; run once more in rounds 7 and 8",
+        "held out for round 7: new, run once, with its final code; run once more in round 8",
+        "held out for round 8: new, run once, with its final code"],
+    3: ["developed on in rounds 6-8 (written in round 5 from the physics only, and run once there)",
+        "run once in rounds 5, 6, 7 and 8, not looked at case by case (round 8 compared its verdicts with the code "
+        "before)",
+        "held out for round 6: new, run once, with its final code; run once more in rounds 7 and 8",
+        "held out for round 7: new, run once, with its final code; run once more in round 8",
+        "held out for round 8: new, run once, with its final code"],
 }
 
 
