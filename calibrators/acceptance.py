@@ -601,16 +601,38 @@ def attitude_neighbours(raw_nT: np.ndarray, among: np.ndarray | None = None
     rows: slice | np.ndarray = systematic_rows(n, KNN_ROWS)
     if among is not None:
         rows = np.sort(among)[rows]
-    u = raw_nT[rows]
-    u = u / np.maximum(np.sqrt(np.einsum("ij,ij->i", u, u)), 1e-300)[:, None]
-    m = u.shape[0]
-    nearest = np.empty((m, KNN_NEIGHBOURS), dtype=np.int64)
-    for start in range(0, m, 500):
-        sims = u[start:start + 500] @ u.T
-        sims[np.arange(sims.shape[0]), np.arange(start, start + sims.shape[0])] = -np.inf  # not itself
-        nearest[start:start + 500] = np.argpartition(-sims, KNN_NEIGHBOURS, axis=1)[:, :KNN_NEIGHBOURS]
+
+    def itself(block: slice, m: int) -> np.ndarray:
+        out = np.zeros((min(block.stop, m) - block.start, m), dtype=bool)
+        out[np.arange(out.shape[0]), np.arange(block.start, block.start + out.shape[0])] = True
+        return out
+
+    nearest, _ = _nearest_directions(raw_nT[rows], itself)
     nearest.setflags(write=False)
     return rows, nearest
+
+
+KNN_BLOCK = 500
+"""Rows of the brute-force nearest-direction search handled at once (``_nearest_directions``)."""
+
+
+def _nearest_directions(readings: np.ndarray, excluded) -> tuple[np.ndarray, np.ndarray]:
+    """For each reading, its KNN_NEIGHBOURS nearest among ``readings`` by direction (brute force, KNN_BLOCK rows at
+    a time), leaving out those ``excluded(block, m)`` marks (a boolean (rows of the block, m) array).  Returns
+    (nearest, as indices into ``readings``; whether at least KNN_NEIGHBOURS were left to choose from, without
+    which a row's nearest are not meaningful)."""
+    u = readings / np.maximum(np.sqrt(np.einsum("ij,ij->i", readings, readings)), 1e-300)[:, None]
+    m = u.shape[0]
+    nearest = np.empty((m, KNN_NEIGHBOURS), dtype=np.int64)
+    enough = np.empty(m, dtype=bool)
+    for start in range(0, m, KNN_BLOCK):
+        block = slice(start, start + KNN_BLOCK)
+        sims = u[block] @ u.T
+        near = excluded(block, m)
+        sims[near] = -np.inf
+        enough[block] = (~near).sum(axis=1) >= KNN_NEIGHBOURS
+        nearest[block] = np.argpartition(-sims, KNN_NEIGHBOURS, axis=1)[:, :KNN_NEIGHBOURS]
+    return nearest, enough
 
 
 def attitude_neighbour_noise(r: np.ndarray, neighbours: tuple[slice | np.ndarray, np.ndarray]
@@ -645,20 +667,15 @@ def revisit_neighbours(raw_nT: np.ndarray, order: np.ndarray, separation: int, h
         return None
     position = np.arange(m)[systematic_rows(m, KNN_ROWS)]  # places in time order
     rows = order[position]
-    u = raw_nT[rows]
-    u = u / np.maximum(np.sqrt(np.einsum("ij,ij->i", u, u)), 1e-300)[:, None]
     hold = None if holds is None else holds[rows]
-    nearest = np.empty((len(rows), KNN_NEIGHBOURS), dtype=np.int64)
-    enough = np.empty(len(rows), dtype=bool)
-    for start in range(0, len(rows), 500):
-        block = slice(start, start + 500)
-        sims = u[block] @ u.T
+
+    def not_revisits(block: slice, _: int) -> np.ndarray:
         near = np.abs(position[block, None] - position[None, :]) < separation  # itself among them
         if hold is not None:
             near |= hold[block, None] == hold[None, :]
-        sims[near] = -np.inf
-        enough[block] = (~near).sum(axis=1) >= KNN_NEIGHBOURS
-        nearest[block] = np.argpartition(-sims, KNN_NEIGHBOURS, axis=1)[:, :KNN_NEIGHBOURS]
+        return near
+
+    nearest, enough = _nearest_directions(raw_nT[rows], not_revisits)
     if enough.sum() < 10 * (KNN_NEIGHBOURS + 1):
         return None
     keep = np.flatnonzero(enough)  # rows without enough revisits are left out as samples, kept as neighbours
