@@ -1,4 +1,4 @@
 """``python -m magbench``: the same as the ``magbench`` command."""
-from magbench.benchmarks.cli import main
+from magbench.benchmarks.cli import run
 
-raise SystemExit(main())
+raise SystemExit(run())

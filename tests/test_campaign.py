@@ -198,3 +198,45 @@ def test_a_campaign_of_no_runs_is_refused_before_anything_is_written(tmp_path, c
     assert "no method of the campaign applies" in err and "merayo does not estimate the angles model" in err
     assert not out.exists()
     assert len(Campaign(("lu2014",), (MethodSpec("merayo"), MethodSpec("lsq")), trials=2).tasks()[0]) == 2
+
+
+def test_one_time_costs_count_an_inherited_warm_up_once():
+    """``one_time_costs``: a warm-up inherited by several forked workers (the same process and seconds) is one
+    warm-up; two processes' own warm-ups are two."""
+    from magbench.benchmarks.campaign import one_time_costs
+
+    def row(runtime, **extra):
+        return {"configuration": "ga", "runtime_s": runtime, "error": "", "_extra": extra}
+
+    inherited = [row(0.1, warm_up_inherited=[7, 0.5], first_in_process=True),
+                 row(0.1, warm_up_inherited=[7, 0.5], first_in_process=True), row(0.1), row(0.1)]
+    costs = one_time_costs(inherited)["ga"]
+    assert costs["warm_up_s"] == [0.5] and costs["one_time_s"] == pytest.approx(0.4)
+    own = [row(0.1, warm_up_s=0.5, first_in_process=True), row(0.2, warm_up_s=0.6, first_in_process=True), row(0.1)]
+    costs = one_time_costs(own)["ga"]
+    assert sorted(costs["warm_up_s"]) == [0.5, 0.6] and costs["first_run_over_median"] == pytest.approx(2.0)
+
+
+def test_forked_workers_inherit_the_ga_warm_up(tmp_path, monkeypatch):
+    """On forked workers (``start_workers``), the GA's compiled kernels are warmed once, in the campaign
+    process, before the fork: the manifest says that one warm-up, and every first run is close to the median."""
+    import multiprocessing
+
+    import magbench.benchmarks.campaign as campaign_module
+    from magbench.benchmarks.campaign import start_workers, stop_workers
+
+    if multiprocessing.get_start_method() != "fork":
+        pytest.skip("workers are not forked on this platform")
+    monkeypatch.setattr(campaign_module, "_WARM", {})  # as in a fresh campaign process
+    monkeypatch.setattr(campaign_module, "REWARM_S", 0.0)  # however fast this machine's warm-up
+    camp = Campaign(("lu2014",), (MethodSpec("lsq"), MethodSpec.parse("ga:generations=100")), trials=4, seed=3,
+                    traces=False)
+    pool = start_workers(camp, 2)
+    try:
+        assert campaign_module._WARM["ga generations=100"][0] == campaign_module.os.getpid()
+        run_campaign(camp, tmp_path, jobs=2, progress=False, pool=pool)
+    finally:
+        stop_workers(pool)
+    costs = json.loads((tmp_path / "manifest.json").read_text())["one_time_costs"]
+    assert len(costs["ga generations=100"]["warm_up_s"]) == 1, costs
+    assert 1 <= len(costs["lsq"]["warm_up_s"]) <= 2, costs  # each worker warms its own (cheap) lsq
