@@ -32,7 +32,6 @@ import contextlib
 import gc
 import hashlib
 import json
-import multiprocessing
 import os
 import platform
 import signal
@@ -53,7 +52,7 @@ from magbench.benchmarks.metrics import budget_violation, crb_row, run_metrics
 from magbench.benchmarks.progress import progress_bar
 from magbench.benchmarks.tables import write_tables
 from magbench.calibrators import available, make, prefer_compiled_kernels
-from magbench.calibrators.methods._gakernel import KERNEL_USERS, NOTICE_ENV, announce_compiles
+from magbench.calibrators.methods._gakernel import NOTICE_ENV, announce_compiles
 from magbench.errors import InputError
 from magbench.simulate.scenarios import get_scenario
 
@@ -241,11 +240,8 @@ def warm_up(task: dict) -> None:
     key = task["configuration"]
     if key in _WARM:
         pid, seconds = _WARM[key]
-        if pid == os.getpid():
-            return
-        if seconds >= REWARM_S:  # inherited: reported once, by this process's first timed run (``_timed``)
+        if pid == os.getpid() or seconds >= REWARM_S:
             _WARM[key] = (os.getpid(), seconds)
-            _INHERITED[(os.getpid(), key)] = (pid, seconds)
             return
 
     prefer_compiled_kernels()  # many fits follow: compiled GA kernels from the first, loaded here, untimed
@@ -270,19 +266,12 @@ def _timed(task: dict) -> dict:
     _FIRST_DONE.add(key)
     row = run_task(task)
     row["_extra"].update({"warm_up_s": warm} if warm is not None else {})
-    inherited = _INHERITED.pop(key, None)
-    if inherited is not None:  # warmed by the campaign process before it forked this worker
-        row["_extra"]["warm_up_inherited"] = list(inherited)
     row["_extra"]["first_in_process"] = first
     return row
 
 
 _FIRST_DONE: set[tuple[int, str]] = set()
 _UNREPORTED: dict[tuple[int, str], float] = {}
-_INHERITED: dict[tuple[int, str], tuple[int, float]] = {}
-"""(process id, configuration) -> (the process that made it, seconds): a warm-up this forked process inherited
-(``start_workers``), reported once by its first timed run of the configuration (``one_time_costs`` counts each
-such warm-up once, however many workers inherited it)."""
 """(process id, configuration) -> seconds of a warm-up made in that process that no row has reported yet."""
 
 
@@ -412,17 +401,6 @@ def start_workers(campaign: Campaign, jobs: int):
     # warmed last, its caches not yet displaced by the others' warm-ups (lsq's first run after ga's warm-up
     # was 1.5x its median; a 0.1 s GA run does not notice the 0.4 ms)
     warm = tuple(reversed([t for label, t in first.items() if count[label] >= EARLY_WARM_MIN * jobs]))
-    if multiprocessing.get_start_method() == "fork":
-        # a configuration with compiled GA kernels is warmed here, before the fork: the numba import and cache
-        # load are made once and inherited, not once in each worker while the others contend for the cores
-        # (1.0 s a worker on two workers against 0.36 s once); its seconds go to the manifest from the workers'
-        # rows (``warm_up_inherited``)
-        from threadpoolctl import threadpool_limits
-
-        with threadpool_limits(limits=1):
-            for t in warm:
-                if t["method"] in KERNEL_USERS:
-                    warm_up(t)
     pool = _new_pool(tasks, jobs, warm)
     pool.submit(os.getpid)  # forks the workers now (a fork pool starts them on its first task)
     return pool
@@ -927,8 +905,6 @@ def one_time_costs(rows: list[dict]) -> dict:
         entry = by.setdefault(row["configuration"], {"warm": [], "runtimes": [], "first": []})
         if extra.get("warm_up_s") is not None:
             entry["warm"].append(float(extra["warm_up_s"]))
-        if extra.get("warm_up_inherited") is not None:  # one warm-up, inherited by every forked worker
-            entry.setdefault("inherited", set()).add(tuple(extra["warm_up_inherited"]))
         runtime = row.get("runtime_s")
         if isinstance(runtime, (int, float)) and np.isfinite(runtime) and not row.get("error"):
             entry["runtimes"].append(float(runtime))
@@ -936,7 +912,6 @@ def one_time_costs(rows: list[dict]) -> dict:
                 entry["first"].append(float(runtime))
     out = {}
     for label, e in by.items():
-        e["warm"] += [float(seconds) for _, seconds in sorted(e.pop("inherited", ()))]
         median = float(np.median(e["runtimes"])) if e["runtimes"] else float("nan")
         out[label] = {"warm_up_s": [round(w, 4) for w in e["warm"]], "median_runtime_s": round(median, 6),
                       "one_time_s": round(max(e["warm"]) - median, 4) if e["warm"] and np.isfinite(median) else None,

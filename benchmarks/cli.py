@@ -13,7 +13,6 @@ import math
 import os
 import re
 import sys
-import threading
 from dataclasses import replace
 from pathlib import Path
 
@@ -551,11 +550,9 @@ def _compare_locked(args, campaign, out: Path, command: str) -> int:
     # a fresh campaign on local workers: they start (and warm up) now, while this process imports what its
     # tables, figures and report need (pandas, matplotlib), which it would otherwise do on a core of its own
     pool = start_workers(campaign, args.jobs) if args.jobs > 1 and not args.dask and not args.resume else None
-    importer = None
     try:
-        if pool is not None:  # imported beside the runs, which the workers start at once
-            importer = threading.Thread(target=_output_tools, name="magbench-output-imports", daemon=True)
-            importer.start()
+        if pool is not None:
+            _output_tools()
         runs = run_campaign(campaign, out, jobs=args.jobs, command=command, progress=progress, resume=args.resume,
                             dask_address=cluster.scheduler_address if cluster is not None else args.dask, pool=pool)
     except CampaignInterrupted as stop:
@@ -571,8 +568,6 @@ def _compare_locked(args, campaign, out: Path, command: str) -> int:
         stop_workers(pool)
         if cluster is not None:
             cluster.close()
-    if importer is not None:
-        importer.join()
     return _compare_outputs(args, runs, out, progress)
 
 
