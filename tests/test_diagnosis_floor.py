@@ -159,3 +159,27 @@ def test_grid_sigma_is_the_gaussian_sigma_and_leaves_out_a_few_large_errors():
     e[::20] = 40.0
     assert abs(grid_sigma(e) / 2.0 - 1) < 0.1 and np.sqrt(np.mean(e * e)) > 4 * 2.0
     assert grid_sigma(np.zeros(0)) == 0.0
+
+
+def test_a_loggers_stale_copies_are_left_out_of_the_whole_diagnosis(monkeypatch):
+    """The second independent generator's clean case 396: a slowly turning gimbal, a varying observatory
+    reference, a logger that repeats 24 % of the readings.  The repeats are stale copies, their residual the
+    change since (1.8 nT against 0.3 nT on the distinct rows): left out of the fits and tests, the record is
+    `none`.  Negative control: kept in, the same record comes back `unexplained`."""
+    import sys
+    from pathlib import Path
+
+    import magbench.benchmarks.diagnosis as diagnosis_module
+    from magbench.benchmarks.diagnosis import diagnose
+    from magbench.simulate.dataset import Dataset
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from independent_forward2 import make_case
+
+    case = make_case(396, 2026)
+    data = Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C)
+    out = diagnose(data, gravity=case.gravity)
+    assert out["verdict"] == "none" and out["held_rows_left_out"] == 119
+    assert "left out of the whole diagnosis" in out["floor_method"]
+    monkeypatch.setattr(diagnosis_module, "without_logger_holds", lambda d, g: (d, g, None))
+    assert diagnose(data, gravity=case.gravity)["verdict"] == "unexplained"
