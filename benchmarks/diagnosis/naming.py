@@ -89,6 +89,7 @@ from magbench.simulate.effects import (  # noqa: F401  (clipped, holds and their
     HOLD_MIN_SAMPLES,
     HOLD_SHARE,
     base_freedom_columns,
+    central_derivative,
     clipped,
     holds,
 )
@@ -549,6 +550,34 @@ def step_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_d
     if sse_base - best[0] < STEP_SHARE * (sse_base - sse_drift):
         return None
     return {"time_s": best[1], "size_nT": float(np.linalg.norm(best[2])), "sse_step": best[0], "sse_drift": sse_drift}
+
+
+LAP_RATE_SHARE = 0.05
+"""``revisit_rate_share`` below this: every attitude is revisited at the same rate of change (laps of one path at
+one speed).  The third independent generator's car circuits give 0.005-0.027; the first generator's turntables at
+several tilts about 0.1, the second's figure eights flown by hand 0.2-0.6."""
+
+
+def revisit_rate_share(raw_nT: np.ndarray, t_s: np.ndarray, rate: np.ndarray | None = None) -> float | None:
+    """The median difference between the rate of change of the readings (``rate``: their time derivative, central
+    differences when not given) at a sampled attitude and at the nearest attitude revisited at another time
+    (``acceptance.revisit_neighbours``, REVISIT_SEPARATION samples away at least), over the median rate; None when too
+    few attitudes are revisited."""
+    from magbench.calibrators.acceptance import REVISIT_SEPARATION, revisit_neighbours
+
+    raw = np.asarray(raw_nT, dtype=float)
+    order = np.argsort(t_s, kind="stable")
+    rate = central_derivative(t_s, raw) if rate is None else np.asarray(rate, dtype=float)
+    found = revisit_neighbours(raw, order, REVISIT_SEPARATION)
+    if found is None:
+        return None
+    rows, nearest, keep = found
+    here = rate[rows[keep]]
+    there = rate[rows[nearest]]  # (sampled rows that have revisits, their nearest revisits, 3)
+    scale = float(np.median(np.linalg.norm(rate, axis=1)))
+    if scale <= 0:
+        return None
+    return float(np.median(np.linalg.norm(here[:, None, :] - there, axis=2)) / scale)
 
 
 def hold_demeaned(r: np.ndarray, label: np.ndarray) -> np.ndarray:

@@ -39,6 +39,8 @@ from magbench.simulate.effects import (
     SPIKE_SIGMA,
     Columns,
     FieldDriftEffect,
+    LagEffect,
+    NonlinearityEffect,
     Normalization,
     OffsetDriftEffect,
     OutlierEffect,
@@ -54,6 +56,7 @@ from .naming import (
     FAMILY_ALPHA,
     HOLD_Z,
     LAG_SHIFT_SHARE,
+    LAP_RATE_SHARE,
     ONE_HOLD_SHARE_MAX,
     ROUGHNESS_MAX,
     SIGNATURE_Z,
@@ -70,6 +73,7 @@ from .naming import (
     holds,
     largest_hold_share,
     only_smooth_temperature,
+    revisit_rate_share,
     roughness,
     scalar_series_signature,
     shift_share,
@@ -288,6 +292,7 @@ class Diagnosis:
         self.progress.step("base calibration")
         n_base = len(BASE_FREE[self.base])
         effects_ok, untested, not_applicable = testable(self.base, d, unit, n_base, k)
+        self.untested = untested
         exact = rms(r_all) <= EXACT_SHARE * float(np.median(d.f_ref_nT))
         if exact:  # noise-free readings: nothing to test, and nothing an effect could hide in (``none``)
             untested.update({cls.name: EXACT_REASON for cls in effects_ok})
@@ -525,6 +530,7 @@ class Diagnosis:
         confounded = (confounded_pairs(heldout, named, every, temp_r2, temperature_beyond_time_z=beyond)
                       + attitude_confounds(evidence, slow))
         confounded += self._body_or_scalar(named, confounded)
+        confounded += self._lag_on_laps(named, confounded)
         if only_smooth_temperature(temp_r2, beyond):  # the temperature's own signature fails
             paired = {pair["alternatives"][0] for pair in confounded}
             for row in evidence:
@@ -617,6 +623,32 @@ class Diagnosis:
                  "separate_by": "turn the sensor about more than one axis while it drifts (a body-fixed drift then moves "
                                 "the readings' magnitude differently at each attitude, a field change alike), or a "
                                 "vector reference"}]
+
+    def _lag_on_laps(self, named: list[str], confounded: list[dict]) -> list[dict]:
+        """A time shift named where the nonlinearity could not be tested and every attitude is revisited at the same
+        rate of change (laps of one circuit at one speed, or a turntable at one rate): the shift's columns, the rate of
+        change at each attitude, are then a function of the attitude, so what the shift removes the untested
+        nonlinearity (any structure that follows the attitude) could remove as well; said ``lag|nonlinearity``.  On
+        the third independent generator's car circuits, 12 nonlinearities had been named ``lag`` alone (there the
+        revisits' rates differ by 0.5-2.7 % of the rate; on the first generator's turntables about 10 %, on the second's
+        figure eights 20-60 %)."""
+        lag, nonlinearity = LagEffect.name, NonlinearityEffect.name
+        d = self.columns
+        if (lag not in named or nonlinearity in named or nonlinearity not in getattr(self, "untested", {})
+                or d.t_s is None or any(c["alternatives"][0] == lag for c in confounded)):
+            return []
+        share = revisit_rate_share(d.raw_nT, d.t_s, d.extra.get("draw_dt"))
+        if share is None or share >= LAP_RATE_SHARE:
+            return []
+        return [{"alternatives": [lag, nonlinearity], "named": True,
+                 "evidence": {"revisit_rate_share": share,
+                              "statement": f"every attitude is revisited at the same rate of change (the revisits' rates "
+                                           f"differ by {100 * share:.2g} % of the rate, below {100 * LAP_RATE_SHARE:g} %) "
+                                           "and the nonlinearity could not be tested: a time shift's structure follows "
+                                           "the attitude, as a nonlinearity's would"},
+                 "separate_by": "pass the same attitudes at different rates (change the speed between laps, or the "
+                                "turntable's rate), or tilt the sensor through more directions so that the nonlinearity "
+                                "can be tested"}]
 
     def _level_drift(self, name: str, other: str) -> dict:
         """On attitudes that cannot determine the base model alone (``degenerate``: a level vehicle turning about its
