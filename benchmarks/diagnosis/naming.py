@@ -81,6 +81,7 @@ import numpy as np
 from numpy.polynomial import legendre
 from scipy.stats import kstest, norm
 
+from magbench.calibrators.acceptance import REVISIT_SEPARATION, revisit_neighbours
 from magbench.numerics import roughness  # noqa: F401  (re-exported: the diagnosis reads it from here)
 from magbench.simulate.effects import (  # noqa: F401  (clipped, holds and their constants: re-exported)
     CLIP_MIN_REPEATS,
@@ -563,8 +564,6 @@ def revisit_rate_share(raw_nT: np.ndarray, t_s: np.ndarray, rate: np.ndarray | N
     differences when not given) at a sampled attitude and at the nearest attitude revisited at another time
     (``acceptance.revisit_neighbours``, REVISIT_SEPARATION samples away at least), over the median rate; None when too
     few attitudes are revisited."""
-    from magbench.calibrators.acceptance import REVISIT_SEPARATION, revisit_neighbours
-
     raw = np.asarray(raw_nT, dtype=float)
     order = np.argsort(t_s, kind="stable")
     rate = central_derivative(t_s, raw) if rate is None else np.asarray(rate, dtype=float)
