@@ -180,6 +180,6 @@ def test_a_loggers_stale_copies_are_left_out_of_the_whole_diagnosis(monkeypatch)
     data = Dataset(case.raw_nT, f_ref_nT=case.f_ref_nT, t_s=case.t_s, temp_C=case.temp_C)
     out = diagnose(data, gravity=case.gravity)
     assert out["verdict"] == "none" and out["held_rows_left_out"] == 119
-    assert "left out of the whole diagnosis" in out["floor_method"]
+    assert "left out of the whole diagnosis" in out["floor_method"] and "held_statement" not in out
     monkeypatch.setattr(diagnosis_module, "without_logger_holds", lambda d, g: (d, g, None))
     assert diagnose(data, gravity=case.gravity)["verdict"] == "unexplained"

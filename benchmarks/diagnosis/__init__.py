@@ -69,8 +69,9 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
         data, gravity, held = without_logger_holds(data, gravity)
         out = Diagnosis(data, base, folds, seed, gravity=gravity, progress=progress, degenerate=refusal).run()
         if held is not None:
+            statement = held.pop("held_statement")
             out.update(held)
-            out["floor_method"] = out.get("floor_method", "") + held["held_statement"]
+            out["floor_method"] = out.get("floor_method", "") + statement
         return out
 
 
