@@ -30,7 +30,7 @@ from magbench.simulate.dataset import Dataset, ScalarSeries, real_array
 from magbench.simulate.sensor import PARAM_NAMES
 
 from .blind import blind_dataset, blind_kinds
-from .floor import consecutive_repeats
+from .floor import stale_copies
 from .report import diagnosis_figure, diagnosis_text
 from .scalar import diagnose_scalar
 from .scoring import candidate_effects
@@ -76,24 +76,17 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
 
 
 def without_logger_holds(data: Dataset, gravity):
-    """The record without the rows a logger held (``consecutive_repeats``: whole readings that repeat the one
-    before them in time, more often than the axes' own repeats give): (data, gravity, what the JSON says), or
-    (data, gravity, None) when no logger held a value.  A held row is a stale copy of an earlier reading written
+    """The record without the rows a logger held (``floor.stale_copies``: whole readings that repeat the one before
+    them in time, more often than the axes' own repeats give, in continuous readings): (data, gravity, what the JSON
+    says), or (data, gravity, None) when there are none.  A held row is a stale copy of an earlier reading written
     at a later time: its attitude, reference and temperature have moved on, so it is no measurement at its time,
     and its residual is the change since (3 to 6 times the noise on clean records of slowly turning gimbals
     with a varying observatory reference).  The floor already came from the distinct samples; the fits, the
-    residual and every test now do too, and the reading itself stays in the row it was first written in.  A
-    record with fewer than MIN_DISTINCT_ROWS distinct rows is diagnosed as it is, and so is one whose axes repeat
-    their previous value on their own more than AXIS_REPEAT_MAX of the time (readings on a grid coarser than the
-    noise, at held attitudes: there three axes can repeat together, and the row is a reading)."""
+    residual and every test now do too, and the reading itself stays in the row it was first written in."""
     if data.t_s is None or np.ptp(data.t_s) <= 0:
         return data, gravity, None
-    raw, order = np.asarray(data.raw_nT, dtype=float), np.argsort(data.t_s, kind="stable")
-    held, _, logger = consecutive_repeats(raw, order)
-    if not logger or int((~held).sum()) < MIN_DISTINCT_ROWS:
-        return data, gravity, None
-    same = raw[order][1:] == raw[order][:-1]
-    if same[~same.all(axis=1)].mean(axis=0).max() > AXIS_REPEAT_MAX:  # on a grid: a whole repeat may be a reading
+    held = stale_copies(np.asarray(data.raw_nT, dtype=float), np.argsort(data.t_s, kind="stable"))
+    if held is None:
         return data, gravity, None
     keep = ~held
     columns = {name: None if getattr(data, name) is None else getattr(data, name)[keep]
@@ -103,15 +96,6 @@ def without_logger_holds(data: Dataset, gravity):
         "held_rows_left_out": int(held.sum()), "held_sample_fraction": share,
         "held_statement": f"; {int(held.sum())} rows ({100 * share:.1f} %) repeat the reading before them exactly (a "
                           "logger that held its value): stale copies, left out of the whole diagnosis"})
-
-
-MIN_DISTINCT_ROWS = 30
-"""``without_logger_holds`` leaves the held rows out only when at least this many distinct rows remain."""
-AXIS_REPEAT_MAX = 0.01
-"""... and only when no axis repeats its previous value on its own (in the rows that do not repeat whole) more
-than this share of the time: continuous readings, in which an exact repeat of all three axes is the logger's.  On
-the independent generators' records, a logger's holds on continuous readings give at most 0.9 %; readings rounded
-to a grid step near the noise at a turntable's pauses, 14 to 40 %."""
 
 
 TURNED_RAD = 0.1

@@ -124,12 +124,38 @@ def held_samples(raw_nT: np.ndarray, order: np.ndarray) -> np.ndarray:
 def consecutive_repeats(raw_nT: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, bool, bool]:
     """``held_samples`` (the mask, in the record's rows) and ``repeats`` (grid, logger) of the readings in time
     order ``order``, from one comparison of each reading with the one before it."""
+    held, same, whole = _repeat_masks(raw_nT, order)
+    return (held, *_repeats_of(same, whole))
+
+
+def _repeat_masks(raw_nT: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(held: the mask in the record's rows; same: (n - 1, 3), each axis equal to its previous reading in time
+    order; whole: all three)."""
     x = raw_nT[order]
     same = x[1:] == x[:-1]
     whole = np.all(same, axis=1)
     held = np.zeros(len(x), dtype=bool)
     held[order[1:]] = whole
-    return (held, *_repeats_of(same, whole))
+    return held, same, whole
+
+
+STALE_MIN_DISTINCT = 30
+"""``stale_copies`` finds them only when at least this many distinct rows remain."""
+AXIS_REPEAT_MAX = 0.01
+"""... and only when no axis repeats its previous value on its own (in the rows that do not repeat whole) more
+than this share of the time: continuous readings, in which an exact repeat of all three axes is the logger's.  On
+the independent generators' records, a logger's holds on continuous readings give at most 0.9 %; readings rounded
+to a grid step near the noise at a turntable's pauses, 14 to 40 %."""
+
+
+def stale_copies(raw_nT: np.ndarray, order: np.ndarray) -> np.ndarray | None:
+    """The rows a logger held (``consecutive_repeats``) in continuous readings (AXIS_REPEAT_MAX), with at least
+    STALE_MIN_DISTINCT distinct rows left: a mask in the record's rows, else None.  On a grid coarser than the noise,
+    at held attitudes, three axes can repeat together and such a row is a reading."""
+    held, same, whole = _repeat_masks(raw_nT, order)
+    if not _repeats_of(same, whole)[1] or int((~held).sum()) < STALE_MIN_DISTINCT:
+        return None
+    return None if _own_rates(same, whole).max() > AXIS_REPEAT_MAX else held
 
 
 GRID_TRIM = 0.9
@@ -167,6 +193,11 @@ def repeats(x: np.ndarray) -> tuple[bool, bool]:
     return consecutive_repeats(x, np.arange(len(x)))[1:]
 
 
+def _own_rates(same: np.ndarray, whole: np.ndarray) -> np.ndarray:
+    """Each axis's rate of repeating its previous value in the rows that do not repeat whole (some must not)."""
+    return same[~whole].mean(axis=0)
+
+
 def _repeats_of(same: np.ndarray, whole: np.ndarray) -> tuple[bool, bool]:
     """``repeats`` from ``same`` (n - 1, 3), each axis equal to its previous reading, and ``whole`` (all three)."""
     if not len(whole):
@@ -176,7 +207,7 @@ def _repeats_of(same: np.ndarray, whole: np.ndarray) -> tuple[bool, bool]:
         return True, rows > HELD_MIN_FRACTION
     # the axes' own repeat rates q_i, from the rows that do not repeat whole (a logger's holds are all among those
     # that do): there an axis repeats with (q_i - P) / (1 - P), P = prod(q_i) the whole-row rate the axes give alone
-    part = same[~whole].mean(axis=0)
+    part = _own_rates(same, whole)
     alone = 0.0
     for _ in range(200):  # the smallest fixed point of P = prod(part (1 - P) + P), approached from below
         step = float(np.prod(part * (1.0 - alone) + alone))

@@ -634,7 +634,7 @@ class Diagnosis:
         figure eights 20-60 %)."""
         lag, nonlinearity = LagEffect.name, NonlinearityEffect.name
         d = self.columns
-        if (lag not in named or nonlinearity in named or nonlinearity not in getattr(self, "untested", {})
+        if (lag not in named or nonlinearity in named or nonlinearity not in self.untested
                 or d.t_s is None or any(c["alternatives"][0] == lag for c in confounded)):
             return []
         share = revisit_rate_share(d.raw_nT, d.t_s, d.extra.get("draw_dt"))
