@@ -263,6 +263,36 @@ def test_a_field_that_varies_turns_and_its_turning_is_not_named_a_drift():
     assert named["verdict"] == "offset_drift|field_drift", named["time_only"]["drift_direction"]
 
 
+def test_a_magnitude_drift_beyond_a_varying_reference_is_named_beside_the_fields_turning():
+    """The field turns with its daily variation (not named), and besides, the magnitude here drifts by 12 nT that
+    the reference does not follow (a local change, or the offsets drifting along the field): the radial trend
+    beyond the reference is ``offset_drift|field_drift``.  Controls: without the local drift, nothing is named;
+    a reference whose shape differs from the local variation by 1 % of it (a reference elsewhere) names nothing."""
+    n, F = 2000, 48000.0
+    rng = np.random.default_rng(12)
+    t = np.linspace(0.0, 86400.0, n)
+    wave = np.sin(2 * np.pi * t / 86400.0)
+    b = np.array([0.3, 0.2, 0.93])
+    b /= np.linalg.norm(b)
+    side = np.cross(b, [1.0, 0.0, 0.0])
+    side /= np.linalg.norm(side)
+    local = 12.0 * (t / 86400.0) ** 2  # a slow change of the magnitude here, not in the reference
+    field = (F + 20.0 * wave + local)[:, None] * b + (30.0 * wave)[:, None] * side
+    noise = rng.normal(0, 0.5, (n, 3))
+    raw = field * 1.01 + np.array([120.0, -80.0, 40.0]) + noise
+    reference = np.linalg.norm(field - local[:, None] * b, axis=1)
+    r = diagnose(Dataset(raw, f_ref_nT=reference, t_s=t))
+    direction = r["time_only"]["drift_direction"]
+    assert r["verdict"] == "offset_drift|field_drift", direction
+    assert "beyond the reference" in direction["why"] and r["confounded"][0]["alternatives"] == ["offset_drift", "field_drift"]
+    still = field - local[:, None] * b
+    assert diagnose(Dataset(still * 1.01 + np.array([120.0, -80.0, 40.0]) + noise, f_ref_nT=reference,
+                            t_s=t))["verdict"] == "insufficient_data"
+    elsewhere = reference + 0.2 * np.sin(4 * np.pi * t / 86400.0)  # 1 % of the variation's 14 nT RMS
+    assert diagnose(Dataset(still * 1.01 + np.array([120.0, -80.0, 40.0]) + noise, f_ref_nT=elsewhere,
+                            t_s=t))["verdict"] == "insufficient_data"
+
+
 def _hold(data: Dataset, share: float, seed: int = 4) -> Dataset:
     """The record as a logger that repeats its last reading on about ``share`` of the rows writes it."""
     raw = np.array(data.raw_nT, dtype=float)

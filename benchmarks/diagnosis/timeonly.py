@@ -40,6 +40,11 @@ DRIFT_DIRECTION_ALPHA):
   fits the radial trend as well (the scale coefficients of the three axes changing together move the readings
   radially too); the gains of the three axes drifting together in time (outside the library) would look the
   same;
+* where the reference varies and the trend across is no more than the field's own turning (TURN_FACTOR), a
+  significant radial trend beyond the reference's variation (the part a fitted gain of it leaves, at least
+  REFERENCE_FOLLOW_SHARE of that variation): ``offset_drift|field_drift`` (the offsets drift along the field, or
+  the field's magnitude here changes otherwise than the reference's), with ``temperature`` among the alternatives
+  as above; the radial trend alone is then tested for a step and against the temperature;
 * in between, or when a single step (a field switched on near the sensor) explains the trend as well as the
   smooth drift does (STEP_SHARE): no name; the drift stays in ``time_only``.
 
@@ -78,6 +83,13 @@ the horizontal intensity, the declination and the vertical intensity together, b
 An across trend of the readings up to TURN_FACTOR times the RMS of the reference's own variation is therefore
 the field's own turning, which a scalar reference follows in magnitude but not in direction: it is reported,
 not named (a drift of the offsets beneath it cannot be told without a vector reference)."""
+REFERENCE_FOLLOW_SHARE = 0.02
+"""Where the reference varies and the readings turn with the field, the radial trend left once the reference's
+variation is taken out (with a fitted gain) is named only beyond this share of that variation's RMS: a scalar
+reference follows the field's variation in shape to within a few per mille to a few per cent (its site, its own
+response), and below that the shape left is the reference's, not a drift.  Set from the independent generators'
+fixed records: the one record below it (0.5 %) was a clean drift-free record with outliers; the named ones are
+at 3.3 % and more."""
 THERMAL_LAG_OF_SPAN = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0)
 """First-order thermal time constants tried (shares of the record's span) when asking whether the logged
 temperature fits a drift (radial or across) as well as the smooth trend does."""
@@ -341,17 +353,21 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
     radial_drift = p_radial < DRIFT_DIRECTION_ALPHA and ratio <= RADIAL_MAX_RATIO
     if turning > 0:
         out["field_turning_nT"] = turning
-    if across_drift and across <= turning:
+    turned = across_drift and across <= turning  # the trend across is the field's own turning
+    if turned:
         out["why"] = (f"the readings turn across their own direction (RMS {across:.3g} nT) no more than the field's own "
                       f"turning gives: the reference varies (RMS {turning / TURN_FACTOR:.3g} nT), so the field changes, "
                       "and a changing field turns by about as much; a scalar reference follows no direction, so a "
                       "drift of the offsets beneath it cannot be told without a vector reference")
-        return out
+        if p_radial >= DRIFT_DIRECTION_ALPHA or radial < REFERENCE_FOLLOW_SHARE * turning / TURN_FACTOR:
+            return out
     if not (across_drift or radial_drift):
         out["why"] = ("no significant drift" if min(p_radial, p_across) >= DRIFT_DIRECTION_ALPHA else
                       "the drift is neither along the readings' direction nor clearly across it")
         return out
-    cols = [0] if radial_drift else [0, 1, 2]
+    # the magnitude beyond the reference's: with the trend across the field's own turning, only the radial trend
+    # (what the reference's variation does not follow) is the sensor's or the field's own drift
+    cols = [0] if radial_drift or turned else [0, 1, 2]
     sse_trend = float(sse1[cols].sum())
     sse_const = float(sse0[cols].sum())
     sse_step = _step_sse(y[:, cols])
@@ -375,12 +391,16 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
         follows_time = follows is not None and follows >= TEMPERATURE_FOLLOWS_TIME_R2
         thermal = follows_time or fits
         out["named"] = "offset_drift|temperature|field_drift" if thermal else "offset_drift|field_drift"
-        out["why"] = (f"the readings drift across their own direction (RMS {across:.3g} nT against {radial:.3g} nT "
-                      "along it): the offsets drift" + (", or a temperature coefficient (the logged temperature "
+        out["why"] = ((f"the readings' magnitude drifts beyond the reference's (RMS {radial:.3g} nT along their "
+                       f"direction, beyond what follows the reference), while they turn across it (RMS {across:.3g} nT) "
+                       "no more than the field's own turning gives: the offsets drift (along the field), or the field's "
+                       "magnitude here changes otherwise than the reference's" if turned else
+                       f"the readings drift across their own direction (RMS {across:.3g} nT against {radial:.3g} nT "
+                       "along it): the offsets drift") + (", or a temperature coefficient (the logged temperature "
                                                          "follows time)" if follows_time else
                                                          ", or a temperature coefficient (the logged temperature, through "
                                                          "a first-order lag, fits the drift as well)" if fits else "") +
-                      ", or the field's direction changes (a scalar reference follows no direction)")
+                      ("" if turned else ", or the field's direction changes (a scalar reference follows no direction)"))
         return out
     out["named"] = "field_drift"
     out["why"] = (f"the readings drift along their own direction only (RMS {radial:.3g} nT, {across:.3g} nT across): "
