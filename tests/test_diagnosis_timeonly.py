@@ -239,21 +239,27 @@ def test_two_wandering_series_do_not_make_a_temperature_effect():
     assert all(c["named"] for c in driven)
 
 
-def test_a_field_that_varies_turns_and_its_turning_is_not_named_a_drift():
-    """An observatory's daily variation changes the field's magnitude (which the scalar reference follows) and
-    its direction by about as much: a fixed sensor's readings then turn across their direction, which is the
-    field's own turning, reported (``field_turning_nT``) and not named.  Negative control: the same turning
-    with a reference that varies ten times less exceeds what that variation explains, and is named."""
-    n, F = 2000, 48000.0
-    rng = np.random.default_rng(11)
+def _daily_field(seed: int, n: int = 2000, F: float = 48000.0):
+    """A day of a field whose daily variation changes its magnitude by 20 nT and turns it by 30 nT across:
+    (times, the variation's shape, the field's direction, the field, 0.5 nT of noise per axis)."""
+    rng = np.random.default_rng(seed)
     t = np.linspace(0.0, 86400.0, n)
     wave = np.sin(2 * np.pi * t / 86400.0)
     b = np.array([0.3, 0.2, 0.93])
     b /= np.linalg.norm(b)
     side = np.cross(b, [1.0, 0.0, 0.0])
     side /= np.linalg.norm(side)
-    field = (F + 20.0 * wave)[:, None] * b + (30.0 * wave)[:, None] * side  # 20 nT in magnitude, 30 nT across
-    raw = field * 1.01 + np.array([120.0, -80.0, 40.0]) + rng.normal(0, 0.5, (n, 3))
+    field = (F + 20.0 * wave)[:, None] * b + (30.0 * wave)[:, None] * side
+    return t, wave, b, field, rng.normal(0, 0.5, (n, 3))
+
+
+def test_a_field_that_varies_turns_and_its_turning_is_not_named_a_drift():
+    """An observatory's daily variation changes the field's magnitude (which the scalar reference follows) and
+    its direction by about as much: a fixed sensor's readings then turn across their direction, which is the
+    field's own turning, reported (``field_turning_nT``) and not named.  Negative control: the same turning
+    with a reference that varies ten times less exceeds what that variation explains, and is named."""
+    t, wave, b, field, noise = _daily_field(11)
+    raw = field * 1.01 + np.array([120.0, -80.0, 40.0]) + noise
     varies = diagnose(Dataset(raw, f_ref_nT=np.linalg.norm(field, axis=1), t_s=t))
     direction = varies["time_only"]["drift_direction"]
     assert varies["verdict"] == "insufficient_data", direction
@@ -268,17 +274,9 @@ def test_a_magnitude_drift_beyond_a_varying_reference_is_named_beside_the_fields
     the reference does not follow (a local change, or the offsets drifting along the field): the radial trend
     beyond the reference is ``offset_drift|field_drift``.  Controls: without the local drift, nothing is named;
     a reference whose shape differs from the local variation by 1 % of it (a reference elsewhere) names nothing."""
-    n, F = 2000, 48000.0
-    rng = np.random.default_rng(12)
-    t = np.linspace(0.0, 86400.0, n)
-    wave = np.sin(2 * np.pi * t / 86400.0)
-    b = np.array([0.3, 0.2, 0.93])
-    b /= np.linalg.norm(b)
-    side = np.cross(b, [1.0, 0.0, 0.0])
-    side /= np.linalg.norm(side)
+    t, wave, b, field, noise = _daily_field(12)
     local = 12.0 * (t / 86400.0) ** 2  # a slow change of the magnitude here, not in the reference
-    field = (F + 20.0 * wave + local)[:, None] * b + (30.0 * wave)[:, None] * side
-    noise = rng.normal(0, 0.5, (n, 3))
+    field = field + local[:, None] * b
     raw = field * 1.01 + np.array([120.0, -80.0, 40.0]) + noise
     reference = np.linalg.norm(field - local[:, None] * b, axis=1)
     r = diagnose(Dataset(raw, f_ref_nT=reference, t_s=t))
