@@ -523,34 +523,87 @@ def attitude_confounds(evidence: list[dict], slow_attitude_r2: float | None) -> 
 
 
 STEP_GRID = 64
-"""Candidate switch-on times tried by ``step_explains``."""
+"""Candidate switch times tried by ``step_explains`` (quantiles of the times)."""
 STEP_SHARE = 0.9
 """A step 'explains as well' when it removes at least this share of what the smooth drift removes."""
+SWITCH_MAX = 6
+"""``step_explains``: at most this many switchings of one body-fixed field between two levels (a load switched on and
+off two or three times).  Two levels of one vector follow a smooth drift no better than one step does: a ramp's
+best two-level fit is a single step (75 % of its variance), a slow sine's a square wave (81 %); a load switched on
+and off is explained whole."""
+SWITCH_REFITS = 6
 
 
-def step_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_drift: float) -> dict | None:
-    """A body-fixed field that switches on at one time (a current loop, a load): the residual
-    ``r ~ -u . (a + d H(t - t0))`` with constant vectors a, d, the best t0 on a grid.  When this step
-    explains the residual at least as well as the smooth offset drift does (``sse_drift``), the data show a
-    switch, which the library's offset drift (offsets changing slowly) is not (at least STEP_SHARE of the drift's
-    reduction of the sum of squares); returns the step, else None."""
+def _two_level_states(e0: np.ndarray, e1: np.ndarray, most: int) -> np.ndarray:
+    """The states (0 or 1) of the segments that minimise the summed costs ``e0``/``e1`` with at most ``most``
+    changes of state (dynamic programming over the segments)."""
+    m = len(e0)
+    cost = np.full((most + 1, 2), np.inf)
+    cost[0] = e0[0], e1[0]
+    came = np.zeros((m, most + 1, 2), dtype=bool)  # whether the segment's state was entered by a change
+    for j in range(1, m):
+        stay = cost
+        change = np.full_like(cost, np.inf)
+        change[1:] = cost[:-1, ::-1]
+        came[j] = change < stay
+        cost = np.minimum(stay, change) + np.array([e0[j], e1[j]])
+    k, state = np.unravel_index(int(np.argmin(cost)), cost.shape)
+    states = np.zeros(m, dtype=int)
+    for j in range(m - 1, -1, -1):
+        states[j] = state
+        if j and came[j, k, state]:
+            k, state = k - 1, 1 - state
+    return states
+
+
+def step_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_drift: float,
+                  most: int = SWITCH_MAX) -> dict | None:
+    """A body-fixed field that switches between two levels at a few times (a current loop, a load switched on and
+    off): the residual ``r ~ -u . (a + d s(t))`` with constant vectors a, d and s(t) in {0, 1} changing at most
+    SWITCH_MAX times, at STEP_GRID quantiles of the times: the best single step first, then the states of the time
+    segments by dynamic programming and a, d again, in turn.  When it explains the residual at least as well as the
+    smooth offset drift does (``sse_drift``), the data show a switch, which the library's offset drift (offsets
+    changing slowly) is not (at least STEP_SHARE of the drift's reduction of the sum of squares); returns the
+    switching (its first time, its size, all its times), else None.  ``most``: the switchings allowed (1 on held
+    attitudes, where switchings at the holds' ends would be a function of the attitude)."""
     if t_s is None or len(r) < 40:
         return None
     order = np.argsort(t_s, kind="stable")
     ts, rs, us = t_s[order], r[order], unit[order]
+
+    def fit(on: np.ndarray) -> tuple[float, np.ndarray]:
+        cols = np.column_stack([us * on[:, None], us, np.ones(len(rs))])  # the offset before, and its step
+        coef, *_ = np.linalg.lstsq(cols, rs, rcond=None)
+        return float(np.sum((rs - cols @ coef) ** 2)), coef
+
     best = None
     for q in np.linspace(0.05, 0.95, STEP_GRID):
         on = ts >= np.quantile(ts, q)
-        cols = np.column_stack([us * on[:, None], us, np.ones(len(rs))])  # the offset before, and its step
-        coef, *_ = np.linalg.lstsq(cols, rs, rcond=None)
-        sse = float(np.sum((rs - cols @ coef) ** 2))
+        sse, coef = fit(on.astype(float))
         if best is None or sse < best[0]:
-            best = (sse, float(np.quantile(ts, q)), coef[:3])
+            best = (sse, on.astype(float), coef)
     assert best is not None
+    edges = np.unique(np.searchsorted(ts, np.quantile(ts, np.linspace(0.0, 1.0, STEP_GRID + 1)[1:-1]), side="left"))
+    starts = np.concatenate([[0], edges[(edges > 0) & (edges < len(ts))]])
+    segment = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, len(ts))))
+    for _ in range(SWITCH_REFITS if most > 1 else 0):  # two levels at a few times: the states, then the levels
+        coef = best[2]
+        level0 = us @ coef[3:6] + coef[6]
+        e0 = np.add.reduceat((rs - level0) ** 2, starts)
+        e1 = np.add.reduceat((rs - level0 - us @ coef[:3]) ** 2, starts)
+        on = _two_level_states(e0, e1, most)[segment].astype(float)
+        if np.ptp(on) == 0:
+            break
+        sse, coef = fit(on)
+        if sse >= best[0] * (1 - 1e-9):
+            break
+        best = (sse, on, coef)
     sse_base = float(np.sum((rs - rs.mean()) ** 2))
     if sse_base - best[0] < STEP_SHARE * (sse_base - sse_drift):
         return None
-    return {"time_s": best[1], "size_nT": float(np.linalg.norm(best[2])), "sse_step": best[0], "sse_drift": sse_drift}
+    changes = np.flatnonzero(np.diff(best[1]) != 0) + 1
+    return {"time_s": float(ts[changes[0]]), "size_nT": float(np.linalg.norm(best[2][:3])), "sse_step": best[0],
+            "sse_drift": sse_drift, "times_s": ts[changes].tolist()}
 
 
 LAP_RATE_SHARE = 0.05

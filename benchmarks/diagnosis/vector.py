@@ -61,6 +61,7 @@ from .naming import (
     ROUGHNESS_MAX,
     SIGNATURE_Z,
     SMOOTH_SLOPE_PER_SAMPLE,
+    SWITCH_MAX,
     TEMPERATURE_BEYOND_Z,
     TEMPERATURE_SMOOTH_DEGREE,
     TIME_EFFECTS,
@@ -490,15 +491,20 @@ class Diagnosis:
         if any(s in BODY_DRIFTS for s in named):  # a switch is not a slow drift
             drift_res = np.nan_to_num(self.model_residuals(named))
             others = [s for s in named if s not in BODY_DRIFTS]
+            # on held attitudes each hold is one attitude: switchings at the holds' ends would be a function of the
+            # attitude, so there a single step only
             step = step_explains(np.nan_to_num(self.model_residuals(others)), self.unit, d.t_s,
-                                 float(np.sum(drift_res ** 2)))
+                                 float(np.sum(drift_res ** 2)), most=1 if self.hold_labels is not None else SWITCH_MAX)
             if step is not None:
                 named = others
                 for row in evidence:
                     if row["name"] in BODY_DRIFTS:
                         row["named"], row["step"] = False, step
-                        row["why"] = (f"a single step at t = {step['time_s']:.4g} s in a body-fixed field explains the "
-                                      "residual as well as a slow drift: a switch (outside the library), not a drift")
+                        row["why"] = ((f"a single step at t = {step['time_s']:.4g} s" if len(step["times_s"]) == 1 else
+                                       f"{len(step['times_s'])} switchings between two levels (the first at t = "
+                                       f"{step['time_s']:.4g} s)") + " in a body-fixed field "
+                                      + ("explains" if len(step["times_s"]) == 1 else "explain") + " the residual as "
+                                      "well as a slow drift: a switch (outside the library), not a drift")
         named = fold_drift_into_temperature(evidence, named, temp_r2)
         named = self._shift_signature(evidence, named)
         named = self._within_holds(evidence, named, heldout["random"])
