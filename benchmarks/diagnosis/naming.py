@@ -528,10 +528,13 @@ STEP_SHARE = 0.9
 """A step 'explains as well' when it removes at least this share of what the smooth drift removes."""
 SWITCH_MAX = 6
 """``step_explains``: at most this many switchings of one body-fixed field between two levels (a load switched on and
-off two or three times).  Two levels of one vector follow a smooth drift no better than one step does: a ramp's
-best two-level fit is a single step (75 % of its variance), a slow sine's a square wave (81 %); a load switched on
-and off is explained whole."""
+off two or three times).  Where the attitude changes fast, two levels of one vector follow a smooth drift no better
+than one step does (a ramp's best two-level fit is a single step, 75 % of its variance; a slow sine's a square wave,
+81 %), while a load switched on and off is explained whole.  Where the attitude stays put for long (held attitudes)
+the two levels differ with it, and the switchings could follow the attitude: a single step only there."""
 SWITCH_REFITS = 6
+"""Rounds of (the segments' states, then the two levels) after the best single step; each must lower the sum of
+squares, else the search stops."""
 
 
 def _two_level_states(e0: np.ndarray, e1: np.ndarray, most: int) -> np.ndarray:
@@ -602,6 +605,8 @@ def step_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_d
     if sse_base - best[0] < STEP_SHARE * (sse_base - sse_drift):
         return None
     changes = np.flatnonzero(np.diff(best[1]) != 0) + 1
+    if not len(changes):  # times so tied that no step splits them
+        return None
     return {"time_s": float(ts[changes[0]]), "size_nT": float(np.linalg.norm(best[2][:3])), "sse_step": best[0],
             "sse_drift": sse_drift, "times_s": ts[changes].tolist()}
 
