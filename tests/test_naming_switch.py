@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from magbench.benchmarks.diagnosis import diagnose
-from magbench.benchmarks.diagnosis.naming import _two_level_states
+from magbench.benchmarks.diagnosis.naming import _two_level_states, step_explains
 from magbench.simulate.dataset import Dataset
 
 F_WORLD = np.array([18000.0, 1200.0, 45000.0])
@@ -64,3 +64,31 @@ def test_a_load_switched_on_and_off_is_not_an_offset_drift():
 def test_negative_control_the_same_field_drifting_smoothly_is_an_offset_drift():
     result = diagnose(_record("drifting"))
     assert result["verdict"] == "offset_drift", result["naming"]["evidence"]
+
+
+def test_switchings_beyond_the_first_do_not_fit_the_noise_of_a_weak_drift():
+    """A linear drift of the offsets about the noise's size, at random attitudes: the switchings search refuses it
+    no more often than the single step does (uncharged, its extra switchings fit the noise: 85 against 26 of 100 at
+    1.5 noise sigmas), and a load switched three times at that size is still found."""
+    rng = np.random.default_rng(2)
+    n = 400
+    t = np.arange(n, dtype=float)
+    tt = 2 * t / (n - 1) - 1
+    refused = {1: 0, 6: 0}
+    for _ in range(40):
+        u = rng.normal(size=(n, 3))
+        u /= np.linalg.norm(u, axis=1)[:, None]
+        v = rng.normal(size=3)
+        v *= 1.5 / np.linalg.norm(v)
+        r = -(u @ v) * tt + rng.normal(size=n)
+        cols = np.column_stack([u * tt[:, None], u, np.ones(n)])
+        sse_drift = float(np.sum((r - cols @ np.linalg.lstsq(cols, r, rcond=None)[0]) ** 2))
+        for most in refused:
+            refused[most] += step_explains(r, u, t, sse_drift, most=most) is not None
+    assert refused[6] <= refused[1] + 2, refused
+    on = ((t > 100) & (t < 200)) | (t > 300)
+    r = -(u @ v) * 4 * on + rng.normal(size=n)
+    cols = np.column_stack([u * tt[:, None], u, np.ones(n)])
+    sse_drift = float(np.sum((r - cols @ np.linalg.lstsq(cols, r, rcond=None)[0]) ** 2))
+    step = step_explains(r, u, t, sse_drift)
+    assert step is not None and len(step["times_s"]) == 3
