@@ -88,8 +88,8 @@ REFERENCE_FOLLOW_SHARE = 0.02
 variation is taken out (with a fitted gain) is named only beyond this share of that variation's RMS: a scalar
 reference follows the field's variation in shape to within a few per mille to a few per cent (its site, its own
 response), and below that the shape left is the reference's, not a drift.  Set from the independent generators'
-fixed records: the one record below it (0.5 %) was a clean drift-free record with outliers; the named ones are
-at 3.3 % and more."""
+fixed records: the one record below it (0.5 %) had outliers only, no drift; the named ones are at 3.3 % and
+more."""
 THERMAL_LAG_OF_SPAN = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0)
 """First-order thermal time constants tried (shares of the record's span) when asking whether the logged
 temperature fits a drift (radial or across) as well as the smooth trend does."""

@@ -500,11 +500,12 @@ class Diagnosis:
                 for row in evidence:
                     if row["name"] in BODY_DRIFTS:
                         row["named"], row["step"] = False, step
-                        row["why"] = ((f"a single step at t = {step['time_s']:.4g} s" if len(step["times_s"]) == 1 else
-                                       f"{len(step['times_s'])} switchings between two levels (the first at t = "
-                                       f"{step['time_s']:.4g} s)") + " in a body-fixed field "
-                                      + ("explains" if len(step["times_s"]) == 1 else "explain") + " the residual as "
-                                      "well as a slow drift: a switch (outside the library), not a drift")
+                        switched = len(step["times_s"])
+                        row["why"] = ((f"a single step at t = {step['time_s']:.4g} s in a body-fixed field explains"
+                                       if switched == 1 else
+                                       f"{switched} switchings between two levels (the first at t = {step['time_s']:.4g} "
+                                       "s) in a body-fixed field explain")
+                                      + " the residual as well as a slow drift: a switch (outside the library), not a drift")
         named = fold_drift_into_temperature(evidence, named, temp_r2)
         named = self._shift_signature(evidence, named)
         named = self._within_holds(evidence, named, heldout["random"])
