@@ -102,7 +102,8 @@ def _quality_lines(bench: dict) -> list[str]:
     pygad_generations = pygad_info.get("max_generations") or pygad_info.get("generations")  # the limit it was given
     pygad_limit = f"up to {pygad_generations:,} generations" if pygad_generations else "limited generations"
     pairs = (("ga", "test_quality_ga_magbench", f"PyGAD (vectorized fitness, {pygad_limit})", "test_quality_pygad"),
-             ("aco", "test_quality_aco_magbench", "mealpy OriginalACOR (same settings)", "test_quality_mealpy"))
+             ("aco", "test_quality_aco_magbench", "mealpy OriginalACOR (same settings; its equal-budget run)",
+              "test_aco_mealpy"))
     if not any(ours in bench for _, ours, _, _ in pairs):
         return []
     lines = ["", "## Time to equal quality", "",

@@ -4,7 +4,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from magbench.calibrators.core.objective import ScalarObjective, correction_matrices
+from magbench.calibrators.core.objective import ScalarObjective, correction_matrices, correction_matrix_one
 from magbench.simulate.sensor import ErrorParams, SensorModel
 
 angle = st.floats(-0.1, 0.1)
@@ -96,3 +96,22 @@ def test_new_models_jacobian_matches_finite_differences(params, seed, model):
         step[j] = h
         fd = (obj.residuals(x + step) - obj.residuals(x - step)) / (2 * h)
         np.testing.assert_allclose(jac[:, j], fd, rtol=1e-5, atol=1e-6 * 50000.0 / max(1.0, abs(x[j])))
+
+
+@given(params_st, st.sampled_from(["offset", "diag", "angles", "nine"]),
+       st.floats(-3.0, 3.0), st.floats(-2.0, 2.0))
+def test_one_point_matrix_is_the_population_matrix_to_the_last_bit(params, model, wide, zero_scale):
+    """``correction_matrix_one`` (the single-evaluation path of NLopt, CMA-ES's restarts and lsq's Jacobian)
+    gives ``correction_matrices``' numbers bit for bit, also far outside the search box and at a zero scale
+    (infinities and NaN in the same places); a control: a parameter 1e-6 off changes the matrix."""
+    x = params.to_vector(model) * (1.0 + wide)
+    if model in ("nine", "diag") and zero_scale > 1.0:
+        x[3 if model == "nine" else 0] = 0.0
+    with np.errstate(all="ignore"):
+        mat, o = correction_matrix_one(x, model)
+        mats, os_ = correction_matrices(x[None, :], model)
+    assert np.array_equal(mat, mats[0], equal_nan=True) and np.array_equal(o, os_[0])
+    if model != "offset" and np.isfinite(mat).all():
+        y = x.copy()
+        y[0] += 1e-6
+        assert not np.array_equal(correction_matrix_one(y, model)[0], mat)

@@ -92,7 +92,7 @@ def test_ga_pygad(benchmark, sphere9):
 @pytest.mark.benchmark(group="ga vs PyGAD: 80 x 1000 generations, sphere9 (300 points, nine)")
 def test_ga_pygad_per_solution(benchmark, sphere9):
     """PyGAD as its documentation shows it: the fitness function called once per solution (the default)."""
-    _pygad(benchmark, sphere9, batch=False, rounds=2)
+    _pygad(benchmark, sphere9, batch=False, rounds=1)  # 45-68x against the goal's 20x: one round (7 s) suffices
 
 
 @pytest.mark.benchmark(group="aco vs mealpy ACOR: 20,050 evaluations, sphere9 (300 points, nine)")
@@ -105,12 +105,15 @@ def test_aco_magbench(benchmark, sphere9):
 @pytest.mark.benchmark(group="aco vs mealpy ACOR: 20,050 evaluations, sphere9 (300 points, nine)")
 def test_aco_mealpy(benchmark, sphere9):
     """mealpy's OriginalACOR with the same archive (pop_size 50), ants per iteration (sample_count 20)
-    and iterations, on the same objective and box."""
+    and iterations, on the same objective and box.  The same run gives the peer's time to equal quality
+    (the first epoch whose best reaches the target, summed from mealpy's own per-epoch times): a second run
+    with the same seed and settings would repeat it epoch for epoch, at 10 s of reproduce's time."""
     pytest.importorskip("mealpy")
     from mealpy import ACOR, FloatVar
 
     obj = ScalarObjective(sphere9.raw_nT, sphere9.f_ref_nT, "nine")
     lo, hi = _box(sphere9)
+    target = _target_F(sphere9)
     problem = {"obj_func": lambda x: float(obj.values(np.asarray(x)[None, :], exact=False)[0]),
                "bounds": FloatVar(lb=lo.tolist(), ub=hi.tolist()), "minmax": "min", "log_to": None}
 
@@ -120,7 +123,12 @@ def test_aco_mealpy(benchmark, sphere9):
         return model, best
 
     model, best = benchmark.pedantic(run, rounds=1, iterations=1)
-    benchmark.extra_info.update(evaluations=int(model.nfe_counter), rms_after_nT=float(np.sqrt(best.target.fitness)))
+    bests = np.asarray(model.history.list_global_best_fit, dtype=float)
+    times = np.cumsum(np.asarray(model.history.list_epoch_time, dtype=float))
+    hit = np.flatnonzero(bests <= target)
+    benchmark.extra_info.update(evaluations=int(model.nfe_counter), rms_after_nT=float(np.sqrt(best.target.fitness)),
+                                reached=bool(hit.size), time_to_target_s=float(times[hit[0]]) if hit.size else None,
+                                target_rms_nT=float(np.sqrt(target)))
 
 
 # -- time to equal quality -----------------------------------------------------------------------------
@@ -199,32 +207,6 @@ def test_quality_pygad(benchmark, sphere9):
                                 generations=int(ga.generations_completed), max_generations=PYGAD_QUALITY_GENERATIONS,
                                 rms_after_nT=float(np.sqrt(best)),
                                 target_rms_nT=float(np.sqrt(target)))
-
-
-@pytest.mark.benchmark(group="time to equal quality: RMS <= 1.01 x lsq's optimum, sphere9 (nine)")
-def test_quality_mealpy(benchmark, sphere9):
-    """mealpy's OriginalACOR with aco's settings; the time to the first epoch whose best reaches the target,
-    summed from mealpy's own per-epoch times."""
-    pytest.importorskip("mealpy")
-    from mealpy import ACOR, FloatVar
-
-    obj = ScalarObjective(sphere9.raw_nT, sphere9.f_ref_nT, "nine")
-    lo, hi = _box(sphere9)
-    target = _target_F(sphere9)
-    problem = {"obj_func": lambda x: float(obj.values(np.asarray(x)[None, :], exact=False)[0]),
-               "bounds": FloatVar(lb=lo.tolist(), ub=hi.tolist()), "minmax": "min", "log_to": None}
-
-    def run():
-        model = ACOR.OriginalACOR(epoch=ACO_ITERATIONS, pop_size=50, sample_count=20, intent_factor=0.1, zeta=0.85)
-        model.solve(problem, seed=0)
-        return model
-
-    model = benchmark.pedantic(run, rounds=1, iterations=1)
-    best = np.asarray(model.history.list_global_best_fit, dtype=float)
-    times = np.cumsum(np.asarray(model.history.list_epoch_time, dtype=float))
-    hit = np.flatnonzero(best <= target)
-    benchmark.extra_info.update(reached=bool(hit.size), time_to_target_s=float(times[hit[0]]) if hit.size else None,
-                                rms_after_nT=float(np.sqrt(best[-1])), target_rms_nT=float(np.sqrt(target)))
 
 
 # -- the population objective on long records -----------------------------------------------------------

@@ -196,7 +196,8 @@ class Evaluator:
         if self._exhausted or self._budget.max_evaluations is not None or self._budget.max_time_s is not None:
             self._allowance(1)
         r = self._objective.residuals(x)
-        f = float(np.mean(r * r))  # as ``values`` computes one point, to the last bit
+        r *= r
+        f = float(np.add.reduce(r) / r.size)  # np.mean's own sum and division, to the last bit, without its checks
         self._n_f += 1
         if self._audit is not None:
             self._audit.points.append(np.array(x[None, :], dtype=float, copy=True))
