@@ -101,7 +101,7 @@ def test_new_models_jacobian_matches_finite_differences(params, seed, model):
 @given(params_st, st.sampled_from(["offset", "diag", "angles", "nine"]),
        st.floats(-3.0, 3.0), st.floats(-2.0, 2.0))
 def test_one_point_matrix_is_the_population_matrix_to_the_last_bit(params, model, wide, zero_scale):
-    """``correction_matrix_one`` (the single-evaluation path of NLopt, CMA-ES's restarts and lsq's Jacobian)
+    """``correction_matrix_one`` (the single-point path of NLopt, RANSAC, lsq's residuals and Jacobian)
     gives ``correction_matrices``' numbers bit for bit, also far outside the search box and at a zero scale
     (infinities and NaN in the same places); a control: a parameter 1e-6 off changes the matrix."""
     x = params.to_vector(model) * (1.0 + wide)

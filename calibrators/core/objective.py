@@ -64,8 +64,8 @@ def correction_matrices(x: np.ndarray, model: str) -> tuple[np.ndarray, np.ndarr
 def correction_matrix_one(x: np.ndarray, model: str) -> tuple[np.ndarray, np.ndarray]:
     """``correction_matrices`` of one point ``x`` (shape (p,)): M (3, 3) and o (3,), the same numbers to the
     last bit (the same products in the same order, numpy's own cos and sin) without the population's
-    bookkeeping, which was half the cost of a single evaluation (NLopt's, CMA-ES's restarts, lsq's
-    Jacobian calls)."""
+    bookkeeping, which was half the cost of a single evaluation (NLopt's calls, RANSAC's and lsq's single
+    points, every residual and Jacobian block of the local solvers)."""
     x = np.asarray(x, dtype=float)
     if model in ("offset", "diag"):
         x, model = embed(x[None, :], model)[0], "nine"
