@@ -92,6 +92,7 @@ from magbench.simulate.effects import (  # noqa: F401  (clipped, holds and their
     base_freedom_columns,
     central_derivative,
     clipped,
+    f_test_p,
     holds,
 )
 
@@ -622,6 +623,49 @@ def step_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_d
         return None
     return {"time_s": float(ts[changes[0]]), "size_nT": float(np.linalg.norm(best[2][:3])), "sse_step": best[0],
             "sse_drift": sse_drift, "times_s": ts[changes].tolist()}
+
+
+SWITCH_JUMP_ALPHA = 1e-6
+"""``range_switch_explains``: the switch's jump (of the axes' gains and zeros) must be significant at this level beyond
+a jump of the magnitude alone (F test), so that an ambient field stepping once is not called a switch."""
+
+
+def range_switch_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_effect: float) -> dict | None:
+    """A sensor's range switch (each axis's gain and zero jumping once): the residual
+    ``r ~ c - u . a + s(t) (sum_i g_i u_i^2 - u . d)`` with a step s(t) at one of STEP_GRID quantiles of the times,
+    jumps g_i of the axes' gains (in nT: times a field of nearly constant magnitude, along the reading's direction u)
+    and d of a body-fixed vector (the zero).  When it removes at least STEP_SHARE of what a temperature coefficient
+    removes (``sse_effect``: the sum of squares it leaves), and its jump is significant beyond a jump of the magnitude
+    alone (SWITCH_JUMP_ALPHA: equal gain jumps and no zero jump are an ambient field stepping once), the data show
+    one switch of the sensor: returns the switch (time, jumps, the F test's p), else None.  (A field drift is not
+    refused so: on a vehicle's or a gimbal's slow turning the jumps of the axes' gains and zeros also follow a smooth
+    change of the field; 8 true field drifts of the independent generators were refused that way.)"""
+    if t_s is None or len(r) < 40:
+        return None
+    order = np.argsort(t_s, kind="stable")
+    ts, rs, us = t_s[order], r[order], unit[order]
+    n = len(rs)
+    best = None
+    for q in np.linspace(0.05, 0.95, STEP_GRID):
+        on = (ts >= np.quantile(ts, q)).astype(float)
+        cols = np.column_stack([us * on[:, None], us * us * on[:, None], us, np.ones(n)])
+        coef, *_ = np.linalg.lstsq(cols, rs, rcond=None)
+        sse = float(np.sum((rs - cols @ coef) ** 2))
+        if best is None or sse < best[0]:
+            best = (sse, on, coef)
+    assert best is not None
+    sse, on, coef = best
+    sse_base = float(np.sum((rs - rs.mean()) ** 2))
+    if sse_base - sse < STEP_SHARE * (sse_base - sse_effect) or not np.ptp(on):
+        return None
+    scalar = np.column_stack([us, np.ones(n), on])
+    sse_scalar = float(np.sum((rs - scalar @ np.linalg.lstsq(scalar, rs, rcond=None)[0]) ** 2))
+    p_jump = f_test_p(sse_scalar, sse, 5, max(n - 10, 1.0)) if sse > 0 else 0.0
+    if p_jump >= SWITCH_JUMP_ALPHA:
+        return None
+    change = int(np.flatnonzero(np.diff(on) != 0)[0]) + 1
+    return {"time_s": float(ts[change]), "gain_jumps_nT": coef[3:6].tolist(), "zero_jump_nT": float(np.linalg.norm(coef[:3])),
+            "jump_p": p_jump, "sse_switch": sse, "sse_effect": sse_effect}
 
 
 LAP_RATE_SHARE = 0.05

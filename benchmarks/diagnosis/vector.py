@@ -65,6 +65,7 @@ from .naming import (
     TEMPERATURE_BEYOND_Z,
     TEMPERATURE_SMOOTH_DEGREE,
     TIME_EFFECTS,
+    TIME_PREDICTS_ATTITUDE_R2,
     _is_thermal,
     attitude_blocks,
     attitude_confounds,
@@ -74,6 +75,7 @@ from .naming import (
     holds,
     largest_hold_share,
     only_smooth_temperature,
+    range_switch_explains,
     revisit_rate_share,
     roughness,
     scalar_series_signature,
@@ -125,6 +127,9 @@ fit that its tangent space describes (held-out residuals are larger than in-samp
 TANGENT_UNTRUSTED_Z = 2 * REMAINDER_Z
 """The in-sample residual of such a fit (pinned at a bound: its free parameters are not counted) must exceed the
 floor by this many standard errors, twice the usual test's, before the record is called unexplained."""
+TEMPERATURE_STEP_SHARE = 0.5
+"""``Diagnosis._range_switch`` leaves a temperature coefficient named when a step of the logged temperature at the
+switch's time holds at least this share of the temperature's variance (the temperature jumped: it explains the jump)."""
 MIN_POINTS_BEYOND_PARAMETERS = 10
 MAX_EFFECTS = 4
 SELECTION_PASSES = 3
@@ -506,6 +511,7 @@ class Diagnosis:
                                        f"{switched} switchings between two levels (the first at t = {step['time_s']:.4g} "
                                        "s) in a body-fixed field explain")
                                       + " the residual as well as a slow drift: a switch (outside the library), not a drift")
+        named = self._range_switch(evidence, named, slow)
         named = fold_drift_into_temperature(evidence, named, temp_r2)
         named = self._shift_signature(evidence, named)
         named = self._within_holds(evidence, named, heldout["random"])
@@ -899,6 +905,41 @@ class Diagnosis:
         if max(own, interval[1]) > 100.0:
             e["shrink_flag"] = SHRINK_FLAG
         return e
+
+    def _range_switch(self, evidence: list[dict], named: list[str], slow: float | None) -> list[str]:
+        """A temperature coefficient named, that one switch of the sensor's gains and zeros explains as well
+        (``range_switch_explains``) while the logged temperature does not jump: refused, a range switch is not a
+        temperature effect (left unexplained).  Not on held attitudes, where a step at a hold's end is a function of
+        the attitude (``step_explains`` likewise), nor where time predicts the attitude (TIME_PREDICTS_ATTITUDE_R2:
+        the jumps of the axes' gains and zeros are then functions of time), nor when the logged temperature itself
+        steps there (at least TEMPERATURE_STEP_SHARE of its variance a step at the switch's time: the temperature
+        explains the jump)."""
+        d = self.columns
+        if self.hold_labels is not None or (slow is not None and slow >= TIME_PREDICTS_ATTITUDE_R2):
+            return named
+        if d.temp_C is None or d.t_s is None:
+            return named
+        for name in [s for s in named if _is_thermal(s)]:
+            with_res = np.nan_to_num(self.model_residuals(named))
+            others = [s for s in named if s != name]
+            switch = range_switch_explains(np.nan_to_num(self.model_residuals(others)), self.unit, d.t_s,
+                                           float(np.sum(with_res ** 2)))
+            if switch is None:
+                continue
+            temp = np.asarray(d.temp_C, dtype=float)
+            after = d.t_s >= switch["time_s"]
+            spread = float(np.sum((temp - temp.mean()) ** 2))
+            stepped = spread - sum(float(np.sum((temp[m] - temp[m].mean()) ** 2)) for m in (after, ~after) if m.any())
+            switch["temperature_step_share"] = stepped / spread if spread > 0 else 0.0
+            if switch["temperature_step_share"] >= TEMPERATURE_STEP_SHARE:
+                continue
+            named = others
+            row = next(r for r in evidence if r["name"] == name)
+            row["named"], row["switch"] = False, switch
+            row["why"] = (f"one switch of the sensor at t = {switch['time_s']:.4g} s (its axes' gains and zeros jumping, "
+                          f"beyond a jump of the magnitude alone: p {switch['jump_p']:.2g}) explains the residual as well: "
+                          "a range switch (outside the library), not a smooth change")
+        return named
 
     def model_residuals(self, names: list[str]) -> np.ndarray:
         """The residual of base + ``names`` fitted on all the data (tangent step)."""
