@@ -568,6 +568,25 @@ def _two_level_states(e0: np.ndarray, e1: np.ndarray, most: int) -> np.ndarray:
     return states
 
 
+def _least_squares(cols: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
+    """(sum of squares left, coefficients) of ``y`` fitted on the columns ``cols``."""
+    coef, *_ = np.linalg.lstsq(cols, y, rcond=None)
+    return float(np.sum((y - cols @ coef) ** 2)), coef
+
+
+def _best_single_step(ts: np.ndarray, y: np.ndarray, columns) -> tuple[float, np.ndarray, np.ndarray]:
+    """The best step in time of ``y`` (times ``ts`` sorted) at STEP_GRID quantiles of the times: (sum of squares,
+    the step s(t) as 0/1 floats, coefficients) of ``y`` fitted on ``columns(s)``."""
+    best = None
+    for q in np.linspace(0.05, 0.95, STEP_GRID):
+        on = (ts >= np.quantile(ts, q)).astype(float)
+        sse, coef = _least_squares(columns(on), y)
+        if best is None or sse < best[0]:
+            best = (sse, on, coef)
+    assert best is not None
+    return best
+
+
 def step_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_drift: float,
                   most: int = SWITCH_MAX) -> dict | None:
     """A body-fixed field that switches between two levels at a few times (a current loop, a load switched on and
@@ -584,19 +603,13 @@ def step_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_d
     order = np.argsort(t_s, kind="stable")
     ts, rs, us = t_s[order], r[order], unit[order]
 
-    def fit(on: np.ndarray) -> tuple[float, np.ndarray]:
-        cols = np.column_stack([us * on[:, None], us, np.ones(len(rs))])  # the offset before, and its step
-        coef, *_ = np.linalg.lstsq(cols, rs, rcond=None)
-        return float(np.sum((rs - cols @ coef) ** 2)), coef
+    def columns(on: np.ndarray) -> np.ndarray:
+        return np.column_stack([us * on[:, None], us, np.ones(len(rs))])  # the offset before, and its step
 
-    best = None
-    for q in np.linspace(0.05, 0.95, STEP_GRID):
-        on = ts >= np.quantile(ts, q)
-        sse, coef = fit(on.astype(float))
-        if best is None or sse < best[0]:
-            best = (sse, on.astype(float), coef)
-    assert best is not None
-    single = best
+    def fit(on: np.ndarray) -> tuple[float, np.ndarray]:
+        return _least_squares(columns(on), rs)
+
+    best = single = _best_single_step(ts, rs, columns)
     edges = np.unique(np.searchsorted(ts, np.quantile(ts, np.linspace(0.0, 1.0, STEP_GRID + 1)[1:-1]), side="left"))
     starts = np.concatenate([[0], edges[(edges > 0) & (edges < len(ts))]])
     segment = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, len(ts))))
@@ -645,21 +658,12 @@ def range_switch_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | Non
     order = np.argsort(t_s, kind="stable")
     ts, rs, us = t_s[order], r[order], unit[order]
     n = len(rs)
-    best = None
-    for q in np.linspace(0.05, 0.95, STEP_GRID):
-        on = (ts >= np.quantile(ts, q)).astype(float)
-        cols = np.column_stack([us * on[:, None], us * us * on[:, None], us, np.ones(n)])
-        coef, *_ = np.linalg.lstsq(cols, rs, rcond=None)
-        sse = float(np.sum((rs - cols @ coef) ** 2))
-        if best is None or sse < best[0]:
-            best = (sse, on, coef)
-    assert best is not None
-    sse, on, coef = best
+    sse, on, coef = _best_single_step(
+        ts, rs, lambda on: np.column_stack([us * on[:, None], us * us * on[:, None], us, np.ones(n)]))
     sse_base = float(np.sum((rs - rs.mean()) ** 2))
     if sse_base - sse < STEP_SHARE * (sse_base - sse_effect) or not np.ptp(on):
         return None
-    scalar = np.column_stack([us, np.ones(n), on])
-    sse_scalar = float(np.sum((rs - scalar @ np.linalg.lstsq(scalar, rs, rcond=None)[0]) ** 2))
+    sse_scalar = _least_squares(np.column_stack([us, np.ones(n), on]), rs)[0]
     p_jump = f_test_p(sse_scalar, sse, 5, max(n - 10, 1.0)) if sse > 0 else 0.0
     if p_jump >= SWITCH_JUMP_ALPHA:
         return None
