@@ -79,7 +79,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.polynomial import legendre
-from scipy.stats import kstest, norm
+from scipy.stats import kstest, mannwhitneyu, norm
 
 from magbench.calibrators.acceptance import REVISIT_SEPARATION, revisit_neighbours
 from magbench.numerics import roughness  # noqa: F401  (re-exported: the diagnosis reads it from here)
@@ -257,6 +257,12 @@ FAST_SHARE_MAX = 0.5
 """... and when more than this share of them fall among the FAST_QUANTILE fastest-changing readings, they
 mark where the field changes fastest (an unmodelled lag or eddy current), not random glitches."""
 FAST_QUANTILE = 0.9
+SPIKE_RATE_ALPHA = FAMILY_ALPHA
+"""... and when the rates of change at their events (a run of consecutive spikes is one event) are not significantly
+higher than at the other samples (``change_rate``; Mann-Whitney, one-sided, at this level): a glitch comes at a random
+time, whatever the sensor does then, while a response that cannot follow the field (a slew-rate limit, a settling
+loop) errs exactly where the field changes fastest, a few isolated samples on sparse sampling, which the top-decile
+share above misses when they spread over the faster half."""
 
 
 BULK_RATIO_MAX = 1.35
@@ -342,18 +348,47 @@ def glitch_bursts(s: np.ndarray, r: np.ndarray, x: np.ndarray | None) -> bool:
     return True
 
 
+def change_rate(x: np.ndarray, t: np.ndarray | None, skip: np.ndarray) -> np.ndarray:
+    """How fast the readings ``x`` (in time order) change around each sample: the change between the nearest samples
+    before and after it that are not in ``skip`` (the sample itself and the spikes left out, so that a burst of
+    glitches does not make its own neighbours look fast), per second when the times ``t`` are given (on irregular
+    times a change across a gap is not a fast one; a span shorter than the median span counts as the median, so that
+    the noise of two close samples is not divided by a tiny interval), else per sample; 0 where a side has no such
+    sample."""
+    n = len(x)
+    good = np.flatnonzero(~skip)
+    if len(good) < 2:
+        return np.zeros(n)
+    idx = np.arange(n)
+    before = np.searchsorted(good, idx, side="left") - 1  # the last good sample before each
+    after = np.searchsorted(good, idx, side="right")  # the first good sample after each
+    ok = (before >= 0) & (after < len(good))
+    a, b = good[np.clip(before, 0, None)], good[np.clip(after, None, len(good) - 1)]
+    step = np.where(ok, np.linalg.norm(x[b] - x[a], axis=1), 0.0)
+    if t is None:
+        return np.divide(step, (b - a).astype(float), out=np.zeros(n), where=ok)
+    span = t[b] - t[a]
+    positive = span[ok & (span > 0)]
+    if not len(positive):
+        return step
+    return step / np.maximum(span, float(np.median(positive)))
+
+
 def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None, raw_nT: np.ndarray | None = None,
-                    r: np.ndarray | None = None, readings: np.ndarray | None = None) -> tuple[bool, float]:
+                    r: np.ndarray | None = None, readings: np.ndarray | None = None) -> tuple[bool, float, tuple]:
     """Whether the spike samples are glitches: isolated in time or in short abrupt bursts (``glitch_bursts``,
-    judged when the residual ``r`` is given), not concentrated where the readings change fastest, and spread over
+    judged when the residual ``r`` is given), not concentrated where the readings change most (the top-decile share
+    of the change between the two neighbours, FAST_SHARE_MAX) nor, event by event, where they change faster than
+    elsewhere (per second, ``change_rate``: a rank test, SPIKE_RATE_ALPHA), and spread over
     the record like the samples (a step that switches on mid-record puts every large residual after it; each run
-    of consecutive spikes is one event there); and the share of them that has a spike as a time neighbour.
+    of consecutive spikes is one event there); the share of them that has a spike as a time neighbour; and which of
+    the three failed (``"runs"``, ``"fast"``, ``"times"``).
     ``raw_nT``: the readings whose rate of change is judged; ``readings``: those whose extremes are (``raw_nT``
     when not given)."""
     order = np.arange(len(spikes)) if t_s is None else np.argsort(t_s, kind="stable")
     s = spikes[order]
     if s.sum() == 0:
-        return True, 0.0
+        return True, 0.0, ()
     neighbour = np.zeros_like(s)
     neighbour[1:] |= s[:-1]
     neighbour[:-1] |= s[1:]
@@ -365,29 +400,35 @@ def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None, raw_nT: np.ndarr
     fast_ok = True
     if raw_nT is not None and len(s) > 10:
         x = raw_nT[order]
-        rate = np.zeros(len(s))  # how fast the readings change around each sample, the sample itself left out
-        rate[1:-1] = np.linalg.norm(x[2:] - x[:-2], axis=1)
-        fast = rate >= np.quantile(rate, FAST_QUANTILE)
+        step = np.zeros(len(s))  # how much the readings change around each sample, the sample itself left out
+        step[1:-1] = np.linalg.norm(x[2:] - x[:-2], axis=1)
+        fast = step >= np.quantile(step, FAST_QUANTILE)
         fast_ok = float((s & fast).sum() / s.sum()) <= FAST_SHARE_MAX
+        rate = change_rate(x, None if t_s is None else np.asarray(t_s, dtype=float)[order], s)
+        starts = [a for a, _ in spike_runs(s)]  # one rate per event: a burst's samples share their neighbours
+        if fast_ok and 3 <= len(starts) <= len(s) - s.sum() - 3:
+            fast_ok = float(mannwhitneyu(rate[starts], rate[~s], alternative="greater").pvalue) > SPIKE_RATE_ALPHA
     spread_ok = True
     if t_s is not None and np.ptp(t_s) > 0:  # glitches come at random times: one time per event
         ts = np.sort(t_s)
         events = ts[[a for a, _ in spike_runs(s)]]
         if len(events) >= 3:
             spread_ok = kstest(events, lambda x: np.searchsorted(ts, x, side="right") / len(ts)).pvalue > SPIKE_TIMES_ALPHA
-    return runs_ok and fast_ok and spread_ok, share
+    failed = tuple(name for name, ok in (("runs", runs_ok), ("fast", fast_ok), ("times", spread_ok)) if not ok)
+    return not failed, share, failed
 
 
 def spike_signature(spikes: np.ndarray, r: np.ndarray, t_s: np.ndarray | None, raw_nT: np.ndarray,
-                    rate_readings: np.ndarray | None = None) -> tuple[bool, float, float, float]:
+                    rate_readings: np.ndarray | None = None) -> tuple[bool, float, float, float, tuple]:
     """Whether the spikes of residual ``r`` look like glitches: isolated and spread in time
     (``spikes_isolated``, not where ``rate_readings`` change fastest when given), on a noise-like rest
     (``bulk_ratio``) and not readings clipped at a range limit (``clipped_share``); with the neighbour share,
-    the tail ratio and the clipped share, in the form ``confirm`` takes as ``spikes_ok``."""
-    isolated, share = spikes_isolated(spikes, t_s, rate_readings, r, raw_nT)
+    the tail ratio, the clipped share and the isolation tests that failed, in the form ``confirm`` takes as
+    ``spikes_ok``."""
+    isolated, share, failed = spikes_isolated(spikes, t_s, rate_readings, r, raw_nT)
     ratio = bulk_ratio(r, spikes)
     clip = clipped_share(spikes, raw_nT)
-    return isolated and ratio <= BULK_RATIO_MAX and clip <= CLIPPED_SHARE_MAX, share, ratio, clip
+    return isolated and ratio <= BULK_RATIO_MAX and clip <= CLIPPED_SHARE_MAX, share, ratio, clip, failed
 
 
 def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: float,
@@ -441,9 +482,11 @@ def confirm(heldout_by_family: dict, selected: list[str], floor: float, mde: flo
                               "are heavy-tailed throughout, not sparse glitches on top of the noise")
             else:
                 row["named"], row["structured"] = False, True
-                row["why"] = (f"the spikes come in runs in time ({100 * spikes_ok[1]:.0f} % have a spike as a neighbour), "
-                              "where the readings change fastest or in one part of the record: the peaks of a "
-                              "structured residual, not outliers")
+                which = spikes_ok[4] if len(spikes_ok) > 4 else ("runs", "fast", "times")
+                said = {"runs": f"come in runs in time ({100 * spikes_ok[1]:.0f} % have a spike as a neighbour)",
+                        "fast": "sit where the readings change fastest", "times": "gather in one part of the record"}
+                row["why"] = ("the spikes " + " and ".join(said[f] for f in which if f in said)
+                              + ": the peaks of a structured residual, not outliers")
             continue
         failed = [f for f in fams if not passed.get((name, f), False)]
         row["failed_families"] = failed

@@ -271,7 +271,7 @@ def _spikes(r: np.ndarray, design: np.ndarray | None, t: np.ndarray, raw_nT: np.
     if mask.any():  # the trend again without them, so that large spikes do not bend it
         resid = r - design @ np.linalg.lstsq(design[~mask], r[~mask], rcond=None)[0]
         mask = OutlierEffect.spike_mask(resid)
-    glitches, share, ratio, clip = spike_signature(mask, resid, t, raw_nT)
+    glitches, share, ratio, clip, _ = spike_signature(mask, resid, t, raw_nT)
     # their number: at least the selection's share of the samples; or, fewer (a fixed record is long and its glitches
     # few), a count Gaussian noise does not give beyond SPIKE_SIGMA with a Gaussian shoulder below it (heavy-tailed
     # noise crowds the shoulder, glitches far beyond it do not)
