@@ -121,3 +121,4 @@ def test_a_burst_of_glitches_does_not_make_its_neighbours_fast():
     assert np.allclose(rate[1:-1], np.sqrt(5.0))  # everywhere the readings' own rate, around the burst too
     assert rate[0] == rate[-1] == 0.0  # a side without a sample: not judged
     assert np.allclose(change_rate(x, None, burst)[1:-1], np.sqrt(5.0))  # per sample without times
+    assert np.allclose(change_rate(x, np.zeros(20), burst)[1:-1], np.sqrt(5.0))  # ... or when no time passes

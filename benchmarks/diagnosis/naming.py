@@ -365,12 +365,10 @@ def change_rate(x: np.ndarray, t: np.ndarray | None, skip: np.ndarray) -> np.nda
     ok = (before >= 0) & (after < len(good))
     a, b = good[np.clip(before, 0, None)], good[np.clip(after, None, len(good) - 1)]
     step = np.where(ok, np.linalg.norm(x[b] - x[a], axis=1), 0.0)
-    if t is None:
+    span = None if t is None else t[b] - t[a]
+    positive = np.zeros(0) if span is None else span[ok & (span > 0)]
+    if span is None or not len(positive):  # no times, or no time passing: per sample
         return np.divide(step, (b - a).astype(float), out=np.zeros(n), where=ok)
-    span = t[b] - t[a]
-    positive = span[ok & (span > 0)]
-    if not len(positive):
-        return step
     return step / np.maximum(span, float(np.median(positive)))
 
 
