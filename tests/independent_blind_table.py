@@ -86,6 +86,11 @@ ROUND12 = (" Round 12 refused spikes whose events sit where the readings change 
            "random times), after seeing the second generator's `slew_limit` records named `outliers` (so those are no "
            "longer blind); it diagnosed every record whose verdict named `outliers`, {aff}, before and after "
            "({changed}), and regenerated this table with its final code.")
+ROUND13 = (" Round 13 refused a field drift named on its first look whose structure a body-fixed drift of the same time "
+           "basis explains better while one scalar series adds nothing beyond it (the second look's signature, now "
+           "asked of every field drift), after seeing the third generator's car circuits named `field_drift` (so those "
+           "are no longer blind); it diagnosed every record whose verdict named `field_drift`, {aff}, before and after "
+           "({changed}), and regenerated this table with its final code.")
 HISTORY = {
     1: ("Cases 0-2399 were developed on in rounds 1-2 of the naming work (round 1: 0-959 its development set, "
         "960-2159 its held-out blocks until their wrong names were looked at, 2160-2399 its held-out figure; round 2: "
@@ -107,7 +112,9 @@ HISTORY = {
         + ROUND10.format(fixed="none of the 400 changed, none has a varying reference", aff="740",
                          changed="3 changed")
         + ROUND11.format(changed="4 verdicts", aff="all 4 among the 737 whose verdict had named `temperature`")
-        + ROUND12.format(aff="474", changed="8 changed, each a true `outliers` refused: 1.5 points, no wrong name")),
+        + ROUND12.format(aff="474", changed="8 changed, each a true `outliers` refused: 1.5 points, no wrong name")
+        + ROUND13.format(aff="307", changed="3 changed: 1 wrong name fewer, 2 true field drifts beside a nonlinearity "
+                                           "refused, 0.5 points net")),
     2: ("Written during round 4 by another hand, from the physics only (it read neither the diagnosis nor the "
         "first generator's effects). Round 4 looked at cases 0-479 (`--start 0 --cases 480`): the fixed-sensor "
         "changes were made on them, and the round's branches were compared there. Cases 480-1439 "
@@ -134,7 +141,9 @@ HISTORY = {
                          "later rule could")
         + ROUND12.format(aff="287", changed="8 changed: 5 wrong names fewer, 4 slew-limited sensors and the peaks of a "
                                            "lag beside an offset drift and a nonlinearity; "
-                                           "3 true `outliers` refused, 1.5 points")),
+                                           "3 true `outliers` refused, 1.5 points")
+        + ROUND13.format(aff="190", changed="5 changed: 2 wrong names fewer, 2 true field drifts beside a nonlinearity "
+                                           "refused, no point net")),
     3: ("Written in round 5 by another hand, from the physics only (it read neither the diagnosis, the simulator, "
         "the calibrators nor the first two generators' effects and schedules): its own sensor parametrisation, "
         "schedules (a ship in a seaway, a quadcopter hover with yaw spins, a car on a closed circuit, a hand-rotated "
@@ -157,30 +166,32 @@ HISTORY = {
                          changed="15 changed")
         + ROUND11.format(changed="10 verdicts", aff="all 10 among the 346 whose verdict had named `temperature`: 3 true "
                                                           "temperatures refused, 1.5 points")
-        + ROUND12.format(aff="357", changed="5 changed, each a true `outliers` refused: 1.5 points, no wrong name")),
+        + ROUND12.format(aff="357", changed="5 changed, each a true `outliers` refused: 1.5 points, no wrong name")
+        + ROUND13.format(aff="233", changed="9 changed: 6 wrong names fewer (2 offset drifts, 2 hysteresis, an eddy "
+                                           "housing, a rate actuator), 4 points")),
 }
 SPLITS = {1: "1440,2640,2880,3360,3840,4320", 2: "480,1440,2400,3360", 3: "480,1440,2400,3360"}
 LABELS = {
     1: ["developed on in rounds 1-4 (rounds 2-3's development set)",
         "developed on in rounds 1-4 (round 3 checked every change on it; 2400-2639 was round 2's held-out block)",
         "held out for round 3: run once, with its final code",
-        "held out for round 4 (one change was made after seeing them); run once more in rounds 5, 6, 7, 8, 10, 11 and 12",
-        "held out for round 6: run once, with its final code; run once more in rounds 7, 8, 10, 11 and 12",
-        "held out for round 7: new, run once, with its final code; run once more in rounds 8, 10, 11 and 12",
-        "held out for round 8: new, run once, with its final code; run once more in rounds 10, 11 and 12"],
-    2: ["developed on in rounds 4-12",
-        "held out (run in round 4 three times, in rounds 5, 6, 7, 8, 9, 10, 11 and 12 once each; nothing tuned on them; round 8 "
-        "compared 480-959 verdict by verdict with the code before)",
-        "held out for round 6: new, run once, with its final code; run once more in rounds 7, 8, 9, 10, 11 and 12",
-        "held out for round 7: new, run once, with its final code; run once more in rounds 8, 9, 10, 11 and 12",
-        "held out for round 8: new, run once, with its final code; run once more in rounds 9, 10, 11 and 12 (its clean cases "
+        "held out for round 4 (one change was made after seeing them); run once more in rounds 5, 6, 7, 8, 10, 11, 12 and 13",
+        "held out for round 6: run once, with its final code; run once more in rounds 7, 8, 10, 11, 12 and 13",
+        "held out for round 7: new, run once, with its final code; run once more in rounds 8, 10, 11, 12 and 13",
+        "held out for round 8: new, run once, with its final code; run once more in rounds 10, 11, 12 and 13"],
+    2: ["developed on in rounds 4-13",
+        "held out (run in round 4 three times, in rounds 5, 6, 7, 8, 9, 10, 11, 12 and 13 once each; nothing tuned on "
+        "them; round 8 compared 480-959 verdict by verdict with the code before)",
+        "held out for round 6: new, run once, with its final code; run once more in rounds 7, 8, 9, 10, 11, 12 and 13",
+        "held out for round 7: new, run once, with its final code; run once more in rounds 8, 9, 10, 11, 12 and 13",
+        "held out for round 8: new, run once, with its final code; run once more in rounds 9, 10, 11, 12 and 13 (its clean cases "
         "3984 and 4140 were among the logger records round 9 compared)"],
-    3: ["developed on in rounds 6-12 (written in round 5 from the physics only, and run once there)",
-        "run once in rounds 5, 6, 7, 8, 9, 10, 11 and 12, not looked at case by case (round 8 compared its verdicts "
+    3: ["developed on in rounds 6-13 (written in round 5 from the physics only, and run once there)",
+        "run once in rounds 5, 6, 7, 8, 9, 10, 11, 12 and 13, not looked at case by case (round 8 compared its verdicts "
         "with the code before; round 9 those naming lag)",
-        "held out for round 6: new, run once, with its final code; run once more in rounds 7, 8, 9, 10, 11 and 12",
-        "held out for round 7: new, run once, with its final code; run once more in rounds 8, 9, 10, 11 and 12",
-        "held out for round 8: new, run once, with its final code; run once more in rounds 9, 10, 11 and 12 (its car "
+        "held out for round 6: new, run once, with its final code; run once more in rounds 7, 8, 9, 10, 11, 12 and 13",
+        "held out for round 7: new, run once, with its final code; run once more in rounds 8, 9, 10, 11, 12 and 13",
+        "held out for round 8: new, run once, with its final code; run once more in rounds 9, 10, 11, 12 and 13 (its car "
         "circuits named lag were among those round 9 looked at)"],
 }
 

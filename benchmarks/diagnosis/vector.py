@@ -515,6 +515,7 @@ class Diagnosis:
         named = fold_drift_into_temperature(evidence, named, temp_r2)
         named = self._shift_signature(evidence, named)
         named = self._within_holds(evidence, named, heldout["random"])
+        named = self._field_signature(evidence, named)
 
         # spikes refused as structure (no lag named, whose own peaks they may be): the structure is unexplained, and
         # every named effect must remove at least as much as it leaves (its evidence was taken with the peaks masked)
@@ -609,6 +610,35 @@ class Diagnosis:
                       "polynomial runs anywhere in a left-out stretch); one scalar series common to every attitude "
                       f"(beyond a body-fixed drift z {zs:.2g}; a body-fixed drift adds z {zb:.2g})")
         return [s for s in selected if s in named or s == field]
+
+    def _field_signature(self, evidence: list[dict], named: list[str]) -> list[str]:
+        """A field drift named on its first look must show its own signature too (the second look checks it already):
+        one scalar series common to every attitude visited at the same time.  When a body-fixed drift of the same time
+        basis explains more of the residual than that scalar series does (``scalar_series_signature``: a body-fixed
+        drift beyond the scalar series, z above SIGNATURE_Z) and the scalar series adds nothing beyond it (z at most
+        SIGNATURE_Z), the structure turns with the body (a drifting offset, a magnetized part, a switched load), not with
+        the field: refused, left to the other effects or unexplained.  Not on
+        records that turn about one axis (``degenerate``: there a drift along that axis changes the magnitude alike at
+        every attitude, said ``offset_drift|field_drift``) nor on held attitudes."""
+        field = FieldDriftEffect.name
+        d = self.columns
+        if field not in named or self.degenerate is not None or self.hold_labels is not None or d.t_s is None:
+            return named
+        row = next((r for r in evidence if r["name"] == field), None)
+        if row is None or "second_look" in row:
+            return named
+        others = [s for s in named if s != field]
+        sig = scalar_series_signature(np.asarray(self.model_residuals(others), dtype=float), self.unit, d.t_s, self.k,
+                                      self.seed, FieldDriftEffect.DEGREE)
+        row["signature"] = sig
+        zs, zb = sig["z_scalar_beyond_body"], sig["z_body_beyond_scalar"]
+        if not sig["tested"] or zs > SIGNATURE_Z or zb <= SIGNATURE_Z:
+            return named
+        row["named"] = False
+        row["why"] = (f"a body-fixed drift explains more than one scalar series common to every attitude (z {zb:.2g}) and "
+                      f"the scalar series adds nothing beyond it (z {zs:.2g}, at most {SIGNATURE_Z:g}): the structure turns "
+                      "with the body, not with the field")
+        return others
 
     def _body_or_scalar(self, named: list[str], confounded: list[dict]) -> list[dict]:
         """An offset drift named (and no field drift) must be a body-fixed drift to these data: what it does must
