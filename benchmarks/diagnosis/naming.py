@@ -395,6 +395,7 @@ def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None, raw_nT: np.ndarr
     if not runs_ok and r is not None:
         x_all = raw_nT if readings is None else readings
         runs_ok = glitch_bursts(s, np.asarray(r, dtype=float)[order], None if x_all is None else x_all[order])
+    starts = [a for a, _ in spike_runs(s)]  # one per event: a burst's samples share their neighbours and their time
     fast_ok = True
     if raw_nT is not None and len(s) > 10:
         x = raw_nT[order]
@@ -403,13 +404,12 @@ def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None, raw_nT: np.ndarr
         fast = step >= np.quantile(step, FAST_QUANTILE)
         fast_ok = float((s & fast).sum() / s.sum()) <= FAST_SHARE_MAX
         rate = change_rate(x, None if t_s is None else np.asarray(t_s, dtype=float)[order], s)
-        starts = [a for a, _ in spike_runs(s)]  # one rate per event: a burst's samples share their neighbours
         if fast_ok and 3 <= len(starts) <= len(s) - s.sum() - 3:
             fast_ok = float(mannwhitneyu(rate[starts], rate[~s], alternative="greater").pvalue) > SPIKE_RATE_ALPHA
     spread_ok = True
     if t_s is not None and np.ptp(t_s) > 0:  # glitches come at random times: one time per event
         ts = np.sort(t_s)
-        events = ts[[a for a, _ in spike_runs(s)]]
+        events = ts[starts]
         if len(events) >= 3:
             spread_ok = kstest(events, lambda x: np.searchsorted(ts, x, side="right") / len(ts)).pvalue > SPIKE_TIMES_ALPHA
     failed = tuple(name for name, ok in (("runs", runs_ok), ("fast", fast_ok), ("times", spread_ok)) if not ok)

@@ -588,7 +588,6 @@ class Diagnosis:
         if (row is None or row.get("named") or not row.get("failed_families")
                 or set(row["failed_families"]) - {"time-blocked", "attitude-blocked"}):
             return named
-        d, k = self.columns, self.k
         _, again = confirm_on(self._families(blocked, SMOOTH_SLOPE_PER_SAMPLE))
         second = next(r for r in again if r["name"] == field)
         look: dict = {"families": second["families"], "passed_blocked": bool(second.get("named"))}
@@ -596,8 +595,7 @@ class Diagnosis:
         if not second.get("named"):
             row["why"] += f"; on the second look (slope-penalized time bases) too: {second['why']}"
             return named
-        sig = scalar_series_signature(np.asarray(self.model_residuals(named), dtype=float), self.unit, d.t_s, k,
-                                      self.seed, FieldDriftEffect.DEGREE)
+        sig = self._series_signature(named)
         look["signature"] = sig
         zs, zb = sig["z_scalar_beyond_body"], sig["z_body_beyond_scalar"]
         if not (sig["tested"] and zs > SIGNATURE_Z and zb <= SIGNATURE_Z):
@@ -610,6 +608,11 @@ class Diagnosis:
                       "polynomial runs anywhere in a left-out stretch); one scalar series common to every attitude "
                       f"(beyond a body-fixed drift z {zs:.2g}; a body-fixed drift adds z {zb:.2g})")
         return [s for s in selected if s in named or s == field]
+
+    def _series_signature(self, names: list[str]) -> dict:
+        """``scalar_series_signature`` of the residual of base + ``names`` (a field drift's own signature)."""
+        return scalar_series_signature(np.asarray(self.model_residuals(names), dtype=float), self.unit,
+                                       self.columns.t_s, self.k, self.seed, FieldDriftEffect.DEGREE)
 
     def _field_signature(self, evidence: list[dict], named: list[str]) -> list[str]:
         """A field drift named on its first look must show its own signature too (the second look checks it already):
@@ -628,8 +631,7 @@ class Diagnosis:
         if row is None or "second_look" in row:
             return named
         others = [s for s in named if s != field]
-        sig = scalar_series_signature(np.asarray(self.model_residuals(others), dtype=float), self.unit, d.t_s, self.k,
-                                      self.seed, FieldDriftEffect.DEGREE)
+        sig = self._series_signature(others)
         row["signature"] = sig
         zs, zb = sig["z_scalar_beyond_body"], sig["z_body_beyond_scalar"]
         if not sig["tested"] or zs > SIGNATURE_Z or zb <= SIGNATURE_Z:
@@ -654,8 +656,7 @@ class Diagnosis:
                 or any(c["alternatives"][0] == body for c in confounded)):
             return []
         others = [s for s in named if s != body]
-        sig = scalar_series_signature(np.asarray(self.model_residuals(others), dtype=float), self.unit,
-                                      self.columns.t_s, self.k, self.seed, FieldDriftEffect.DEGREE)
+        sig = self._series_signature(others)
         if not sig["tested"] or sig["z_body_beyond_scalar"] > SIGNATURE_Z:
             return []
         return [{"alternatives": [body, field], "named": True,
