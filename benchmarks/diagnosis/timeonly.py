@@ -68,6 +68,11 @@ DRIFT_Z = 3.0
 """A drift or temperature coefficient is reported as significant beyond this many standard errors (its
 standard error inflated for the residual's autocorrelation: effective samples from the lag-1 correlation)."""
 TREND_DEGREE = 6
+TREND_DEGREES = (TREND_DEGREE, 12, 24, 48)
+TREND_RHO_MAX = 0.5
+TREND_SAMPLES_PER_TERM = 8
+"""``_trend_fit``: the degrees of a fixed sensor's drift trend tried in turn, the lag-1 correlation of what it leaves
+below which the degree suffices, and the samples each term of the next degree needs."""
 DRIFT_DIRECTION_ALPHA = 1e-6
 """Level of the F tests of the radial trend and of the trend across (a drift of tens of noise sigmas is far
 beyond it; a record without drift is far from it)."""
@@ -93,6 +98,9 @@ more."""
 THERMAL_LAG_OF_SPAN = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0)
 """First-order thermal time constants tried (shares of the record's span) when asking whether the logged
 temperature fits a drift (radial or across) as well as the smooth trend does."""
+THERMAL_SHARE_OF_TREND = 0.5
+"""The logged temperature is an alternative for a fixed sensor's drift only when, through its best first-order lag,
+it takes at least this share of what the drift's trend (``_trend_fit``) takes from the readings' scatter."""
 MIN_DISTINCT = 10
 """A fixed record needs at least this many readings that differ from the one before them (the floor's least
 number of distinct samples); fewer is a stuck sensor or logger, refused."""
@@ -232,6 +240,8 @@ def time_only(data: Dataset, reason: str) -> dict:
     out["confounded"] = [_alternatives(name, direction) for name in drifts if "|" in name]
     verdict = outliers + (["temperature"] if temperature_named else []) + drifts
     out["verdict"] = "+".join(verdict) if verdict else "insufficient_data"
+    if drifts and "drift" not in named:  # a drift the straight line misses (a bay, a pulsation): the vector trend's
+        named.append("drift")
     out["time_verdict"] = "+".join(named) if named else "constant"
     return out
 
@@ -306,6 +316,29 @@ def _step_sse(y: np.ndarray) -> float:
     return float(sse.min()) if len(sse) else np.inf
 
 
+def _trend_fit(u: np.ndarray, y: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """The smooth trend of the columns of ``y`` on ``u`` in [-1, 1]: (degree, Legendre design, coefficients).
+    Degree TREND_DEGREE, raised (TREND_DEGREES) while what it leaves on some column still follows its time
+    neighbours (lag-1 correlation above TREND_RHO_MAX) and the samples allow (TREND_SAMPLES_PER_TERM each): a
+    drift faster than the degree leaves a residual so correlated that the F test, its samples deflated for that
+    correlation, sees almost nothing (a pulsation of 30 noise sigmas in one hour was "no significant drift")."""
+    for degree in TREND_DEGREES:
+        design = legendre.legvander(u, degree)
+        coef = np.linalg.lstsq(design, y, rcond=None)[0]
+        resid = y - design @ coef
+        rho = max(_lag1(resid[:, j]) for j in range(y.shape[1]))
+        if rho <= TREND_RHO_MAX or len(y) < TREND_SAMPLES_PER_TERM * (2 * degree + 1):
+            break
+    return degree, design, coef
+
+
+def _lag1(x: np.ndarray) -> float:
+    """The lag-1 correlation of ``x`` in sample order (0 for a constant)."""
+    x = x - x.mean()
+    v = float(x @ x)
+    return float(x[:-1] @ x[1:]) / v if v > 0 else 0.0
+
+
 def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.ndarray | None, timed: bool,
                      f_ref: np.ndarray | None = None) -> dict:
     """The direction in which the vector readings drift (module docstring): the RMS of the radial trend and of
@@ -323,7 +356,6 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
     e1 = np.cross(m, [1.0, 0.0, 0.0] if abs(m[0]) < 0.9 else [0.0, 1.0, 0.0])
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(m, e1)
-    design = legendre.legvander(2 * (tk - t[0]) / span - 1, TREND_DEGREE)
     y = x @ np.column_stack([m, e1, e2])  # radial, across, across
     turning = 0.0  # the across trend the field's own turning can give (TURN_FACTOR)
     if f_ref is not None and np.ptp(f_ref[keep]) > 0:  # the field's magnitude as the reference follows it
@@ -331,21 +363,29 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
         turning = TURN_FACTOR * float(np.sqrt(np.mean(fk ** 2)))
         gain = float(fk @ (y[:, 0] - y[:, 0].mean()) / (fk @ fk))
         y[:, 0] -= gain * fk
-    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    u = 2 * (tk - t[0]) / span - 1
+    sse0 = np.sum((y - y.mean(axis=0)) ** 2, axis=0)
+    # a trend flexible enough for the drift (``_trend_fit``)
+    degree, design, coef = _trend_fit(u, y)
     resid = y - design @ coef
-    trend = design @ coef
-    trend -= trend.mean(axis=0)
     n_eff = [_effective_n(resid[:, j]) for j in range(3)]
     sse1 = np.sum(resid ** 2, axis=0)
-    sse0 = np.sum((y - y.mean(axis=0)) ** 2, axis=0)
-    p_radial = _f_p(float(sse0[0]), float(sse1[0]), TREND_DEGREE, n_eff[0], TREND_DEGREE + 1)
-    p_across = _f_p(float(sse0[1:].sum()), float(sse1[1:].sum()), 2 * TREND_DEGREE, float(np.mean(n_eff[1:])) * 2,
-                    2 * (TREND_DEGREE + 1))
+    p_radial = _f_p(float(sse0[0]), float(sse1[0]), degree, n_eff[0], degree + 1)
+    p_across = _f_p(float(sse0[1:].sum()), float(sse1[1:].sum()), 2 * degree, float(np.mean(n_eff[1:])) * 2,
+                    2 * (degree + 1))
+    trend = design @ coef
+    trend -= trend.mean(axis=0)
+    # the temperature is asked whether it fits the drift as well as a smooth trend (degree TREND_DEGREE) does
+    smooth_n_eff, smooth_sse = n_eff, sse1
+    if degree != TREND_DEGREE:
+        six = legendre.legvander(u, TREND_DEGREE)
+        left = y - six @ np.linalg.lstsq(six, y, rcond=None)[0]
+        smooth_n_eff, smooth_sse = [_effective_n(left[:, j]) for j in range(3)], np.sum(left ** 2, axis=0)
     radial = float(np.sqrt(np.mean(trend[:, 0] ** 2)))
     across = float(np.sqrt(np.mean(np.sum(trend[:, 1:] ** 2, axis=1))))
     ratio = across / radial if radial > 0 else np.inf
     out: dict = {"radial_trend_rms_nT": radial, "across_trend_rms_nT": across, "across_over_radial": float(ratio),
-                 "radial_p": p_radial, "across_p": p_across, "named": None}
+                 "radial_p": p_radial, "across_p": p_across, "trend_degree": degree, "named": None}
     follows = temperature_follows_time(tk, None if temp is None else temp[keep])
     if follows is not None:
         out["temperature_follows_time_r2"] = follows
@@ -383,10 +423,14 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
             lagged = first_order_lag(tk, temp[keep], share * span) if share > 0 else temp[keep]
             d2 = np.column_stack([np.ones(n), lagged])
             best = min(best, float(np.sum((y[:, cols] - d2 @ np.linalg.lstsq(d2, y[:, cols], rcond=None)[0]) ** 2)))
-        p_beats = _f_p(best, sse_trend, len(cols) * (TREND_DEGREE - 1), float(np.mean([n_eff[j] for j in cols])) * len(cols),
-                       len(cols) * (TREND_DEGREE + 1))
+        p_beats = _f_p(best, float(smooth_sse[cols].sum()), len(cols) * (TREND_DEGREE - 1),
+                       float(np.mean([smooth_n_eff[j] for j in cols])) * len(cols), len(cols) * (TREND_DEGREE + 1))
         out["trend_beats_temperature_p"] = p_beats
-    fits = p_beats is not None and p_beats >= DRIFT_DIRECTION_ALPHA  # the temperature fits the trend as well
+        out["temperature_share_of_trend"] = float((sse_const - best) / max(sse_const - sse_trend, 1e-300))
+    # the temperature fits the smooth trend as well, and takes most of what the drift's own trend takes (a drift
+    # faster than the smooth trend is not its shape)
+    fits = (p_beats is not None and p_beats >= DRIFT_DIRECTION_ALPHA
+            and out["temperature_share_of_trend"] >= THERMAL_SHARE_OF_TREND)
     if across_drift:
         follows_time = follows is not None and follows >= TEMPERATURE_FOLLOWS_TIME_R2
         thermal = follows_time or fits
