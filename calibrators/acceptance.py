@@ -1219,12 +1219,40 @@ MIXED_UNITS_FRACTION = 0.05
 such rows are spikes, left to the outlier screening after the fit)."""
 REFERENCE_JUMP = 0.02
 """A change of the reference by more than 2 % from one row to the next is a jump, not a field variation."""
+SMOOTH_STEP_RATE = 3.0
+"""``_smooth_steps``: a large step whose rate is at most this many times the median rate of the four steps around
+it is the reference's own smooth change."""
 
 
-def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray) -> str | None:
+def _smooth_steps(f_ref_nT: np.ndarray, t_s: np.ndarray, big: np.ndarray) -> np.ndarray:
+    """Which of the large steps ``big`` of the reference (row k to k + 1) change it in the direction and at a rate in
+    line with its change at the two steps before and the two after (the median of their signed rates per second, of
+    the same sign and at least 1 / SMOOTH_STEP_RATE of this one's): a reference that changes smoothly along a path,
+    sampled sparsely or across a gap.  A glitch (one row off: two large steps among flat ones), a switch of units
+    (one step among flat ones) or a reference alternating between two values is not."""
+    dt = np.diff(t_s)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rate = np.diff(f_ref_nT) / np.where(dt > 0, dt, np.nan)  # signed, per second
+    k = np.flatnonzero(big)
+    padded = np.concatenate([np.full(2, np.nan), rate, np.full(2, np.nan)])
+    around = np.stack([padded[k + 2 + d] for d in (-2, -1, 1, 2)], axis=1)  # the steps around each large one
+    enough = np.isfinite(around).sum(axis=1) >= 2
+    typical = np.full(len(k), np.nan)
+    typical[enough] = np.nanmedian(around[enough], axis=1)
+    out = np.zeros(len(big), dtype=bool)
+    with np.errstate(invalid="ignore"):  # the same direction as the steps around it (a reference that alternates
+        # between two values is not smooth), at a rate in line with theirs
+        out[k] = enough & (typical * rate[k] > 0) & (np.abs(rate[k]) <= SMOOTH_STEP_RATE * np.abs(typical))
+    return out
+
+
+def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray, t_s: np.ndarray | None = None) -> str | None:
     """Why the reference and the readings cannot belong together, or None: the readings' magnitude
     against the reference (wrong units, raw ADC counts, a wrong reference), rows in mixed units, and a
-    reference that jumps between values."""
+    reference that jumps between values.  With time stamps ``t_s``, a change of more than REFERENCE_JUMP from one
+    row to the next is not a jump when its rate (per second) is in line with the reference's own rate of change
+    at the rows around it (``_smooth_steps``): a model field along a satellite's orbit, across a gap in the
+    sampling, changes by several per cent between two rows without jumping."""
     mag = np.sqrt(np.einsum("ij,ij->i", raw_nT, raw_nT))  # the row norms (a third of np.linalg.norm's time)
     ratio = mag / f_ref_nT
     typical = median(ratio)
@@ -1239,9 +1267,12 @@ def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray) -> str | None:
                 "times the magnitude of the others: the file mixes units")
     if len(f_ref_nT) > 1:
         step = np.abs(np.diff(f_ref_nT)) / f_ref_nT[:-1]
-        jumps = int(np.sum(step > REFERENCE_JUMP))
+        big = step > REFERENCE_JUMP
+        if big.any() and t_s is not None and len(t_s) == len(f_ref_nT):
+            big &= ~_smooth_steps(np.asarray(f_ref_nT, dtype=float), np.asarray(t_s, dtype=float), big)
+        jumps = int(np.sum(big))
         if jumps:
-            i = int(np.argmax(step))
+            i = int(np.argmax(np.where(big, step, -1.0)))
             return (f"the reference jumps {jumps} time(s) by more than {100 * REFERENCE_JUMP:g} % between rows "
                     f"(e.g. {f_ref_nT[i]:.6g} -> {f_ref_nT[i + 1]:.6g} nT at row {i + 1}): one sensor in one "
                     "place has a smooth reference")

@@ -343,7 +343,8 @@ class Calibrator(metaclass=_Sealed):
         bad = known.get("input_problems", lambda: input_problems(dataset))
         if bad:
             raise InputError(bad)
-        problem = known.get("reference_problems", lambda: reference_problems(dataset.raw_nT, dataset.f_ref_nT))
+        problem = known.get("reference_problems", lambda: reference_problems(dataset.raw_nT, dataset.f_ref_nT,
+                                                                             dataset.t_s))
         if problem:
             raise InputError(problem)
         field_nT = known.get("field_nT", lambda: median(dataset.f_ref_nT))

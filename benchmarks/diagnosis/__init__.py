@@ -131,7 +131,8 @@ def reference_mismatch(data) -> str | None:
     bad = input_problems(data)  # non-finite readings or reference, as the calibrators say it
     if bad:
         return bad
-    return reference_problems(np.asarray(data.raw_nT, dtype=float), np.asarray(data.f_ref_nT, dtype=float))
+    return reference_problems(np.asarray(data.raw_nT, dtype=float), np.asarray(data.f_ref_nT, dtype=float),
+                              None if data.t_s is None else np.asarray(data.t_s, dtype=float))
 
 
 def attitude_refusal(data, base: str) -> str | None:
