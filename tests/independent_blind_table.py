@@ -182,7 +182,11 @@ HISTORY = {
                                                           "temperatures refused, 1.5 points")
         + ROUND12.format(aff="357", changed="5 changed, each a true `outliers` refused: 1.5 points, no wrong name")
         + ROUND13.format(aff="233", changed="9 changed: 6 wrong names fewer (2 offset drifts, 2 hysteresis, an eddy "
-                                           "housing, a rate actuator), 4 points")),
+                                           "housing, a rate actuator), 4 points")
+        + ROUND14.format(timeonly="3: cases 1114, 1294 and 3844, none changed",
+                         changed="14 of the 360 fixed records changed, all from `insufficient_data` to a drift: 6 true "
+                                 "field drifts to a full score, 1 partly right as before, and 7 true temperatures to "
+                                 "`offset_drift|temperature|field_drift`, partly right as before; no wrong name")),
 }
 HISTORY[4] = ("Written in round 14 by another hand, from the physics only (it read neither the diagnosis, the simulator, "
               "the calibrators nor the code of the other generators, only their docstrings, so as not to repeat their "

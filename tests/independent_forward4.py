@@ -1453,12 +1453,26 @@ def _attempt(rng: np.random.Generator, index: int, category: str, lib: tuple[str
                 expect_unexplained=bool(outside), confoundable=confoundable, schedule=schedule, notes=notes)
 
 
+DRAWS = 5
+"""``make_case`` draws a pair's, a triple's or an outside_plus's library effects again at most this many times."""
+
+
 def make_case(index: int, root: int = 2026) -> Case:
     """The blind record number ``index`` of the stream seeded by ``root`` (deterministic)."""
     rng = np.random.default_rng(np.random.SeedSequence([root, index]))
     category, lib, out = _choose(index, rng)
-    for attempt in range(60):
-        case = _attempt(rng, index, category, lib, out, attempt)
-        if case is not None:
-            return case
-    raise RuntimeError(f"case {index}: no plausible visible record in 60 attempts ({category}, {lib}, {out})")
+    tried = []
+    for draw in range(DRAWS):
+        # after 60 failed attempts the drawn parts of the case are drawn again (the library effects of a pair, a triple
+        # or an outside_plus; the platform of every kind, by the attempts themselves): a combination that cannot be
+        # made visible at a plausible size is not a record (case 2600's caesium heading error beside a nonlinearity)
+        for attempt in range(60):
+            case = _attempt(rng, index, category, lib, out, 60 * draw + attempt)
+            if case is not None:
+                if tried:
+                    case.notes["redrawn_from"] = tried
+                return case
+        tried.append([list(lib), list(out)])
+        if category in ("pair", "triple", "outside_plus"):
+            category, lib, out = _choose(index, rng)
+    raise RuntimeError(f"case {index}: no plausible visible record in {60 * DRAWS} attempts ({category}, {lib}, {out})")
