@@ -316,27 +316,24 @@ def _step_sse(y: np.ndarray) -> float:
     return float(sse.min()) if len(sse) else np.inf
 
 
-def _trend_fit(u: np.ndarray, y: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
-    """The smooth trend of the columns of ``y`` on ``u`` in [-1, 1]: (degree, Legendre design, coefficients).
-    Degree TREND_DEGREE, raised (TREND_DEGREES) while what it leaves on some column still follows its time
-    neighbours (lag-1 correlation above TREND_RHO_MAX) and the samples allow (TREND_SAMPLES_PER_TERM each): a
+def _trend_fit(u: np.ndarray, y: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """The smooth trend of the columns of ``y`` on ``u`` in [-1, 1]: (degree, Legendre design, coefficients, what
+    the trend of degree TREND_DEGREE leaves, which the temperature's comparison reads).  Degree TREND_DEGREE,
+    raised (TREND_DEGREES) while what it leaves on some column still follows its time neighbours (lag-1
+    correlation, ``_autocorrelation``, above TREND_RHO_MAX) and the samples allow (TREND_SAMPLES_PER_TERM each): a
     drift faster than the degree leaves a residual so correlated that the F test, its samples deflated for that
     correlation, sees almost nothing (a pulsation of 30 noise sigmas in one hour was "no significant drift")."""
+    smooth = y
     for degree in TREND_DEGREES:
         design = legendre.legvander(u, degree)
         coef = np.linalg.lstsq(design, y, rcond=None)[0]
         resid = y - design @ coef
-        rho = max(_lag1(resid[:, j]) for j in range(y.shape[1]))
+        if degree == TREND_DEGREE:
+            smooth = resid
+        rho = max(float(_autocorrelation(resid[:, j], 1)[0]) for j in range(y.shape[1]))
         if rho <= TREND_RHO_MAX or len(y) < TREND_SAMPLES_PER_TERM * (2 * degree + 1):
             break
-    return degree, design, coef
-
-
-def _lag1(x: np.ndarray) -> float:
-    """The lag-1 correlation of ``x`` in sample order (0 for a constant)."""
-    x = x - x.mean()
-    v = float(x @ x)
-    return float(x[:-1] @ x[1:]) / v if v > 0 else 0.0
+    return degree, design, coef, smooth
 
 
 def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.ndarray | None, timed: bool,
@@ -366,7 +363,7 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
     u = 2 * (tk - t[0]) / span - 1
     sse0 = np.sum((y - y.mean(axis=0)) ** 2, axis=0)
     # a trend flexible enough for the drift (``_trend_fit``)
-    degree, design, coef = _trend_fit(u, y)
+    degree, design, coef, left = _trend_fit(u, y)
     resid = y - design @ coef
     n_eff = [_effective_n(resid[:, j]) for j in range(3)]
     sse1 = np.sum(resid ** 2, axis=0)
@@ -378,8 +375,6 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
     # the temperature is asked whether it fits the drift as well as a smooth trend (degree TREND_DEGREE) does
     smooth_n_eff, smooth_sse = n_eff, sse1
     if degree != TREND_DEGREE:
-        six = legendre.legvander(u, TREND_DEGREE)
-        left = y - six @ np.linalg.lstsq(six, y, rcond=None)[0]
         smooth_n_eff, smooth_sse = [_effective_n(left[:, j]) for j in range(3)], np.sum(left ** 2, axis=0)
     radial = float(np.sqrt(np.mean(trend[:, 0] ** 2)))
     across = float(np.sqrt(np.mean(np.sum(trend[:, 1:] ** 2, axis=1))))
