@@ -428,6 +428,15 @@ class Tangent:
         """Parameters of base + ``names`` fitted on every fold."""
         return self.fit_on(names, robust, range(self.k))
 
+    def linear_residuals(self, x: np.ndarray) -> np.ndarray:
+        """The residual at ``x`` in the tangent model at x* (r* + J (x - x*)), the model every held-out residual
+        and sum of squares here is computed in."""
+        out = np.empty(len(self.model.d))
+        step = x - self.x
+        for _, idx, r, jac in self._blocks():
+            out[idx] = r + jac @ step
+        return out
+
 
 def spike_scale(r: np.ndarray) -> float:
     return robust_sigma(r)
