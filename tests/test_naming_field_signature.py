@@ -23,8 +23,12 @@ def test_a_rate_actuator_beside_a_lag_on_a_circuit_is_not_a_field_drift():
     assert case.outside == ("rate_actuator",) and "field_drift" not in case.present
     assert "field_drift" not in result["verdict"], result["verdict"]
     row = independent_cases.evidence_row(result, "field_drift")
+    assert not row["named"]
+    if "tangent_step_ratio" in row:  # since round 15 refused before its signature is asked: the model's own fit of
+        assert row["tangent_step_ratio"] > 10  # base + field drift on these laps is far from the tangent model's
+        return
     sig = row["signature"]
-    assert not row["named"] and sig["z_body_beyond_scalar"] > SIGNATURE_Z >= sig["z_scalar_beyond_body"], row
+    assert sig["z_body_beyond_scalar"] > SIGNATURE_Z >= sig["z_scalar_beyond_body"], row
 
 
 def test_a_drifting_offset_beside_outliers_is_not_also_a_field_drift():
@@ -33,8 +37,11 @@ def test_a_drifting_offset_beside_outliers_is_not_also_a_field_drift():
     assert "field_drift" not in result["verdict"] and "offset_drift" in result["verdict"], result["verdict"]
 
 
-@pytest.mark.parametrize("index", [67, 271])
+@pytest.mark.parametrize("index", [67])
 def test_negative_control_a_field_drift_on_a_car_circuit_is_still_named(index):
+    """Case 271, a control here before round 15, is no longer named: the model's own fit of base + field drift leaves
+    2.0 nT where the tangent model, in which its held-out tests were made, gives 0.51 nT (the floor 0.49 nT), and the
+    naming does not trust tests made in a linearisation that does not hold (``Diagnosis._tangent_trust``)."""
     result, case = independent_cases.run_case(index, generator=3)
     assert case.present == ("field_drift",)
     assert result["verdict"] == "field_drift", result["naming"]["evidence"]

@@ -90,8 +90,11 @@ def test_a_switch_inside_one_hold_is_not_a_drift():
     result, case = run_case(424)
     assert case.outside == ("gain_switch",) and not case.present and case.schedule == "platform_survey"
     row = evidence_row(result, "field_drift")
-    assert row["within_holds_z"] > 3 and row["largest_hold_share"] > ONE_HOLD_SHARE_MAX
-    assert not row["named"] and "step" in row and result["verdict"] == "unexplained"
+    assert not row["named"] and result["verdict"] == "unexplained"
+    if "tangent_step_ratio" in row:  # since round 15 refused first: the model's own fit of base + field drift is far
+        assert row["tangent_step_ratio"] > 1.5  # from the tangent model's, in which its held-out tests were made
+        return
+    assert row["within_holds_z"] > 3 and row["largest_hold_share"] > ONE_HOLD_SHARE_MAX and "step" in row
 
 
 @pytest.mark.parametrize("index", [50, 51])  # field drift alone on a gimbal's holds; beside a nonlinearity on a survey

@@ -356,7 +356,7 @@ class Tangent:
             jac = self._j[i] if self._store else self.model.residual_jacobian(self.x, idx)[1]
             yield f, idx, self.r[idx], jac
 
-    def _shift(self, free: list[int]) -> np.ndarray:
+    def shift(self, free: list[int]) -> np.ndarray:
         """c: the left-out parameters moved from x* to their neutral values (zeros on the free ones)."""
         c = self.model.default - self.x
         c[free] = 0.0
@@ -366,7 +366,7 @@ class Tangent:
         """(free indices, c, delta per fold (k, |free|)) of the sub-model base + ``names`` fitted on the
         other folds (the spikes left out of the fit when ``robust``)."""
         free = self.model.free_indices(names)
-        c = self._shift(free)
+        c = self.shift(free)
         tot = self.gram.sum(axis=0) - (self.gram_spk.sum(axis=0) if robust else 0.0)
         deltas = np.zeros((self.k, len(free)))
         p = self.model.p
@@ -395,7 +395,7 @@ class Tangent:
     def fit_on(self, names: list[str], robust: bool, fold_ids) -> np.ndarray:
         """Parameters of base + ``names`` fitted on the folds ``fold_ids`` (one tangent step from x*)."""
         free = self.model.free_indices(names)
-        c = self._shift(free)
+        c = self.shift(free)
         ids = list(fold_ids)
         g = self.gram[ids].sum(axis=0) - (self.gram_spk[ids].sum(axis=0) if robust else 0.0) + self.prior
         p = self.model.p
@@ -414,7 +414,7 @@ class Tangent:
         """Sum of squares on every sample (the spikes left out when ``robust``) of the model whose free
         parameters are ``free`` (any subset of the parameters, the others at their neutral values), fitted
         on every sample (one tangent step, from the Gram matrices)."""
-        c = self._shift(free)
+        c = self.shift(free)
         g = self.gram.sum(axis=0) - (self.gram_spk.sum(axis=0) if robust else 0.0)
         p = self.model.p
         jj, jr, rr = g[:p, :p], g[:p, p], g[p, p]
