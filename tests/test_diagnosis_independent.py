@@ -15,10 +15,11 @@ from independent_scoring import parse, score  # noqa: E402
 CASES = 240
 
 
-@pytest.fixture(scope="module", params=[1, 2, 3], ids=["generator1", "generator2", "generator3"])
+@pytest.fixture(scope="module", params=[1, 2, 3, 4], ids=["generator1", "generator2", "generator3", "generator4"])
 def verdicts(request):
-    """The first 240 records of each independent generator (tests/independent_forward.py, and the second and
-    third ones, tests/independent_forward2.py and tests/independent_forward3.py, written later by other hands)."""
+    """The first 240 records of each independent generator (tests/independent_forward.py, and the second, third
+    and fourth ones, tests/independent_forward2.py, tests/independent_forward3.py and tests/independent_forward4.py,
+    written later by other hands)."""
     return run(range(CASES), jobs=2, generator=request.param)
 
 
