@@ -326,8 +326,8 @@ refused so only once in a thousand records."""
 SPIKE_PERIOD_DRAWS = 4000
 SPIKE_PERIOD_MIN_DRAWS = 200
 SPIKE_PERIOD_CELLS = 4_000_000
-"""Draws times events at most (memory); with fewer than 1/SPIKE_PERIOD_ALPHA draws, a record none of whose draws is
-as regular takes its p-value from the draws' normal approximation."""
+"""Draws times events at most (memory: a few hundred draws on long records).  A record none of whose draws is as regular
+takes its p-value from the draws' normal approximation (the draws' own resolution is 1/(draws + 1))."""
 SPIKE_PERIOD_DENSITY = 4
 """Events drawn with replacement among the sample times: the test is made only when the samples outnumber the events
 at least this many times (rows drawn twice are then rare)."""
