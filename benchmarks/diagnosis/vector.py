@@ -226,6 +226,8 @@ class Diagnosis:
         if n < need:
             raise InputError(f"{n} points are too few to diagnose with the {base} model (need at least {need})")
         self.progress = Progress(n >= self.PROGRESS_ROWS if progress is None else progress, 6)
+        self._step_cache: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, float]] = {}  # ``_stepped``, per tangent
+        self._step_cache_tangent: object = None
 
     def base_residual(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The base calibration: its nine-vector, the scalar residual and the corrected field directions.
@@ -991,29 +993,29 @@ class Diagnosis:
         Levenberg-Marquardt on the readings (``ExtendedModel.fit``, the same free parameters) from the step or from x*
         with the other effects left out, whichever fits better, and the ratio is that fit's: the model's own fit either
         reaches what the tangent model promised or it does not."""
-        if self.__dict__.get("_step_cache_tangent") is not self.tangent:  # a later selection pass makes a new tangent
-            self._step_cache_tangent = self.tangent
-            self._step_cache: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, float]] = {}
-        cache = self._step_cache
+        if self._step_cache_tangent is not self.tangent:  # a later selection pass makes a new tangent
+            self._step_cache_tangent, self._step_cache = self.tangent, {}
         key = tuple(names)
-        if key in cache:
-            return cache[key]
+        if key in self._step_cache:
+            return self._step_cache[key]
         robust = "outliers" in names
         x = self.tangent.full_fit(names, robust)
         keep = ~self.tangent.spikes if robust else np.ones(len(self.columns), bool)
         linear = self.tangent.linear_residuals(x)
         r = self.model.residuals(x)
-        lin = rms(linear[keep])
-        ratio = rms(r[keep]) / lin if lin > 0 else 1.0
+        lin, step = rms(linear[keep]), rms(r[keep])
+        ratio = step / lin if lin > 0 else 1.0
         if ratio > TANGENT_STEP_TRUST:  # from the step or from x* itself (its effects left out), whichever fits better
             free = self.model.free_indices(names)
             start = self.tangent.x + self.tangent.shift(free)
-            if rms(self.model.residuals(start)[keep]) < rms(r[keep]):
+            if rms(self.model.residuals(start)[keep]) < step:
                 x = start
             polished = self.model.residuals(self.model.fit(x, free, keep=keep))
-            ratio = min(ratio, rms(polished[keep]) / lin)
-            r = polished if rms(polished[keep]) < rms(r[keep]) else r
-        cache[key] = (r, linear, ratio)
+            own = rms(polished[keep])
+            ratio = min(ratio, own / lin)
+            if own < step:
+                r = polished
+        self._step_cache[key] = (r, linear, ratio)
         return r, linear, ratio
 
     def step_ratio(self, names: list[str]) -> float:
