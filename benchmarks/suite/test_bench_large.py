@@ -30,22 +30,21 @@ sys.stderr.write(p.stderr[-2000:])
 """
 
 
-def _write(path, n, seed=0):
+def _write(write_csv, path, n, seed=0):
     rng = np.random.default_rng(seed)
     field = ConstantField.from_angles(50000.0, 55.0, 3.0)
     att = attitude.tumble(n, rng, duration_s=n * SAMPLE_INTERVAL_S)  # smooth: neighbours in time are close
     raw = SensorModel(ERRORS, noise_nT=2.0).measure(att.body_field(np.asarray(field.vector_nT)), rng)
     t = att.t_s
     temp = 20.0 + 5.0 * np.sin(2 * np.pi * t / t[-1])
-    np.savetxt(path, np.column_stack([t, raw, np.full(n, 50000.0), temp]), delimiter=",",
-               header="t,bx,by,bz,f_ref,temp", comments="", fmt="%.3f")
+    write_csv(path, np.column_stack([t, raw, np.full(n, 50000.0), temp]), "t,bx,by,bz,f_ref,temp")
     return path
 
 
 @pytest.fixture(scope="module")
-def files(tmp_path_factory):
+def files(tmp_path_factory, write_csv):
     d = tmp_path_factory.mktemp("large")
-    return {n: _write(d / f"rows{n}.csv", n) for n in (200_000, 1_000_000, 2_000_000)}
+    return {n: _write(write_csv, d / f"rows{n}.csv", n) for n in (200_000, 1_000_000, 2_000_000)}
 
 
 def _run(benchmark, args):

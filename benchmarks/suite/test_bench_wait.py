@@ -138,7 +138,7 @@ def test_wait_fit_300_points_against_its_solver(benchmark, sphere9):
 
 
 @pytest.fixture(scope="module")
-def two_million(tmp_path_factory):
+def two_million(tmp_path_factory, write_csv):
     from magbench.simulate import attitude
     from magbench.simulate.field import ConstantField
     from magbench.simulate.sensor import ErrorParams, SensorModel
@@ -150,8 +150,7 @@ def two_million(tmp_path_factory):
     raw = SensorModel(errors, noise_nT=2.0).measure(att.body_field(np.asarray(ConstantField.from_angles(
         50000.0, 55.0, 3.0).vector_nT)), rng)
     path = tmp_path_factory.mktemp("wait") / "rows2e6.csv"
-    np.savetxt(path, np.column_stack([att.t_s, raw, np.full(n, 50000.0)]), delimiter=",",
-               header="t,bx,by,bz,f_ref", comments="", fmt="%.3f")
+    write_csv(path, np.column_stack([att.t_s, raw, np.full(n, 50000.0)]), "t,bx,by,bz,f_ref")
     return path
 
 
