@@ -30,7 +30,8 @@ DRIFT_DIRECTION_ALPHA):
   variation gives where the reference varies (TURN_FACTOR times its RMS: a field that changes also turns, and
   a scalar reference follows its magnitude only): ``offset_drift|field_drift`` (the offsets drift, or the field
   turns beyond its followed variation), with ``temperature`` among the alternatives when the logged temperature
-  follows time (a temperature coefficient of any smooth shape is such a drift to these data), or when the logged
+  follows time and, through its best first-order lag, takes at least THERMAL_SHARE_OF_TREND of what the trend takes
+  (a temperature coefficient is a drift of the temperature's own smooth shape, not any drift), or when the logged
   temperature through a first-order lag fits the trend across as well as the smooth trend does (the same F test
   as for a radial trend, below: a temperature effect whose temperature wanders on its own, too weakly beyond
   time to be named on its own signature, still fits the drift it makes); ``confounded``
@@ -100,7 +101,10 @@ THERMAL_LAG_OF_SPAN = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0)
 temperature fits a drift (radial or across) as well as the smooth trend does."""
 THERMAL_SHARE_OF_TREND = 0.5
 """The logged temperature is an alternative for a fixed sensor's drift only when, through its best first-order lag,
-it takes at least this share of what the drift's trend (``_trend_fit``) takes from the readings' scatter."""
+it takes at least this share of what the drift's trend (``_trend_fit``) takes from the readings' scatter; also when
+it follows time (``TEMPERATURE_FOLLOWS_TIME_R2``), since a smooth temperature takes only a drift of its own shape (the
+development fixed records of the four independent generators: true temperatures take 0.80-1.0 of the trend, the
+field and offset drifts beside a temperature that follows time 0.004-0.42)."""
 MIN_DISTINCT = 10
 """A fixed record needs at least this many readings that differ from the one before them (the floor's least
 number of distinct samples); fewer is a stuck sensor or logger, refused."""
@@ -427,7 +431,10 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
     fits = (p_beats is not None and p_beats >= DRIFT_DIRECTION_ALPHA
             and out["temperature_share_of_trend"] >= THERMAL_SHARE_OF_TREND)
     if across_drift:
-        follows_time = follows is not None and follows >= TEMPERATURE_FOLLOWS_TIME_R2
+        # a temperature that follows time is an alternative only for the part of the drift it can take: a drift whose
+        # shape the temperature does not have (a pulsation beside a warming) is not a temperature coefficient's
+        follows_time = (follows is not None and follows >= TEMPERATURE_FOLLOWS_TIME_R2
+                        and out.get("temperature_share_of_trend", 0.0) >= THERMAL_SHARE_OF_TREND)
         thermal = follows_time or fits
         out["named"] = "offset_drift|temperature|field_drift" if thermal else "offset_drift|field_drift"
         out["why"] = ((f"the readings' magnitude drifts beyond the reference's (RMS {radial:.3g} nT along their "
