@@ -6,8 +6,8 @@ temperature's own shape.  Written from the physics (a pier-mounted sensor beside
 model value), and checked on the independent generators' development records."""
 import numpy as np
 import pytest
-
 from independent_cases import run_case
+
 from magbench.benchmarks.diagnosis import diagnose
 from magbench.benchmarks.diagnosis.timeonly import TEMPERATURE_FOLLOWS_TIME_R2, THERMAL_SHARE_OF_TREND
 from magbench.simulate.dataset import Dataset
@@ -26,10 +26,7 @@ def pier(kind: str, seed: int = 0, n: int = 1500, hours: float = 3.0) -> Dataset
     temp = 18.0 + 4.0 * (1.0 - np.exp(-3.0 * u)) + rng.normal(0, 0.01, n)
     direction = rng.normal(0, 1, 3)
     direction /= np.linalg.norm(direction)
-    if kind == "field":
-        change = 25.0 * np.sin(2 * np.pi * 3.0 * u + rng.uniform(0, 6))
-    else:
-        change = 5.0 * (temp - temp.mean())
+    change = 25.0 * np.sin(2 * np.pi * 3.0 * u + rng.uniform(0, 6)) if kind == "field" else 5.0 * (temp - temp.mean())
     raw = B + change[:, None] * direction + rng.normal(0, 1.0, (n, 3))
     return Dataset(raw, f_ref_nT=np.full(n, F), t_s=t, temp_C=temp)
 
