@@ -50,7 +50,7 @@ def _box_map():
 
 
 def into_box(y: np.ndarray) -> np.ndarray:
-    """pycma's ``BoxConstraintsLinQuadTransformation([0, 1])`` applied to every row of ``y`` (m, p): the same
+    """pycma's ``BoxConstraintsLinQuadTransformation([[0, 1]])`` applied to every row of ``y`` (m, p): the same
     element-wise steps in the same order (a shift by whole periods into [lb - 2 al - r/2, ub + 2 au + r/2),
     reflections at ub + au and lb - al, then the quadratic pieces within al of each bound), so the same
     numbers to the last bit (tests/test_cmaes_box.py) at one vector operation per step for the population."""
