@@ -82,6 +82,7 @@ class CMAES(Calibrator):
     summary = "CMA-ES (pycma), the reference black-box evolution strategy; one objective call per generation"
     stochastic = True
     check_tolerance = {"angle_rad": 2e-4, "scale": 2e-4, "offset_nT": 5.0}
+    imports = ("cma",)
 
     _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "population": [Interval(Integral, 0, None)],
                               "sigma0": [Interval(Real, 0, 1, "right")], "max_evaluations": AT_LEAST_ONE,

@@ -27,6 +27,7 @@ class DifferentialEvolution(Calibrator):
     summary = "differential evolution (SciPy, vectorized: one objective call per generation)"
     stochastic = True
     check_tolerance = {"angle_rad": 2e-4, "scale": 2e-4, "offset_nT": 5.0}
+    imports = ("scipy.optimize",)
 
     _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "popsize": AT_LEAST_ONE,
                               "generations": AT_LEAST_ONE, "recombination": PROBABILITY, "tol": NON_NEGATIVE}
