@@ -323,8 +323,8 @@ def _calibration_lines(result, n_points: int) -> list[str]:
     lines.append(f"  total-field RMS {result.rms_before_nT:.3f} -> {result.rms_after_nT:.3f} nT; "
                  f"{_evaluations_text(result)}, "
                  f"{result.runtime_s * 1e3:.1f} ms"
-                 + (f" (and {result.extra['import_s']:.2f} s importing its solver's modules, once per process)"
-                    if result.extra.get("import_s") else "")
+                 + (f" (and {result.extra['one_time_s']:.2f} s of one-time setup: its solver's imports, compiles "
+                    "or cache loads, once per process)" if result.extra.get("one_time_s") else "")
                  + f", seed {result.seed}")
     return lines + [f"  warning: {w}" for w in result.warnings]
 

@@ -348,6 +348,17 @@ def announce_compiles(methods) -> bool:
     return True
 
 
+def load_if_chosen(loops, kernel, generations: int, population: int) -> bool:
+    """Before a timed run of ``generations`` x ``population``: when ``choose`` picks numba for it and the compiled
+    ``loops`` are not loaded yet, load (or compile) them now through ``kernel`` (``generation_kernel`` or
+    ``real_generation_kernel``), so that the run's clock does not pay for it.  Returns whether that happened.
+    ``choose`` changes nothing, so the run's own choice is the same."""
+    if _LOADED.get(loops.__name__) or choose(loops, generations, population) != "numba":
+        return False
+    kernel()
+    return True
+
+
 @functools.cache
 def generation_kernel():
     """The AGA's kernel: ``_generation_loops`` compiled, or ``generation_numpy`` (``_compiled``)."""

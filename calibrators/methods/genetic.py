@@ -98,6 +98,12 @@ class AdaptiveGA(Calibrator):
             return f"elitism ({params['elitism']}) must be at most population ({params['population']})"
         return None
 
+    def one_time_setup(self) -> bool:
+        """The framework's imports, and the compiled kernel this run will use (``_solve``'s choice) loaded now."""
+        loaded = _gakernel.load_if_chosen(_gakernel._generation_loops, _gakernel.generation_kernel, int(self.k_max),
+                                          int(self.population))
+        return super().one_time_setup() or loaded
+
     def _solve(self, problem: Problem):
         rng, m, nb = problem.rng, self.population, int(self.bits)
         lo = np.array(problem.lower, dtype=float)  # writable and contiguous: one kernel signature
@@ -255,6 +261,14 @@ class RealGA(Calibrator):
 
     def termination_settings(self) -> dict:
         return {"max_iterations": int(self.generations)}
+
+    def one_time_setup(self) -> bool:
+        """The framework's imports, and the compiled kernel this run will use (``_kernel_loop``'s choice) loaded
+        now, where the kernel breeds its generations."""
+        loaded = _kernel_operators(self) is not None and _gakernel.load_if_chosen(
+            _gakernel._real_generation_loops, _gakernel.real_generation_kernel, int(self.generations),
+            int(self.population))
+        return super().one_time_setup() or loaded
 
     def _solve(self, problem: Problem):
         return (yield from real_ga(problem, self))
