@@ -185,9 +185,16 @@ def wait_lines(bench: dict) -> list[str]:
                          "rounds)", text, f"worst {worst:.2f}", "<= 1.5", worst <= 1.5))
     t, info = get("test_wait_fit_300_points_against_its_solver")
     if t:
-        rows.append(("lean acceptance: lsq's whole fit at 300 points against its solver alone",
+        rows.append(("lean acceptance: lsq's whole fit at 300 points against its solver alone, fits repeated on one "
+                     "record",
                      f"{t * 1e3:.2f} ms against {info['peer_median_s'] * 1e3:.2f} ms",
                      f"{1 / info['ratio']:.2f}x the solver", "<= 2x", 1 / info["ratio"] <= 2))
+        first = info.get("first_fit")
+        if first:  # what a user who fits a record once waits for: the per-record checks are not cached yet
+            rows.append(("lean acceptance: the same, a record's first fit (its per-record checks computed, not "
+                         "taken from the cache that repeated fits of one record use)",
+                         f"{first['median_s'] * 1e3:.2f} ms against {first['solver_median_s'] * 1e3:.2f} ms",
+                         f"{first['whole_over_solver']:.2f}x the solver", "<= 2x", first["whole_over_solver"] <= 2))
     t, info = get("test_wait_calibrate_two_million_rows_against_the_floor")
     if t:
         r, mem = 1 / info["ratio"], info["peak_mib"] / info["floor_peak_mib"]
