@@ -85,13 +85,28 @@ def first_order_lag(t_s: np.ndarray, x: np.ndarray, tau_s: float) -> np.ndarray:
         a = 1.0 - np.exp(-dt.mean() / tau_s)
         out[:], _ = lfilter([a], [1.0, -(1.0 - a)], xs, zi=[(1.0 - a) * xs[0]])
     else:
-        a = 1.0 - np.exp(-dt / tau_s)
-        out[0] = xs[0]
-        for i in range(1, len(xs)):
-            out[i] = out[i - 1] + a[i - 1] * (xs[i] - out[i - 1])
+        out[:] = _lag_recurrence(1.0 - np.exp(-dt / tau_s), xs)
     res = np.empty_like(out)
     res[order] = out
     return res
+
+
+def _lag_recurrence(a: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """``out[0] = xs[0]``, ``out[i] = out[i-1] + a[i-1] (xs[i] - out[i-1])`` (the first-order lag on irregular
+    times; each column of a 2-D ``xs`` alone).  A recurrence, so a loop, over Python floats: the same IEEE
+    operations in the same order as on numpy scalars, several times faster."""
+    if xs.ndim > 1:
+        return np.stack([_lag_recurrence(a, xs[:, j]) for j in range(xs.shape[1])], axis=1) if xs.shape[1] else xs.copy()
+    if not len(xs):
+        return xs.copy()
+    steps, values = a.tolist(), xs.tolist()
+    prev = values[0]
+    out = [prev]
+    append = out.append
+    for ai, xi in zip(steps, values[1:]):
+        prev = prev + ai * (xi - prev)
+        append(prev)
+    return np.array(out, dtype=float)
 
 
 LEAD_SMOOTHING_OF_TAU = 0.25

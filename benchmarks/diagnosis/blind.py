@@ -37,11 +37,23 @@ def _attitudes(rng, n, t, coverage):
         rate[:, :2] *= 0.15
     elif coverage == "hemisphere":
         rate[:, 2] *= 0.4
-    rots = [Rotation.identity()]
-    dt = np.diff(t)
-    for i in range(1, n):
-        rots.append(Rotation.from_rotvec(rate[i] * dt[i - 1]) * rots[-1])
-    return Rotation.concatenate(rots)
+    # attitude i is step i (the rotation vector rate_i dt) after attitude i - 1: q_i = s_i s_(i-1) ... s_1, the
+    # running products of the steps' quaternions by a doubling scan (log2 n whole-array products)
+    q = np.empty((n, 4))
+    q[0] = (0.0, 0.0, 0.0, 1.0)
+    q[1:] = Rotation.from_rotvec(rate[1:] * np.diff(t)[:, None]).as_quat()
+    shift = 1
+    while shift < n:
+        q[shift:] = _quaternion_product(q[shift:], q[:-shift])
+        shift *= 2
+    return Rotation.from_quat(q)
+
+
+def _quaternion_product(p, q):
+    """Row by row p q (scalar last, as scipy's Rotation): the rotation q followed by p."""
+    pv, pw, qv, qw = p[:, :3], p[:, 3:], q[:, :3], q[:, 3:]
+    return np.concatenate([pw * qv + qw * pv + np.cross(pv, qv), pw * qw - np.sum(pv * qv, axis=1, keepdims=True)],
+                          axis=1)
 
 
 def _temperature(rng, t):
@@ -60,12 +72,13 @@ def _temperature(rng, t):
 
 
 def _lagged(t, x, tau):
-    out = np.empty_like(x)
-    out[0] = x[0]
-    a = 1 - np.exp(-np.diff(t) / tau)
-    for i in range(1, len(x)):
-        out[i] = out[i - 1] + a[i - 1] * (x[i] - out[i - 1])
-    return out
+    """x (1-D) through a first-order lag of time constant tau: a recurrence, looped over Python floats."""
+    a = (1 - np.exp(-np.diff(t) / tau)).tolist()
+    values = np.asarray(x, dtype=float).tolist()
+    out = values[:1]
+    for ai, xi in zip(a, values[1:]):
+        out.append(out[-1] + ai * (xi - out[-1]))
+    return np.array(out)
 
 
 def _effect(kind, rng, t, temp, b_sensor, lin, f):
