@@ -203,6 +203,8 @@ class ScalarObjective:
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Residuals at one point, computed directly as |M (raw - o)| - F (the reference form), block by block."""
+        if self._raw.shape[0] <= CHUNK_ROWS:
+            return self._residuals_one_block(x)
         mat, o = correction_matrix_one(x, self.model)
         out = np.empty(self._raw.shape[0])
         for rows in self._blocks():
@@ -210,6 +212,40 @@ class ScalarObjective:
             out[rows] = np.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])
         out -= self._f_ref
         return out
+
+    def _residuals_one_block(self, x: np.ndarray) -> np.ndarray:
+        """``residuals`` of a record of at most CHUNK_ROWS rows (what NLopt, RANSAC and every single point ask for,
+        tens of thousands of times a search): the same operations on the same values in the same order (M's
+        entries as ``correction_matrix_one`` forms them, the products of ``_lower_times``), so the same numbers to
+        the last bit, without building M as an array or the block's bookkeeping."""
+        x = np.asarray(x, dtype=float)
+        if self.model in ("offset", "diag"):
+            x = embed(x[None, :], self.model)[0]
+        c = np.cos(x[:3]).tolist()
+        s = np.sin(x[:3]).tolist()
+        raw = self._raw_t
+        if self.base == "nine":
+            ik0, ik1, ik2 = (1.0 / x[3:6]).tolist()
+            o0, o1, o2 = x[6:9].tolist()
+            d0, d1, d2 = raw[0] - o0, raw[1] - o1, raw[2] - o2
+        else:
+            ik0 = ik1 = ik2 = 1.0
+            d0, d1, d2 = raw[0] - 0.0, raw[1] - 0.0, raw[2] - 0.0
+        cg = c[2]
+        c0 = d0 * (c[0] * cg * ik0)
+        c1 = (s[2] * ik0) * d0
+        c1 += (c[1] * ik1) * d1
+        c2 = (s[0] * cg * ik0) * d0
+        c2 += (s[1] * ik1) * d1
+        c2 += ik2 * d2
+        c0 *= c0
+        c1 *= c1
+        c2 *= c2
+        c0 += c1
+        c0 += c2
+        np.sqrt(c0, out=c0)
+        c0 -= self._f_ref
+        return c0
 
     def _block(self, x: np.ndarray, rows: slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Residuals r, the transposed Jacobian J^T (p, m) and the noise weights |M^T u|² of a block of rows.
