@@ -606,10 +606,11 @@ def scalar_series_signature(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray, k:
 
 
 def attitude_confounds(evidence: list[dict], slow_attitude_r2: float | None) -> list[dict]:
-    """The time effects that passed every test but cannot be told from attitude structure (slow rotation)."""
+    """The time effects that passed every test but cannot be told from attitude structure (slow rotation): on their
+    first look, or on a field drift's second look (its families then those of the second look)."""
     return [{"alternatives": [row["name"], "attitude-dependent structure"], "named": False,
              "evidence": {"time_predicts_attitude_r2": slow_attitude_r2,
-                          "families": row["families"],
+                          "families": row["second_look"]["families"] if "second_look" in row else row["families"],
                           "statement": row["why"]},
              "separate_by": "turn the sensor through many attitudes several times during the record (fast, repeated "
                             "rotation), so that the same attitude is visited at different times"}

@@ -608,6 +608,8 @@ class Diagnosis:
         row["second_look"] = look
         if not second.get("named"):
             row["why"] += f"; on the second look (slope-penalized time bases) too: {second['why']}"
+            if second.get("confounded_with_attitude"):  # it passed every family there, but the rotation was too slow
+                row["confounded_with_attitude"] = True  # to tell it from attitude structure: said in ``confounded``
             return named
         sig = self._series_signature(named)
         look["signature"] = sig
