@@ -526,11 +526,17 @@ class Calibrator(metaclass=_Sealed):
 
 
 def input_problems(dataset: Dataset) -> str | None:
-    """Why no calibrator can use these readings and reference (non-finite readings, no reference, a reference
-    not finite and positive), or None."""
+    """Why no calibrator can use these readings and reference (non-finite readings, readings of exactly 0 on every
+    axis, no reference, a reference not finite and positive), or None."""
     if not np.all(np.isfinite(dataset.raw_nT)):
         rows = np.flatnonzero(~np.all(np.isfinite(dataset.raw_nT), axis=1))
         return f"raw readings have NaN or infinite values in row(s) {', '.join(map(str, rows[:5]))}"
+    zero = ~np.any(dataset.raw_nT, axis=1)
+    if zero.any():  # no direction, and a Jacobian of 0/0: a dropout, or a missing value the logger wrote as 0
+        rows = np.flatnonzero(zero)
+        return (f"raw readings are exactly 0 on all three axes in {len(rows)} row(s) ({', '.join(map(str, rows[:5]))}"
+                f"{', ...' if len(rows) > 5 else ''}): a dropout or a missing value written as 0, not a reading of a "
+                "field; remove those rows")
     if not dataset.has_reference:
         return NO_REFERENCE
     if not np.all(np.isfinite(dataset.f_ref_nT)) or np.any(dataset.f_ref_nT <= 0):

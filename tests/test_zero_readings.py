@@ -1,0 +1,50 @@
+"""Readings of exactly 0 on all three axes (a dropout, or a missing value a logger wrote as 0) have no direction, and
+the Jacobian of |M (raw - o)| at them is 0/0: they crashed calibrate and diagnose with "internal error: LinAlgError:
+Eigenvalues did not converge" (exit 1).  They are refused with the rows named, exit 2, the input untouched."""
+import subprocess
+import sys
+
+import pytest
+
+from magbench.benchmarks.diagnosis import diagnose
+from magbench.calibrators import make
+from magbench.errors import InputError
+from magbench.simulate import simulate
+from magbench.simulate.dataset import Dataset
+
+
+def _with_zero_rows(rows=(7, 57, 107)):
+    d = simulate("sphere9", 0)
+    raw = d.raw_nT.copy()
+    raw[list(rows)] = 0.0
+    return d, raw
+
+
+@pytest.mark.parametrize("method", ["lsq", "nlopt", "ellipsoid"])
+def test_calibrators_refuse_zero_readings_naming_the_rows(method):
+    d, raw = _with_zero_rows()
+    with pytest.raises(InputError, match=r"exactly 0 on all three axes in 3 row\(s\) \(7, 57, 107\)"):
+        make(method).fit(Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s))
+    # the negative control: a reading of 0 on two axes is a reading (along the third axis)
+    raw[[7, 57, 107]] = [0.0, 0.0, 5e4]
+    assert make(method).fit(Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s)).x is not None
+
+
+def test_diagnose_refuses_zero_readings():
+    d, raw = _with_zero_rows((3,))
+    with pytest.raises(InputError, match=r"exactly 0 on all three axes in 1 row\(s\) \(3\)"):
+        diagnose(Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s))
+
+
+@pytest.mark.parametrize("command", [["calibrate", "--method", "nlopt"], ["diagnose"]])
+def test_the_commands_say_it_in_one_line_with_exit_2(command, tmp_path):
+    d, raw = _with_zero_rows(range(7, 300, 50))
+    path = tmp_path / "zeros.csv"
+    Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s).to_csv(path)
+    before = path.read_bytes()
+    p = subprocess.run([sys.executable, "-m", "magbench", command[0], str(path), *command[1:]], capture_output=True,
+                       text=True)
+    assert p.returncode == 2, p.stderr
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and "6 row(s) (7, 57, 107, 157, 207, ...)" in lines[0] and "Traceback" not in p.stderr
+    assert path.read_bytes() == before  # the input is not changed
