@@ -44,6 +44,8 @@ def _table(result: dict, source: str) -> list[str]:
         lines.append(f"  remainder after the selected effects: {result['remainder_nT']:.3f} nT "
                      f"(z {result['remainder_z']:.1f}, {'significant' if result['remainder_significant'] else 'not significant'}"
                      f"{_measure_note(result)})")
+    if result.get("floor_implausible"):
+        lines.append(f"  the noise floor is implausible: {result['floor_implausible']}")
     if result.get("base_fit", "lsq") != "lsq":
         why = (" (spikes pulled the least-squares fit)" if str(result["base_fit"]).startswith("ransac") else
                f" (the calibrators refuse these attitudes: {result['attitude_coverage']})" if "attitude_coverage" in result

@@ -159,6 +159,12 @@ SHRINK_FLAG = ("above 100 %: the held-out RMS with the effect is below the noise
 
 PRIOR_MIN_SCALE_NT = 0.1
 """The weak prior's pseudo-rows are scaled by the noise floor (nT), at least this."""
+FLOOR_MAX_OF_FIELD = 0.05
+"""A noise floor above this share of the field is no magnetometer's noise (a consumer MEMS magnetometer's is about 1 %
+of the Earth's field, a fluxgate's 1e-6): what it holds is structure the floor's neighbours cannot see (at random
+attitudes, a dead axis, or a lag of seconds on a tumbling sensor), so the remainder is significant whatever the tests
+against it say, and the verdict is never ``none`` (a dead axis on a tumbling sensor came back ``none`` with 15,700 nT
+of residual against a 12,000 nT 'floor')."""
 DEGENERATE_PRIOR_STEP = 4.0
 DEGENERATE_PRIOR_MAX = 1e6
 """On attitudes that cannot determine the base model alone (``Diagnosis.degenerate``) the base fit takes the weakest prior
@@ -359,6 +365,15 @@ class Diagnosis:
         untrusted = self._tangent_untrusted(r_all, rms_base, floor, floor_se, n) if not selected else None
         if untrusted is not None:  # the held-out tests do not describe this fit: what it leaves is not 'none'
             rem["remainder_significant"] = True
+        field = float(np.median(d.f_ref_nT))
+        if floor > FLOOR_MAX_OF_FIELD * field:  # no magnetometer's noise: the floor holds structure
+            rem["remainder_significant"] = True
+            rem["floor_implausible"] = (
+                f"the readings scatter by {floor:.3g} nT about their neighbours once the base model is fitted "
+                f"({100 * floor / field:.0f} % of the {field:.6g} nT field): no magnetometer is that noisy, so this is "
+                "structure the neighbours cannot see, not noise (at random attitudes: a dead, stuck or swapped axis, a "
+                "lag of seconds, a reference from another record), so the remainder is unexplained whatever the tests against "
+                "it say")
         mdn = min_detectable_nT(floor, n)
         powered = mdn <= POWER_MAX_OF_FLOOR * floor
         alternatives = {c["alternatives"][0]: "|".join(c["alternatives"]) for c in confounded if c.get("named", True)}
