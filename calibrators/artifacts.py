@@ -563,6 +563,19 @@ CAL_COLUMNS = ("bx_cal", "by_cal", "bz_cal", "f_cal")
 """Columns ``apply`` adds: the corrected field and its magnitude, in the unit of the input's field columns."""
 
 
+def zero_readings(raw_nT: np.ndarray) -> str | None:
+    """Why readings of exactly 0 on all three axes cannot be calibrated or corrected (a dropout, or a missing value a
+    logger wrote as 0: no direction, and no field a calibration could give back), naming the rows; None without
+    any."""
+    zero = ~np.any(raw_nT, axis=1)
+    if not zero.any():
+        return None
+    rows = np.flatnonzero(zero)
+    return (f"raw readings are exactly 0 on all three axes in {len(rows)} row(s) ({', '.join(map(str, rows[:5]))}"
+            f"{', ...' if len(rows) > 5 else ''}): a dropout or a missing value written as 0, not a reading of a "
+            "field; remove those rows")
+
+
 def mixed_units(raw_nT: np.ndarray) -> str | None:
     """Why the readings are not all in one unit (some rows a factor of 30 or more off the others), or None:
     the calibrators' own check (``acceptance.reference_problems``) against a constant reference, so that a
@@ -580,13 +593,14 @@ def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = Fa
     corrected and the lines copied come from the same bytes.  Refuses (``InputError``) an ``out`` that is
     ``src`` or one of ``inputs`` (by inode, hard links included) or exists (unless ``force``), a file that
     already has those columns, readings whose magnitude does not fit the calibration's reference
-    (wrong ``units``) and rows in mixed units (``mixed_units``).  ``out`` is written atomically."""
+    (wrong ``units``), rows in mixed units (``mixed_units``) and readings of exactly 0 on every axis
+    (``zero_readings``).  ``out`` is written atomically."""
     src, out = Path(src), Path(out)
     check_output(out, [src, *inputs], force)
     source = read_input(src, "data file")
     field = cal.field_nT if math.isfinite(cal.field_nT) and cal.field_nT > 0 else None
     data = read_csv(src, units=units, require_vector=True, expected_field_nT=field, source=source)
-    mixed = mixed_units(data.raw_nT)
+    mixed = mixed_units(data.raw_nT) or zero_readings(data.raw_nT)
     if mixed:
         raise InputError(f"{src}: {mixed}")
     head = _parse_head(source.data, str(src))

@@ -31,7 +31,7 @@ from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
 
 from .acceptance import DEFAULT_LIMITS, AcceptanceLimits, assess, reference_problems
-from .artifacts import Calibration
+from .artifacts import Calibration, zero_readings
 from .core.evaluator import Budget, BudgetExhausted, Evaluator
 from .core.loop import Stopped, Termination, drive
 from .core.objective import ScalarObjective, identity_vector
@@ -531,12 +531,9 @@ def input_problems(dataset: Dataset) -> str | None:
     if not np.all(np.isfinite(dataset.raw_nT)):
         rows = np.flatnonzero(~np.all(np.isfinite(dataset.raw_nT), axis=1))
         return f"raw readings have NaN or infinite values in row(s) {', '.join(map(str, rows[:5]))}"
-    zero = ~np.any(dataset.raw_nT, axis=1)
-    if zero.any():  # no direction, and a Jacobian of 0/0: a dropout, or a missing value the logger wrote as 0
-        rows = np.flatnonzero(zero)
-        return (f"raw readings are exactly 0 on all three axes in {len(rows)} row(s) ({', '.join(map(str, rows[:5]))}"
-                f"{', ...' if len(rows) > 5 else ''}): a dropout or a missing value written as 0, not a reading of a "
-                "field; remove those rows")
+    zero = zero_readings(dataset.raw_nT)  # no direction, and a Jacobian of 0/0
+    if zero:
+        return zero
     if not dataset.has_reference:
         return NO_REFERENCE
     if not np.all(np.isfinite(dataset.f_ref_nT)) or np.any(dataset.f_ref_nT <= 0):

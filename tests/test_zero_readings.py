@@ -48,3 +48,22 @@ def test_the_commands_say_it_in_one_line_with_exit_2(command, tmp_path):
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "6 row(s) (7, 57, 107, 157, 207, ...)" in lines[0] and "Traceback" not in p.stderr
     assert path.read_bytes() == before  # the input is not changed
+
+
+def test_apply_refuses_them_and_writes_nothing(tmp_path):
+    """``apply`` had written 'calibrated' values for the dropout rows (the offsets turned: f_cal 279 nT in a 50,000 nT
+    field); it refuses as calibrate does, and writes no output.  The control: the intact file is applied."""
+    d, raw = _with_zero_rows((4, 9))
+    cal = tmp_path / "cal.json"
+    for name, readings in (("zeros.csv", raw), ("intact.csv", d.raw_nT)):
+        Dataset(readings, f_ref_nT=d.f_ref_nT, t_s=d.t_s).to_csv(tmp_path / name)
+    subprocess.run([sys.executable, "-m", "magbench", "calibrate", str(tmp_path / "intact.csv"), "--method", "lsq",
+                    "--save", str(cal)], capture_output=True, check=True)
+    for name, code in (("zeros.csv", 2), ("intact.csv", 0)):
+        path, out = tmp_path / name, tmp_path / f"out_{name}"
+        p = subprocess.run([sys.executable, "-m", "magbench", "apply", str(cal), str(path), "--out", str(out)],
+                           capture_output=True, text=True)
+        assert p.returncode == code, p.stderr
+        assert out.exists() == (code == 0)
+        if code:
+            assert "exactly 0 on all three axes in 2 row(s) (4, 9)" in p.stderr
