@@ -225,18 +225,6 @@ HISTORY[4] = ("Written in round 14 by another hand, from the physics only (it re
                   changed="134 verdicts (score 77.6 to 78.6 %, wrong names 121 to 78; on 480-4319, held out, 100 to 63 "
                           "and 77.8 to 78.8 %): 47 wrong names gone (20 to a full score), 4 new; 38 partly right to a full "
                           "score, 9 full scores to partly right; 355 of its 360 clean records are `none` (348 before)"))
-HISTORY[1] += ROUND16.format(aff="77", changed="none of them")
-HISTORY[2] += ROUND16.format(aff="182", changed=(
-    "50 to `offset_drift|field_drift` (score 78.2 to 78.5 %, wrong names 60 to 61): 23 to a full score, 26 partly right "
-    "as before, and 1 true temperature (case 489, held out) now named wrongly; on the held-out block 3360-4319 18 wrong "
-    "names as before and 78.1 to 78.3 %"))
-HISTORY[3] += ROUND16.format(aff="103", changed=(
-    "14 to `offset_drift|field_drift`, each to a full score (score 83.8 to 84.0 %, wrong names 27 as before; on the "
-    "held-out block 3360-4319 7 as before and 84.3 to 84.5 %)"))
-HISTORY[4] += ROUND16.format(aff="168", changed=(
-    "45 to `offset_drift|field_drift` (score 78.6 to 79.1 %, wrong names 78 to 80): 43 to a full score, and 2 true "
-    "temperatures (cases 2262 and 2598, held out) now named wrongly; on 480-4319 65 wrong names (63 before) and 78.8 "
-    "to 79.3 %"))
 ROUND17 = (" Round 17 added two rules to the vector path, found with hostile records, not with these tables: a noise "
            "floor above 5 % of the field is no magnetometer's noise, so the remainder is then significant (a dead axis at "
            "random attitudes had been `none` with 15,700 nT of residual), and with no effect selected a residual beyond "
@@ -245,18 +233,38 @@ ROUND17 = (" Round 17 added two rules to the vector path, found with hostile rec
            "effects, which no record of the four generators' cases 0-479 showed. Re-running the {aff} records whose "
            "verdict was `none` or `insufficient_data` (too-short records aside) with the round's final code changed "
            "{changed}.")
-HISTORY[1] += ROUND17.format(aff="739", changed=(
-    "12 from `none` to `unexplained` (score 84.66 to 84.68 %, wrong names 32 as before): 2 outside-only records to a full "
-    "score, 10 partly right as before; on the held-out block 4320-4799 2 of them, partly right as before (83.4 % and 4 "
-    "wrong names as before)"))
-HISTORY[2] += ROUND17.format(aff="477", changed=(
-    "29 from `none` to `unexplained` (score 78.5 to 78.7 %, wrong names 61 as before): 21 outside-only records to a full "
-    "score, 8 partly right as before; on the held-out block 3360-4319 18 wrong names as before and 78.3 to 78.6 %"))
-HISTORY[3] += ROUND17.format(aff="409", changed=(
-    "3 from `none` to `unexplained`, each partly right as before (score 84.0 % and 27 wrong names as before)"))
-HISTORY[4] += ROUND17.format(aff="483", changed=(
-    "16 from `none` to `unexplained` (score 79.1 %, wrong names 80 as before): 1 outside-only record to a full score, "
-    "15 partly right as before; on 480-4319 65 wrong names as before and 79.3 %"))
+ROUNDS = ((ROUND16, {
+    1: ("77", "none of them"),
+    2: ("182", (
+        "50 to `offset_drift|field_drift` (score 78.2 to 78.5 %, wrong names 60 to 61): 23 to a full score, 26 partly right "
+        "as before, and 1 true temperature (case 489, held out) now named wrongly; on the held-out block 3360-4319 18 wrong "
+        "names as before and 78.1 to 78.3 %")),
+    3: ("103", (
+        "14 to `offset_drift|field_drift`, each to a full score (score 83.8 to 84.0 %, wrong names 27 as before; on the "
+        "held-out block 3360-4319 7 as before and 84.3 to 84.5 %)")),
+    4: ("168", (
+        "45 to `offset_drift|field_drift` (score 78.6 to 79.1 %, wrong names 78 to 80): 43 to a full score, and 2 true "
+        "temperatures (cases 2262 and 2598, held out) now named wrongly; on 480-4319 65 wrong names (63 before) and 78.8 "
+        "to 79.3 %")),
+}),
+          (ROUND17, {
+    1: ("739", (
+        "12 from `none` to `unexplained` (score 84.66 to 84.68 %, wrong names 32 as before): 2 outside-only records to a full "
+        "score, 10 partly right as before; on the held-out block 4320-4799 2 of them, partly right as before (83.4 % and 4 "
+        "wrong names as before)")),
+    2: ("477", (
+        "29 from `none` to `unexplained` (score 78.5 to 78.7 %, wrong names 61 as before): 21 outside-only records to a full "
+        "score, 8 partly right as before; on the held-out block 3360-4319 18 wrong names as before and 78.3 to 78.6 %")),
+    3: ("409", (
+        "3 from `none` to `unexplained`, each partly right as before (score 84.0 % and 27 wrong names as before)")),
+    4: ("483", (
+        "16 from `none` to `unexplained` (score 79.1 %, wrong names 80 as before): 1 outside-only record to a full score, "
+        "15 partly right as before; on 480-4319 65 wrong names as before and 79.3 %")),
+}))
+"""Each later round's paragraph per generator: (the records it re-ran, what changed)."""
+for _round, _per_generator in ROUNDS:
+    for _g, (_aff, _changed) in _per_generator.items():
+        HISTORY[_g] += _round.format(aff=_aff, changed=_changed)
 SPLITS = {1: "1440,2640,2880,3360,3840,4320", 2: "480,1440,2400,3360", 3: "480,1440,2400,3360", 4: "480"}
 LABELS = {
     1: ["developed on in rounds 1-4 (rounds 2-3's development set); round 16 developed on the fixed records of 0-479",

@@ -325,7 +325,8 @@ class Diagnosis:
         n_base = len(BASE_FREE[self.base])
         effects_ok, untested, not_applicable = testable(self.base, d, unit, n_base, k)
         self.untested = untested
-        exact = rms(r_all) <= EXACT_SHARE * float(np.median(d.f_ref_nT))
+        field = float(np.median(d.f_ref_nT))
+        exact = rms(r_all) <= EXACT_SHARE * field
         if exact:  # noise-free readings: nothing to test, and nothing an effect could hide in (``none``)
             untested.update({cls.name: EXACT_REASON for cls in effects_ok})
             effects_ok = []
@@ -372,16 +373,16 @@ class Diagnosis:
         untrusted = self._tangent_untrusted(r_all, rms_base, floor, floor_se, n) if not selected else None
         if untrusted is not None:  # the held-out tests do not describe this fit: what it leaves is not 'none'
             rem["remainder_significant"] = True
-        worst = float(np.max(np.abs(self.r_star))) if len(self.r_star) else 0.0
-        bound = floor * (float(np.sqrt(2.0 * np.log(max(n, 2)))) + EXTREME_MARGIN_SIGMA)
-        if not order and floor > 0 and worst > bound:  # nothing selected, yet a residual that is no noise: not 'none'
-            rem["remainder_significant"] = True
-            rem["remainder_extreme"] = {
-                "worst_nT": worst, "bound_nT": bound,
-                "statement": f"a residual of {worst:.3g} nT is left, beyond the {bound:.3g} nT that noise at the floor "
-                             f"reaches in {n} samples (sqrt(2 ln n) + {EXTREME_MARGIN_SIGMA:g} floors): a glitch or "
-                             "structure, not noise, too few samples for the outliers effect to be named"}
-        field = float(np.median(d.f_ref_nT))
+        if not order and floor > 0 and len(self.r_star):  # nothing selected: a residual that is no noise is not 'none'
+            worst = float(np.max(np.abs(self.r_star)))
+            bound = floor * (float(np.sqrt(2.0 * np.log(max(n, 2)))) + EXTREME_MARGIN_SIGMA)
+            if worst > bound:
+                rem["remainder_significant"] = True
+                rem["remainder_extreme"] = {
+                    "worst_nT": worst, "bound_nT": bound,
+                    "statement": f"a residual of {worst:.3g} nT is left, beyond the {bound:.3g} nT that noise at the "
+                                 f"floor reaches in {n} samples (sqrt(2 ln n) + {EXTREME_MARGIN_SIGMA:g} floors): a glitch "
+                                 "or structure, not noise, too few samples for the outliers effect to be named"}
         if floor > FLOOR_MAX_OF_FIELD * field:  # no magnetometer's noise: the floor holds structure
             rem["remainder_significant"] = True
             rem["floor_implausible"] = (
