@@ -36,9 +36,31 @@ def knn_floor(features: np.ndarray, r: np.ndarray, k: int = KNN_NEIGHBOURS) -> f
     """Robust scatter of r_i about the mean of its k nearest neighbours in feature space, scaled by
     sqrt(k / (k + 1)) (the neighbours' mean carries noise too)."""
     k = min(k, len(r) - 1)
+    return robust_sigma(_knn_errors(features, r, k)) * np.sqrt(k / (k + 1.0))
+
+
+def _knn_errors(features: np.ndarray, r: np.ndarray, k: int) -> np.ndarray:
+    """r_i minus the mean of its k nearest neighbours in feature space."""
     _, idx = cKDTree(features).query(features, k=k + 1)
-    local = r[idx[:, 1:]].mean(axis=1)
-    return robust_sigma(r - local) * np.sqrt(k / (k + 1.0))
+    return r - r[idx[:, 1:]].mean(axis=1)
+
+
+TIME_BLOCKS = 2
+"""``attitude_floor`` also takes the attitude neighbours within each of this many consecutive blocks of time."""
+
+
+def blocked_knn_floor(features: np.ndarray, r: np.ndarray, t_s: np.ndarray, blocks: int = TIME_BLOCKS,
+                      k: int = KNN_NEIGHBOURS) -> float | None:
+    """``knn_floor`` with each sample's neighbours taken within its own block of time (``blocks`` consecutive
+    blocks of equal counts): structure that is a smooth function of the attitude within each block but differs
+    between them (an axis swapped or a sensor remounted mid-record, a body field switched on) cancels here and not
+    in ``knn_floor``, whose neighbours come from either block.  None when a block has too few samples."""
+    n = len(r)
+    if n < blocks * 10 * k:
+        return None
+    order = np.argsort(t_s, kind="stable")
+    errors = [_knn_errors(features[part], r[part], k) for part in np.array_split(order, blocks)]
+    return float(robust_sigma(np.concatenate(errors)) * np.sqrt(k / (k + 1.0)))
 
 
 def unit_span(v: np.ndarray | None) -> np.ndarray | None:
@@ -405,7 +427,7 @@ apart, so the estimate stays an upper bound; the k-d tree of a million rows in s
 
 
 def attitude_floor(fl: dict, r_model: np.ndarray, unit: np.ndarray, gravity: np.ndarray | None, n_free: int,
-                   spikes: np.ndarray) -> dict:
+                   spikes: np.ndarray, t_s: np.ndarray | None = None) -> dict:
     """The floor ``fl`` again from neighbours in attitude, for records whose consecutive attitudes are unrelated
     (random attitudes), where time neighbours cancel nothing that depends on the attitude: the scatter of the
     residual ``r_model`` of the fit with every effect free (spikes left out) about the mean of its KNN_NEIGHBOURS
@@ -413,9 +435,12 @@ def attitude_floor(fl: dict, r_model: np.ndarray, unit: np.ndarray, gravity: np.
     gives it: the two fix the attitude), scaled by sqrt(n / (n - n_free)).  Structure that is a smooth function
     of the attitude (a body field that follows gravity or heading, a gradient seen through a lever arm) cancels
     between attitude neighbours; at random attitudes it does not cancel between time neighbours and the time
-    floor holds it, so that no remainder is ever seen.  It replaces the floor when lower by more than LEAK_Z
-    standard errors (both estimates are upper bounds of the noise: structure on scales below the neighbour
-    spacing stays in either); its standard error counts a third of the samples as independent, as for the
+    floor holds it, so that no remainder is ever seen.  With times, the neighbours are also taken within each of
+    TIME_BLOCKS blocks of time (``blocked_knn_floor``) and the lower scatter kept: structure that depends on the
+    attitude differently before and after a change of the sensor (axes swapped halfway: 578 nT of scatter over the
+    whole record, 183 nT within the halves, 537 nT of residual) cancels only there.  It replaces the floor when
+    lower by more than LEAK_Z standard errors (both estimates are upper bounds of the noise: structure on scales
+    below the neighbour spacing stays in either); its standard error counts a third of the samples as independent, as for the
     overlapping time differences.  Not when the residual follows the motion or the neighbouring readings
     (``model_floor``'s tests): a reading mixed with its neighbours is no function of the attitude, and its square
     would pass for a nonlinearity against a floor that no longer holds it."""
@@ -431,7 +456,14 @@ def attitude_floor(fl: dict, r_model: np.ndarray, unit: np.ndarray, gravity: np.
         norm_g = np.linalg.norm(g, axis=1, keepdims=True)
         if np.all(np.isfinite(g)) and np.all(norm_g > 0):
             feats.append(g / norm_g)
-    sigma = knn_floor(np.column_stack(feats), r_model[rows]) * float(np.sqrt(n / (n - n_free)))
+    features = np.column_stack(feats)
+    inflate = float(np.sqrt(n / (n - n_free)))
+    sigma = knn_floor(features, r_model[rows]) * inflate
+    where = ""
+    if t_s is not None:
+        blocked = blocked_knn_floor(features, r_model[rows], np.asarray(t_s, dtype=float)[rows])
+        if blocked is not None and blocked * inflate < sigma:
+            sigma, where = blocked * inflate, f" within each of {TIME_BLOCKS} blocks of time"
     se = _interval(sigma, int(INDEPENDENT_SHARE * len(rows)))[0]
     out = dict(fl)
     out["floor_attitude_nT"] = float(sigma)
@@ -439,7 +471,7 @@ def attitude_floor(fl: dict, r_model: np.ndarray, unit: np.ndarray, gravity: np.
         return out
     out.update({"noise_floor_nT": float(sigma), "floor_se_nT": float(se),
                 "floor_interval_nT": [float(max(sigma - 1.96 * se, 0.0)), float(sigma + 1.96 * se)],
-                "floor_method": f"scatter about the {KNN_NEIGHBOURS} nearest neighbours in attitude"
+                "floor_method": f"scatter about the {KNN_NEIGHBOURS} nearest neighbours in attitude{where}"
                                 f"{' (field and gravity directions)' if len(feats) > 1 else ' (field direction)'} of the "
                                 "residual of the fit with every effect free (random attitudes: the time floor, "
                                 f"{fl['noise_floor_nT']:.3g} nT, holds structure that depends on the attitude)"})

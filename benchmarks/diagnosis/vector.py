@@ -894,7 +894,7 @@ class Diagnosis:
         fl = model_floor(fl, r_model, d.t_s, d.raw_nT, n_free, spikes)
         rough = self.roughness
         if rough is not None and rough > ROUGHNESS_MAX:  # random attitudes: attitude neighbours, not time ones
-            fl = attitude_floor(fl, r_model, self.unit, self.gravity, n_free, spikes)
+            fl = attitude_floor(fl, r_model, self.unit, self.gravity, n_free, spikes, d.t_s)
         return fl
 
     @staticmethod
