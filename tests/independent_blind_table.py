@@ -233,6 +233,12 @@ ROUND17 = (" Round 17 added two rules to the vector path, found with hostile rec
            "effects, which no record of the four generators' cases 0-479 showed. Re-running the {aff} records whose "
            "verdict was `none` or `insufficient_data` (too-short records aside) with the round's final code changed "
            "{changed}.")
+ROUND18 = (" Round 18 changed one rule of the floor, found with hostile records, not with these tables: at random "
+           "attitudes the attitude neighbours are also taken within each half of the record in time, and the lower "
+           "scatter kept (x and y swapped, an axis's gain changed or its sign flipped halfway had come back `none`, or "
+           "once `field_drift`, the whole record's neighbours holding their structure as noise). It applies only where "
+           "consecutive readings are as unrelated as random attitudes (roughness above 1.25); re-running the {aff} "
+           "records whose roughness exceeds 1.0 (too-short records aside) with the round's final code changed {changed}.")
 ROUNDS = ((ROUND16, {
     1: ("77", "none of them"),
     2: ("182", (
@@ -260,6 +266,15 @@ ROUNDS = ((ROUND16, {
     4: ("483", (
         "16 from `none` to `unexplained` (score 79.1 %, wrong names 80 as before): 1 outside-only record to a full score, "
         "15 partly right as before; on 480-4319 65 wrong names as before and 79.3 %")),
+}),
+          (ROUND18, {
+    1: ("1385", (
+        "3, all lags on a random sphere, scores and wrong names as before: case 459 from `unexplained` to "
+        "`nonlinearity+unexplained` (partly right), and cases 4215 and 4366, wrongly `nonlinearity` before, now "
+        "`nonlinearity+unexplained`")),
+    2: ("511", "none of them"),
+    3: ("380", "none of them"),
+    4: ("528", "none of them"),
 }))
 """Each later round's paragraph per generator: (the records it re-ran, what changed)."""
 for _round, _per_generator in ROUNDS:
