@@ -45,3 +45,29 @@ def test_negative_controls_a_field_that_changes_is_not_a_switch(kind):
     else:  # the ambient field stepping once: every axis alike, no zero jump (the jump test refuses it)
         r = 12.0 * (t >= 700.0) + rng.normal(0.0, 1.0, N)
     assert range_switch_explains(r, u, t, _smooth_sse(r, t)) is None
+
+
+def test_a_switch_of_the_alignment_is_found_with_the_calibration_before_it_free():
+    """Axes swapped or remounted: the cross terms u_i u_j jump too.  The residual is taken at a fit of the whole
+    record, so the calibration before the switch sits between the two (half the jump below, half above)."""
+    rng = np.random.default_rng(5)
+    t, u = _attitudes(rng)
+    on = (t >= 900.0).astype(float)
+    cross = u[:, [0, 0, 1]] * u[:, [1, 2, 2]]
+    jump = cross @ np.array([30.0, -20.0, 10.0]) + (u * u) @ np.array([15.0, -10.0, 0.0]) - u @ np.array([8.0, 0.0, -6.0])
+    r = (on - 0.5) * jump + rng.normal(0.0, 1.0, N)
+    switch = range_switch_explains(r, u, t, _smooth_sse(r, t))
+    assert switch is not None and switch["time_s"] == pytest.approx(900.0, abs=0.02 * 1800.0)
+
+
+def test_negative_control_a_gain_that_follows_a_steady_warming_is_not_a_switch():
+    """A temperature coefficient on a steady warming changes the gains along a ramp: any step at its middle takes
+    75 % of it, short of STEP_SHARE of what the smooth change takes."""
+    rng = np.random.default_rng(6)
+    t, u = _attitudes(rng)
+    ramp = t / t[-1] - 0.5
+    r = ramp * ((u * u) @ np.array([40.0, -20.0, 25.0]) + u @ np.array([10.0, -5.0, 0.0])) + rng.normal(0.0, 1.0, N)
+    design = np.polynomial.legendre.legvander(2 * t / t[-1] - 1, 1)
+    temperature_like = np.column_stack([design[:, 1:] * (u * u), design[:, 1:] * u, u, u * u, np.ones(N)])
+    sse_effect = float(np.sum((r - temperature_like @ np.linalg.lstsq(temperature_like, r, rcond=None)[0]) ** 2))
+    assert range_switch_explains(r, u, t, sse_effect) is None

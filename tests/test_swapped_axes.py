@@ -1,10 +1,10 @@
 """A record whose sensor changes mid-record (its x and y columns swapped halfway: a cable plugged the other way, a
-sensor remounted; an axis's gain or sign changed halfway) is no calibrated sensor.  At random attitudes neither the time neighbours nor the nearest
-attitudes of the whole record cancel its residual: the attitude neighbours of a reading come from either half, whose
-structures differ, so their scatter (578 nT on sphere9) passed for the noise floor and the diagnosis said ``none``
-with 537 nT of residual.  Within each half the residual is a smooth function of the attitude, so the attitude
-neighbours taken within blocks of time (``floor.blocked_knn_floor``) cancel it: the floor is then far below the
-residual, which is unexplained."""
+sensor remounted; an axis's gain or sign changed halfway) is no calibrated sensor.  At random attitudes neither the
+time neighbours nor the nearest attitudes of the whole record cancel its residual: the attitude neighbours of a
+reading come from either half, whose structures differ, so their scatter (578 nT on sphere9) passed for the noise
+floor and the diagnosis said ``none`` with 537 nT of residual.  Within each half the residual is a smooth function
+of the attitude, so the attitude neighbours taken within blocks of time (``floor.blocked_knn_floor``) cancel it: the
+floor is then far below the residual, which is unexplained."""
 import numpy as np
 import pytest
 

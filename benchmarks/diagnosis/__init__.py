@@ -30,7 +30,7 @@ from magbench.simulate.dataset import Dataset, ScalarSeries, real_array
 from magbench.simulate.sensor import PARAM_NAMES
 
 from .blind import blind_dataset, blind_kinds
-from .floor import stale_copies
+from .floor import rail_rows, stale_copies
 from .report import diagnosis_figure, diagnosis_text
 from .scalar import diagnose_scalar
 from .scoring import candidate_effects
@@ -67,12 +67,53 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
         if refusal is not None and not turned(data):  # a fixed sensor: the time question still has an answer
             return time_only(data, refusal)
         data, gravity, held = without_logger_holds(data, gravity)
-        out = Diagnosis(data, base, folds, seed, gravity=gravity, progress=progress, degenerate=refusal).run()
+        data, gravity, clipped = without_rails(data, gravity)
+        try:
+            out = Diagnosis(data, base, folds, seed, gravity=gravity, progress=progress, degenerate=refusal).run()
+        except InputError as exc:
+            if clipped is None:
+                raise
+            raise InputError(f"{clipped['clipped_statement']}; the rest cannot be diagnosed: {exc}") from None
         if held is not None:
             statement = held.pop("held_statement")
             out.update(held)
             out["floor_method"] = out.get("floor_method", "") + statement
+        if clipped is not None:
+            out.update(clipped)
+            out["verdict"] = with_unexplained(out["verdict"])
         return out
+
+
+def with_unexplained(verdict: str) -> str:
+    """``verdict`` saying that structure outside the library remains: ``none`` becomes ``unexplained``, named effects
+    gain ``+unexplained``; ``unexplained``, ``insufficient_data`` and a verdict that says it already stay."""
+    if verdict == "none":
+        return "unexplained"
+    if verdict in ("unexplained", "insufficient_data") or verdict.endswith("+unexplained"):
+        return verdict
+    return verdict + "+unexplained"
+
+
+def without_rails(data: Dataset, gravity):
+    """The record without the readings clipped at a converter's rail (``floor.rail_rows``): (data, gravity, what the
+    JSON says), or (data, gravity, None) when no axis has a rail.  A clipped reading says only that the field was
+    beyond the range there: no model of the library describes it (a nonlinearity's polynomial bends, it does not
+    stop), and left in, it is structure at the attitudes nearest the axis, which the naming read as a nonlinearity.
+    The rest of the record is diagnosed, and the verdict says ``unexplained`` beside what it names, with the rails
+    in ``clipped`` (the readings stay in the file: nothing is changed)."""
+    found = rail_rows(np.asarray(data.raw_nT, dtype=float))
+    if found is None:
+        return data, gravity, None
+    mask, rails = found
+    keep = ~mask
+    columns = {name: None if getattr(data, name) is None else getattr(data, name)[keep]
+               for name in ("raw_nT", "f_ref_nT", "t_s", "temp_C", "heading_deg")}
+    where = ", ".join(f"{r['axis']} at {r['level_nT']:.6g} nT ({r['rows']} rows)" for r in rails)
+    return (replace(data, **columns, truth=None), None if gravity is None else gravity[keep], {
+        "clipped_rows_left_out": int(mask.sum()), "clipped": rails,
+        "clipped_statement": f"{int(mask.sum())} readings sit exactly at an axis's extreme value ({where}): clipped at a "
+                             "converter's rail, left out of the whole diagnosis, and unexplained (no library effect "
+                             "stops the readings at a value)"})
 
 
 def without_logger_holds(data: Dataset, gravity):

@@ -27,7 +27,8 @@ MAD_SE = 1.166  # standard error of the MAD scale: 1.166 sigma / sqrt(m) for Gau
 INDEPENDENT_SHARE = 1.0 / 3.0  # overlapping second differences: about a third of them independent
 LEAK_Z = 3.0
 
-__all__ = ["KNN_NEIGHBOURS", "MOTION_Z", "attitude_floor", "knn_floor", "model_floor", "neighbour_z", "robust_sigma",
+__all__ = ["KNN_NEIGHBOURS", "MOTION_Z", "attitude_floor", "knn_floor", "model_floor", "neighbour_z", "rail_rows",
+           "robust_sigma",
            "second_difference_floor", "unit_span", "vector_floor",
            "time_difference_floor"]
 
@@ -178,6 +179,50 @@ def stale_copies(raw_nT: np.ndarray, order: np.ndarray) -> np.ndarray | None:
     if not _repeats_of(same, whole)[1] or int((~held).sum()) < STALE_MIN_DISTINCT:
         return None
     return None if _own_rates(same, whole).max() > AXIS_REPEAT_MAX else held
+
+
+RAIL_MIN_ROWS = 3
+"""``rail_rows`` finds an axis clipped at a converter's rail when at least this many readings sit exactly at its
+largest or smallest value ..."""
+RAIL_OVER_ANY_VALUE = 3
+"""... at least this many times as many as share any other single value of that axis (on a grid coarser than the
+noise every value repeats; a rail piles the readings up at one) ..."""
+RAIL_SPREAD_OF_FIELD = 0.005
+"""... and with the other two axes spread over more than this share of the field among those rows: readings at
+many attitudes stopped at one value, not one attitude held at an extreme."""
+
+
+def rail_rows(raw_nT: np.ndarray) -> tuple[np.ndarray, list[dict]] | None:
+    """The readings clipped at a converter's rail: for each axis and side, the rows whose reading equals exactly
+    that axis's largest (smallest) value, when RAIL_MIN_ROWS or more do, RAIL_OVER_ANY_VALUE times as many as share
+    any other value of the axis, at attitudes whose other axes spread over RAIL_SPREAD_OF_FIELD of the field.  A
+    continuous reading takes its extreme value once; a converter that saturates returns it for every attitude
+    beyond its range, and those readings say only that the field there was beyond it.  Returns (a mask of the rows
+    with any axis at a rail, one dict per rail: axis, side, level_nT, rows), or None."""
+    raw = np.asarray(raw_nT, dtype=float)
+    n = raw.shape[0]
+    if n < 2 * RAIL_MIN_ROWS:
+        return None
+    field = float(np.median(np.linalg.norm(raw, axis=1))) or 1.0
+    mask = np.zeros(n, dtype=bool)
+    rails = []
+    for a in range(3):
+        col = raw[:, a]
+        values, counts = np.unique(col, return_counts=True)
+        if len(values) < 3:
+            continue
+        for side, idx in (("high", len(values) - 1), ("low", 0)):
+            k = int(counts[idx])
+            others = counts[1:-1]  # the values between the two extremes (either may be a rail)
+            if k < RAIL_MIN_ROWS or k < RAIL_OVER_ANY_VALUE * int(others.max()):
+                continue
+            rows = col == values[idx]
+            rest = np.delete(raw[rows], a, axis=1)
+            if float(np.ptp(rest, axis=0).max()) <= RAIL_SPREAD_OF_FIELD * field:
+                continue
+            mask |= rows
+            rails.append({"axis": "xyz"[a], "side": side, "level_nT": float(values[idx]), "rows": k})
+    return (mask, rails) if rails else None
 
 
 GRID_TRIM = 0.9

@@ -737,14 +737,19 @@ SWITCH_JUMP_ALPHA = 1e-6
 a jump of the magnitude alone (F test), so that an ambient field stepping once is not called a switch."""
 
 
-def range_switch_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_effect: float) -> dict | None:
-    """A sensor's range switch (each axis's gain and zero jumping once): the residual
-    ``r ~ c - u . a + s(t) (sum_i g_i u_i^2 - u . d)`` with a step s(t) at one of STEP_GRID quantiles of the times,
-    jumps g_i of the axes' gains (in nT: times a field of nearly constant magnitude, along the reading's direction u)
-    and d of a body-fixed vector (the zero).  When it removes at least STEP_SHARE of what a temperature coefficient
-    removes (``sse_effect``: the sum of squares it leaves), and its jump is significant beyond a jump of the magnitude
-    alone (SWITCH_JUMP_ALPHA: equal gain jumps and no zero jump are an ambient field stepping once), the data show
-    one switch of the sensor: returns the switch (time, jumps, the F test's p), else None.  (A field drift is not
+def range_switch_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_effect: float,
+                          temp: np.ndarray | None = None) -> dict | None:
+    """A sensor's range switch (each axis's gain and zero jumping once; or its alignment: axes swapped or remounted):
+    the residual ``r ~ c - u . a + s(t) (sum_i g_i u_i^2 + sum_i<j h_ij u_i u_j - u . d)`` with a step s(t) at one of
+    STEP_GRID quantiles of the times, jumps g_i of the axes' gains and h_ij of their alignment (in nT: times a field of
+    nearly constant magnitude, along the reading's direction u) and d of a body-fixed vector (the zero), the
+    calibration before the step (c, a and the gains and alignment) free.  When it removes at least STEP_SHARE of what
+    a temperature coefficient removes (``sse_effect``: the sum of squares it leaves), its jump is significant beyond a
+    jump of the magnitude alone (SWITCH_JUMP_ALPHA: equal gain jumps and no zero jump are an ambient field stepping
+    once), and, with the logged temperature ``temp``, the step fits better than the same jumps following that
+    temperature's own course (on a smooth tumble the step's eighteen columns fit a true temperature's change nearly
+    as well as the temperature coefficient; they must fit it better than the temperature's course does), the data
+    show one switch of the sensor: returns the switch (time, jumps, the F test's p), else None.  (A field drift is not
     refused so: on a vehicle's or a gimbal's slow turning the jumps of the axes' gains and zeros also follow a smooth
     change of the field; 8 true field drifts of the independent generators were refused that way.)"""
     if t_s is None or len(r) < 40:
@@ -752,18 +757,28 @@ def range_switch_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | Non
     order = np.argsort(t_s, kind="stable")
     ts, rs, us = t_s[order], r[order], unit[order]
     n = len(rs)
+    shape = np.column_stack([us * us, us[:, [0, 0, 1]] * us[:, [1, 2, 2]]])  # the gains, then the alignment
+    before = np.column_stack([us, shape, np.ones(n)])  # the calibration before the switch, free: the residual is
+    # taken at a fit of the whole record, which puts the calibration between the two (a temperature's at its mean)
     sse, on, coef = _best_single_step(
-        ts, rs, lambda on: np.column_stack([us * on[:, None], us * us * on[:, None], us, np.ones(n)]))
+        ts, rs, lambda on: np.column_stack([us * on[:, None], shape * on[:, None], before]))
     sse_base = float(np.sum((rs - rs.mean()) ** 2))
     if sse_base - sse < STEP_SHARE * (sse_base - sse_effect) or not np.ptp(on):
         return None
-    sse_scalar = _least_squares(np.column_stack([us, np.ones(n), on]), rs)[0]
-    p_jump = f_test_p(sse_scalar, sse, 5, max(n - 10, 1.0)) if sse > 0 else 0.0
+    sse_scalar = _least_squares(np.column_stack([before, on]), rs)[0]
+    p_jump = f_test_p(sse_scalar, sse, 8, max(n - 19, 1.0)) if sse > 0 else 0.0
     if p_jump >= SWITCH_JUMP_ALPHA:
         return None
+    sse_temperature = None
+    if temp is not None and np.ptp(temp) > 0:  # the same jumps following the logged temperature instead of a step
+        course = np.asarray(temp, dtype=float)[order]
+        course = (course - course.min()) / np.ptp(course)
+        sse_temperature = _least_squares(np.column_stack([us * course[:, None], shape * course[:, None], before]), rs)[0]
+        if sse >= sse_temperature:
+            return None
     change = int(np.flatnonzero(np.diff(on) != 0)[0]) + 1
     return {"time_s": float(ts[change]), "gain_jumps_nT": coef[3:6].tolist(), "zero_jump_nT": float(np.linalg.norm(coef[:3])),
-            "jump_p": p_jump, "sse_switch": sse, "sse_effect": sse_effect}
+            "jump_p": p_jump, "sse_switch": sse, "sse_effect": sse_effect, "sse_temperature_course": sse_temperature}
 
 
 LAP_RATE_SHARE = 0.05

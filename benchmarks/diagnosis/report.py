@@ -48,6 +48,8 @@ def _table(result: dict, source: str) -> list[str]:
         lines.append(f"  an extreme residual: {result['remainder_extreme']['statement']}")
     if result.get("floor_implausible"):
         lines.append(f"  the noise floor is implausible: {result['floor_implausible']}")
+    if result.get("clipped_statement"):
+        lines.append(f"  clipped readings: {result['clipped_statement']}")
     if result.get("base_fit", "lsq") != "lsq":
         why = (" (spikes pulled the least-squares fit)" if str(result["base_fit"]).startswith("ransac") else
                f" (the calibrators refuse these attitudes: {result['attitude_coverage']})" if "attitude_coverage" in result

@@ -140,7 +140,9 @@ the one steps agree within 1 %, most others within 10 %, and the rest differ by 
 itself nonlinear (its one step 1.7-1.9 times on a tumble, its own fit within)."""
 TEMPERATURE_STEP_SHARE = 0.5
 """``Diagnosis._range_switch`` leaves a temperature coefficient named when a step of the logged temperature at the
-switch's time holds at least this share of the temperature's variance (the temperature jumped: it explains the jump)."""
+switch's time holds at least this share of the temperature's variance and leaves less of it than a straight line in
+time does (the temperature jumped: it explains the jump; a steady warming is split 75 % by any step at its middle, and
+had kept a temperature named for an axis's gain that jumped once, or for x and y swapped halfway)."""
 MIN_POINTS_BEYOND_PARAMETERS = 10
 MAX_EFFECTS = 4
 SELECTION_PASSES = 3
@@ -1002,15 +1004,21 @@ class Diagnosis:
             with_res = np.nan_to_num(self.model_residuals(named))
             others = [s for s in named if s != name]
             switch = range_switch_explains(np.nan_to_num(self.model_residuals(others)), self.unit, d.t_s,
-                                           float(np.sum(with_res ** 2)))
+                                           float(np.sum(with_res ** 2)), np.asarray(d.temp_C, dtype=float))
             if switch is None:
                 continue
             temp = np.asarray(d.temp_C, dtype=float)
             after = d.t_s >= switch["time_s"]
             spread = float(np.sum((temp - temp.mean()) ** 2))
-            stepped = spread - sum(float(np.sum((temp[m] - temp[m].mean()) ** 2)) for m in (after, ~after) if m.any())
-            switch["temperature_step_share"] = stepped / spread if spread > 0 else 0.0
-            if switch["temperature_step_share"] >= TEMPERATURE_STEP_SHARE:
+            left_by_step = sum(float(np.sum((temp[m] - temp[m].mean()) ** 2)) for m in (after, ~after) if m.any())
+            switch["temperature_step_share"] = (spread - left_by_step) / spread if spread > 0 else 0.0
+            # a temperature that rises steadily is split by any step at its middle (a ramp's step share is 75 %): it
+            # jumped only when the step also leaves less of it than a straight line in time does
+            line = np.polynomial.polynomial.polyfit(d.t_s - d.t_s.mean(), temp, 1)
+            left_by_line = float(np.sum((temp - np.polynomial.polynomial.polyval(d.t_s - d.t_s.mean(), line)) ** 2))
+            switch["temperature_jumped"] = bool(switch["temperature_step_share"] >= TEMPERATURE_STEP_SHARE
+                                                and left_by_step < left_by_line)
+            if switch["temperature_jumped"]:
                 continue
             named = others
             row = next(r for r in evidence if r["name"] == name)

@@ -1,0 +1,88 @@
+"""Readings clipped at a converter's rail (an axis stopping at its range, for every attitude beyond it) are no
+library effect: left in, the diagnosis read them as structure at the attitudes nearest the axis and named
+``nonlinearity`` (sphere9 and cap9 clipped at 80 % of an axis's largest reading: ``nonlinearity+unexplained``, a
+wrong name, in 2 of 4 records).  ``floor.rail_rows`` finds them, the rest of the record is diagnosed, and the verdict
+says ``unexplained`` beside what it names, the rails in ``clipped``."""
+import hashlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from magbench.benchmarks.diagnosis import diagnose, with_unexplained
+from magbench.benchmarks.diagnosis.floor import rail_rows
+from magbench.simulate import simulate
+from magbench.simulate.dataset import Dataset
+
+
+def _clipped(scenario: str, seed: int, axis: int = 0, share: float = 0.8) -> tuple[Dataset, int]:
+    d = simulate(scenario, seed)
+    raw = d.raw_nT.copy()
+    lim = share * np.abs(raw[:, axis]).max()
+    n_clipped = int((np.abs(raw[:, axis]) >= lim).sum())
+    raw[:, axis] = np.clip(raw[:, axis], -lim, lim)
+    return Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s, temp_C=d.temp_C), n_clipped
+
+
+@pytest.mark.parametrize("scenario", ["sphere9", "cap9", "tumble9", "vehicle9"])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_clipped_readings_are_left_out_and_said_unexplained(scenario, seed):
+    data, n_clipped = _clipped(scenario, seed)
+    report = diagnose(data)
+    assert report["verdict"] == "unexplained", report["verdict"]
+    assert report["clipped_rows_left_out"] == n_clipped
+    assert {r["axis"] for r in report["clipped"]} == {"x"}
+    assert "nonlinearity" not in report["verdict"]
+    assert report["rms_base_nT"] < 3 * report["noise_floor_nT"]  # the rest is the sensor's noise
+
+
+@pytest.mark.parametrize("scenario", ["sphere9", "cap9", "tumble9", "vehicle9"])
+def test_intact_records_have_no_rail(scenario):
+    """The negative control: a continuous reading takes its extreme value once."""
+    data = simulate(scenario, 0)
+    assert rail_rows(data.raw_nT) is None
+    report = diagnose(data)
+    assert "clipped" not in report and report["verdict"] == "none"
+
+
+def test_a_coarse_grid_is_no_rail():
+    """Readings rounded to 50 nT repeat every value; the extremes do not pile up beyond the other values."""
+    raw = np.round(simulate("sphere9", 0).raw_nT / 50.0) * 50.0
+    assert rail_rows(raw) is None
+
+
+def test_an_attitude_held_at_an_extreme_is_no_rail():
+    """Ten identical readings at the largest x, but at one attitude (a turntable's pause, noise below the grid):
+    the other axes do not spread, so it is no rail."""
+    raw = simulate("sphere9", 0).raw_nT.copy()
+    top = int(np.argmax(raw[:, 0]))
+    raw[:10] = raw[top]
+    assert rail_rows(raw) is None
+
+
+def test_the_command_says_which_rows_and_leaves_the_file_alone(tmp_path):
+    path = tmp_path / "clipped.csv"
+    _clipped("sphere9", 1)[0].to_csv(path)
+    before = hashlib.sha1(path.read_bytes()).hexdigest()
+    p = subprocess.run([sys.executable, "-m", "magbench", "diagnose", str(path)], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    assert "clipped readings:" in p.stdout and "verdict: unexplained" in p.stdout
+    assert hashlib.sha1(path.read_bytes()).hexdigest() == before
+
+
+def test_a_record_whose_rest_cannot_be_diagnosed_is_refused_in_one_line(tmp_path):
+    path = tmp_path / "clipped_turntable.csv"
+    _clipped("lu2014", 0)[0].to_csv(path)
+    p = subprocess.run([sys.executable, "-m", "magbench", "diagnose", str(path)], capture_output=True, text=True)
+    assert p.returncode == 2
+    assert len(p.stderr.strip().splitlines()) == 1
+    assert "clipped at a converter's rail" in p.stderr and "the rest cannot be diagnosed" in p.stderr
+
+
+@pytest.mark.parametrize("verdict, expected", [
+    ("none", "unexplained"), ("unexplained", "unexplained"), ("insufficient_data", "insufficient_data"),
+    ("lag", "lag+unexplained"), ("lag+unexplained", "lag+unexplained"),
+    ("offset_drift|temperature", "offset_drift|temperature+unexplained")])
+def test_with_unexplained(verdict, expected):
+    assert with_unexplained(verdict) == expected
