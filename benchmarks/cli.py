@@ -633,7 +633,7 @@ was an internal error after it)."""
 
 
 def cmd_diagnose(args) -> int:
-    from magbench.benchmarks.diagnosis import diagnose, diagnosis_figure, diagnosis_text, read_gravity
+    from magbench.benchmarks.diagnosis import diagnose, diagnosed_rows, diagnosis_figure, diagnosis_text, read_gravity
 
     talk = not getattr(args, "json", False)
     with slow_phase(f"reading {args.file}", talk):
@@ -651,7 +651,7 @@ def cmd_diagnose(args) -> int:
         result = diagnose(data, base=args.model, folds=args.folds, seed=args.seed, gravity=read_gravity(args.file))
     if figure is not None:
         with atomic_output(figure, [args.file], args.force, what="--figure file") as tmp:
-            diagnosis_figure(data, result, tmp)
+            diagnosis_figure(diagnosed_rows(data, result), result, tmp)
     result["figure"] = str(figure) if figure else None
     _emit(args, result, diagnosis_text(result, args.file))
     return EXIT_OK

@@ -86,3 +86,22 @@ def test_a_record_whose_rest_cannot_be_diagnosed_is_refused_in_one_line(tmp_path
     ("offset_drift|temperature", "offset_drift|temperature+unexplained")])
 def test_with_unexplained(verdict, expected):
     assert with_unexplained(verdict) == expected
+
+
+def test_the_figure_shows_the_rows_the_verdict_is_about(tmp_path):
+    """The residual figure is drawn on the rows diagnosed (it had shown the clipped readings' 6000 nT beside a
+    verdict about the others), and its title says how many were left out."""
+    from magbench.benchmarks.diagnosis import diagnosed_rows
+
+    data, n_clipped = _clipped("sphere9", 1)
+    report = diagnose(data)
+    assert len(diagnosed_rows(data, report)) == report["n_points"] == len(data) - n_clipped
+    intact = simulate("sphere9", 1)
+    assert diagnosed_rows(intact, diagnose(intact)) is intact
+    path = tmp_path / "clipped.csv"
+    data.to_csv(path)
+    figure = tmp_path / "clipped.png"
+    p = subprocess.run([sys.executable, "-m", "magbench", "diagnose", str(path), "--figure", str(figure)],
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    assert figure.stat().st_size > 10_000

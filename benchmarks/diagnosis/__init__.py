@@ -40,7 +40,7 @@ from .vector import DEFAULT_FOLDS, Diagnosis
 BLAS_THREADS = 1
 
 __all__ = ["read_gravity", "Diagnosis", "blind_dataset", "blind_kinds", "candidate_effects", "diagnose", "diagnose_scalar",
-           "diagnosis_figure", "diagnosis_text"]
+           "diagnosed_rows", "diagnosis_figure", "diagnosis_text"]
 
 
 def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0, gravity=None,
@@ -82,6 +82,16 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
             out.update(clipped)
             out["verdict"] = with_unexplained(out["verdict"])
         return out
+
+
+def diagnosed_rows(data, result: dict):
+    """The rows of ``data`` that the diagnosis ``result`` was made on: without a logger's held rows and readings
+    clipped at a rail when it left them out (``held_rows_left_out``, ``clipped_rows_left_out``), so that a figure of
+    the residual shows the readings the verdict is about."""
+    if not isinstance(data, Dataset) or not (result.get("held_rows_left_out") or result.get("clipped_rows_left_out")):
+        return data
+    data = without_logger_holds(data, None)[0]
+    return without_rails(data, None)[0]
 
 
 def with_unexplained(verdict: str) -> str:

@@ -232,7 +232,9 @@ def diagnosis_figure(data, result: dict, path) -> None:
     ax.set_xlabel(label)
     ax.set_ylabel("total-field residual (nT)")
     source = Path(str(getattr(data, "meta", {}).get("source_file", "") or "")).name or "data"
-    ax.set_title(f"{source}: verdict {result['verdict']}", fontsize=10)
+    left = [f"{result[key]} {what} left out" for key, what in (("clipped_rows_left_out", "clipped readings"),
+                                                               ("held_rows_left_out", "held rows")) if result.get(key)]
+    ax.set_title(f"{source}: verdict {result['verdict']}" + (f" ({', '.join(left)})" if left else ""), fontsize=10)
     ax.legend(loc="upper right", fontsize=7)
     ax.grid(alpha=0.3)
     fig.tight_layout()
