@@ -197,8 +197,10 @@ def rail_rows(raw_nT: np.ndarray) -> tuple[np.ndarray, list[dict]] | None:
     that axis's largest (smallest) value, when RAIL_MIN_ROWS or more do, RAIL_OVER_ANY_VALUE times as many as share
     any other value of the axis, at attitudes whose other axes spread over RAIL_SPREAD_OF_FIELD of the field.  A
     continuous reading takes its extreme value once; a converter that saturates returns it for every attitude
-    beyond its range, and those readings say only that the field there was beyond it.  Returns (a mask of the rows
-    with any axis at a rail, one dict per rail: axis, side, level_nT, rows), or None."""
+    beyond its range, and those readings say only that the field there was beyond it.  Stricter than
+    ``simulate.effects.clipped`` (three repeats of an extreme, which refuses spikes that are clipped readings as
+    outliers): a grid's or a held attitude's repeats are no rail here, since these rows leave the whole diagnosis.
+    Returns (a mask of the rows with any axis at a rail, one dict per rail: axis, side, level_nT, rows), or None."""
     raw = np.asarray(raw_nT, dtype=float)
     n = raw.shape[0]
     if n < 2 * RAIL_MIN_ROWS:

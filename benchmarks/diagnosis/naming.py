@@ -732,6 +732,23 @@ def step_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | None, sse_d
             "sse_drift": sse_drift, "times_s": ts[changes].tolist()}
 
 
+SWITCH_DRIFT_DEGREE = EFFECTS["offset_drift"].DEGREE
+"""``range_switch_explains``: the degree of the smooth body-fixed drift a switch must fit better than (the library's
+offset drift's)."""
+SWITCH_BEATS_ALPHA = 1e-3
+"""... and it must fit better than each smooth alternative at this level (F test, one degree of freedom: the step's
+time, chosen among STEP_GRID; the other columns are the same): a true offset drift beside outliers on a vehicle was
+fitted 1.3 % better by a step than by the drift's own basis, by chance."""
+
+
+def _clearly_better(sse: float, sse_alternative: float, n: int) -> bool:
+    """Whether a fit leaving ``sse`` beats one leaving ``sse_alternative`` (the same columns but one) at
+    SWITCH_BEATS_ALPHA, on ``n`` samples with the switch's 19 columns."""
+    if sse <= 0:
+        return sse_alternative > 0
+    return sse < sse_alternative and f_test_p(sse_alternative, sse, 1, max(n - 19, 1.0)) < SWITCH_BEATS_ALPHA
+
+
 SWITCH_JUMP_ALPHA = 1e-6
 """``range_switch_explains``: the switch's jump (of the axes' gains and zeros) must be significant at this level beyond
 a jump of the magnitude alone (F test), so that an ambient field stepping once is not called a switch."""
@@ -748,8 +765,9 @@ def range_switch_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | Non
     jump of the magnitude alone (SWITCH_JUMP_ALPHA: equal gain jumps and no zero jump are an ambient field stepping
     once), and, with the logged temperature ``temp``, the step fits better than the same jumps following that
     temperature's own course (on a smooth tumble the step's eighteen columns fit a true temperature's change nearly
-    as well as the temperature coefficient; they must fit it better than the temperature's course does), the data
-    show one switch of the sensor: returns the switch (time, jumps, the F test's p), else None.  (A field drift is not
+    as well as the temperature coefficient; they must fit it better than the temperature's course does), and better
+    than a body-fixed offset drifting smoothly (SWITCH_DRIFT_DEGREE), the data show one switch of the sensor: returns
+    the switch (time, jumps, the F test's p), else None.  (A field drift is not
     refused so: on a vehicle's or a gimbal's slow turning the jumps of the axes' gains and zeros also follow a smooth
     change of the field; 8 true field drifts of the independent generators were refused that way.)"""
     if t_s is None or len(r) < 40:
@@ -774,11 +792,20 @@ def range_switch_explains(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray | Non
         course = np.asarray(temp, dtype=float)[order]
         course = (course - course.min()) / np.ptp(course)
         sse_temperature = _least_squares(np.column_stack([us * course[:, None], shape * course[:, None], before]), rs)[0]
-        if sse >= sse_temperature:
+        if not _clearly_better(sse, sse_temperature, n):
             return None
+    # a body-fixed offset drifting smoothly (the library's offset drift: its Legendre basis in time) fits as well: no
+    # switch of the gains is needed (a true offset drift beside a temperature that follows time stays the pair)
+    tau = 2.0 * (ts - ts[0]) / max(float(ts[-1] - ts[0]), 1e-300) - 1.0
+    legendre_t = np.polynomial.legendre.legvander(tau, SWITCH_DRIFT_DEGREE)[:, 1:]
+    sse_drift = _least_squares(np.column_stack([(us[:, :, None] * legendre_t[:, None, :]).reshape(n, -1), before]),
+                               rs)[0]
+    if not _clearly_better(sse, sse_drift, n):
+        return None
     change = int(np.flatnonzero(np.diff(on) != 0)[0]) + 1
     return {"time_s": float(ts[change]), "gain_jumps_nT": coef[3:6].tolist(), "zero_jump_nT": float(np.linalg.norm(coef[:3])),
-            "jump_p": p_jump, "sse_switch": sse, "sse_effect": sse_effect, "sse_temperature_course": sse_temperature}
+            "jump_p": p_jump, "sse_switch": sse, "sse_effect": sse_effect, "sse_temperature_course": sse_temperature,
+            "sse_smooth_offset_drift": sse_drift}
 
 
 LAP_RATE_SHARE = 0.05
