@@ -67,13 +67,26 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
         if refusal is not None and not turned(data):  # a fixed sensor: the time question still has an answer
             return time_only(data, refusal)
         data, gravity, held = without_logger_holds(data, gravity)
+        whole, whole_gravity = data, gravity
         data, gravity, clipped = without_rails(data, gravity)
         try:
             out = Diagnosis(data, base, folds, seed, gravity=gravity, progress=progress, degenerate=refusal).run()
         except InputError as exc:
             if clipped is None:
                 raise
-            raise InputError(f"{clipped['clipped_statement']}; the rest cannot be diagnosed: {exc}") from None
+            # the rest alone cannot be diagnosed: the whole record's figures, clipped readings included, and no name
+            try:
+                out = Diagnosis(whole, base, folds, seed, gravity=whole_gravity, progress=progress,
+                                degenerate=refusal).run()
+            except InputError as whole_exc:
+                raise InputError(f"{clipped['clipped_statement']}; the record cannot be diagnosed: {whole_exc}") from None
+            clipped = dict(clipped, clipped_rows_left_out=0, clipped_statement=clipped["clipped_statement"].replace(
+                "left out of the whole diagnosis", f"unexplained; without them the rest cannot be diagnosed "
+                f"({str(exc).splitlines()[0]}), so the figures are the whole record's, clipped readings included, and no "
+                "effect is named").replace(", and unexplained (", " ("))
+            out["selected"] = []
+            if out["verdict"] != "insufficient_data":
+                out["verdict"] = "none"  # made "unexplained" below
         if held is not None:
             statement = held.pop("held_statement")
             out.update(held)
@@ -90,8 +103,8 @@ def diagnosed_rows(data, result: dict):
     the residual shows the readings the verdict is about."""
     if not isinstance(data, Dataset) or not (result.get("held_rows_left_out") or result.get("clipped_rows_left_out")):
         return data
-    data = without_logger_holds(data, None)[0]
-    return without_rails(data, None)[0]
+    data = without_logger_holds(data, None)[0] if result.get("held_rows_left_out") else data
+    return without_rails(data, None)[0] if result.get("clipped_rows_left_out") else data
 
 
 def with_unexplained(verdict: str) -> str:

@@ -195,7 +195,9 @@ many attitudes stopped at one value, not one attitude held at an extreme."""
 def rail_rows(raw_nT: np.ndarray) -> tuple[np.ndarray, list[dict]] | None:
     """The readings clipped at a converter's rail: for each axis and side, the rows whose reading equals exactly
     that axis's largest (smallest) value, when RAIL_MIN_ROWS or more do, RAIL_OVER_ANY_VALUE times as many as share
-    any other value of the axis, at attitudes whose other axes spread over RAIL_SPREAD_OF_FIELD of the field.  A
+    any other value of the axis, at attitudes whose other axes spread over RAIL_SPREAD_OF_FIELD of the field; and
+    then the readings of any axis at exactly such a level or its negative (the same converter range: two rows of x
+    at the level of z's rail had been left in, and named ``outliers``).  A
     continuous reading takes its extreme value once; a converter that saturates returns it for every attitude
     beyond its range, and those readings say only that the field there was beyond it.  Stricter than
     ``simulate.effects.clipped`` (three repeats of an extreme, which refuses spikes that are clipped readings as
@@ -207,7 +209,8 @@ def rail_rows(raw_nT: np.ndarray) -> tuple[np.ndarray, list[dict]] | None:
         return None
     field = float(np.median(np.linalg.norm(raw, axis=1))) or 1.0
     mask = np.zeros(n, dtype=bool)
-    rails = []
+    rails: list[dict] = []
+    levels: set[float] = set()
     for a in range(3):
         col = raw[:, a]
         values, counts = np.unique(col, return_counts=True)
@@ -224,6 +227,16 @@ def rail_rows(raw_nT: np.ndarray) -> tuple[np.ndarray, list[dict]] | None:
                 continue
             mask |= rows
             rails.append({"axis": "xyz"[a], "side": side, "level_nT": float(values[idx]), "rows": k})
+            levels.add(abs(float(values[idx])))
+    for level in sorted(levels):  # one converter's range: another axis at that rail is clipped too
+        for a in range(3):
+            for value in (level, -level):
+                rows = raw[:, a] == value
+                k = int(rows.sum())
+                if k and not any(r["axis"] == "xyz"[a] and r["level_nT"] == value for r in rails):
+                    mask |= rows
+                    rails.append({"axis": "xyz"[a], "side": "high" if value > 0 else "low", "level_nT": value,
+                                  "rows": k})
     return (mask, rails) if rails else None
 
 
