@@ -80,13 +80,11 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
                                 degenerate=refusal).run()
             except InputError as whole_exc:
                 raise InputError(f"{clipped['clipped_statement']}; the record cannot be diagnosed: {whole_exc}") from None
-            clipped = dict(clipped, clipped_rows_left_out=0, clipped_statement=clipped["clipped_statement"].replace(
-                "left out of the whole diagnosis", f"unexplained; without them the rest cannot be diagnosed "
-                f"({str(exc).splitlines()[0]}), so the figures are the whole record's, clipped readings included, and no "
-                "effect is named").replace(", and unexplained (", " ("))
+            clipped = dict(clipped, clipped_rows_left_out=0, clipped_statement=clipped_statement(
+                clipped["clipped_rows_left_out"], clipped["clipped"], str(exc).splitlines()[0]))
             out["selected"] = []
             if out["verdict"] != "insufficient_data":
-                out["verdict"] = "none"  # made "unexplained" below
+                out["verdict"] = "unexplained"
         if held is not None:
             statement = held.pop("held_statement")
             out.update(held)
@@ -101,7 +99,7 @@ def diagnosed_rows(data, result: dict):
     """The rows of ``data`` that the diagnosis ``result`` was made on: without a logger's held rows and readings
     clipped at a rail when it left them out (``held_rows_left_out``, ``clipped_rows_left_out``), so that a figure of
     the residual shows the readings the verdict is about."""
-    if not isinstance(data, Dataset) or not (result.get("held_rows_left_out") or result.get("clipped_rows_left_out")):
+    if not isinstance(data, Dataset):
         return data
     data = without_logger_holds(data, None)[0] if result.get("held_rows_left_out") else data
     return without_rails(data, None)[0] if result.get("clipped_rows_left_out") else data
@@ -128,15 +126,29 @@ def without_rails(data: Dataset, gravity):
     if found is None:
         return data, gravity, None
     mask, rails = found
-    keep = ~mask
+    data, gravity = _kept_rows(data, gravity, ~mask)
+    return data, gravity, {"clipped_rows_left_out": int(mask.sum()), "clipped": rails,
+                           "clipped_statement": clipped_statement(int(mask.sum()), rails)}
+
+
+def clipped_statement(n_clipped: int, rails: list[dict], rest_refusal: str | None = None) -> str:
+    """What the diagnosis says of ``n_clipped`` readings at the ``rails`` (``floor.rail_rows``): left out, or, when
+    without them the rest cannot be diagnosed (``rest_refusal``, its reason), why the whole record's figures are shown
+    and nothing is named."""
+    where = ", ".join(f"{r['axis']} at {r['level_nT']:.6g} nT ({r['rows']} rows)" for r in rails)
+    what = ("left out of the whole diagnosis, and unexplained" if rest_refusal is None else
+            f"unexplained; without them the rest cannot be diagnosed ({rest_refusal}), so the figures are the whole "
+            "record's, clipped readings included, and no effect is named")
+    return (f"{n_clipped} readings sit exactly at an axis's extreme value ({where}): clipped at a converter's rail, "
+            f"{what} (no library effect stops the readings at a value)")
+
+
+def _kept_rows(data: Dataset, gravity, keep: np.ndarray):
+    """``data`` and ``gravity`` (None or an (n, 3) array) with only the rows where ``keep``: every per-row column of
+    the Dataset, its truth dropped (it describes the whole record)."""
     columns = {name: None if getattr(data, name) is None else getattr(data, name)[keep]
                for name in ("raw_nT", "f_ref_nT", "t_s", "temp_C", "heading_deg")}
-    where = ", ".join(f"{r['axis']} at {r['level_nT']:.6g} nT ({r['rows']} rows)" for r in rails)
-    return (replace(data, **columns, truth=None), None if gravity is None else gravity[keep], {
-        "clipped_rows_left_out": int(mask.sum()), "clipped": rails,
-        "clipped_statement": f"{int(mask.sum())} readings sit exactly at an axis's extreme value ({where}): clipped at a "
-                             "converter's rail, left out of the whole diagnosis, and unexplained (no library effect "
-                             "stops the readings at a value)"})
+    return replace(data, **columns, truth=None), None if gravity is None else gravity[keep]
 
 
 def without_logger_holds(data: Dataset, gravity):
@@ -152,11 +164,8 @@ def without_logger_holds(data: Dataset, gravity):
     held = stale_copies(np.asarray(data.raw_nT, dtype=float), np.argsort(data.t_s, kind="stable"))
     if held is None:
         return data, gravity, None
-    keep = ~held
-    columns = {name: None if getattr(data, name) is None else getattr(data, name)[keep]
-               for name in ("raw_nT", "f_ref_nT", "t_s", "temp_C", "heading_deg")}
     share = float(held.mean())
-    return (replace(data, **columns, truth=None), None if gravity is None else gravity[keep], {
+    return (*_kept_rows(data, gravity, ~held), {
         "held_rows_left_out": int(held.sum()), "held_sample_fraction": share,
         "held_statement": f"; {int(held.sum())} rows ({100 * share:.1f} %) repeat the reading before them exactly (a "
                           "logger that held its value): stale copies, left out of the whole diagnosis"})

@@ -210,7 +210,6 @@ def rail_rows(raw_nT: np.ndarray) -> tuple[np.ndarray, list[dict]] | None:
     field = float(np.median(np.linalg.norm(raw, axis=1))) or 1.0
     mask = np.zeros(n, dtype=bool)
     rails: list[dict] = []
-    levels: set[float] = set()
     for a in range(3):
         col = raw[:, a]
         values, counts = np.unique(col, return_counts=True)
@@ -227,8 +226,7 @@ def rail_rows(raw_nT: np.ndarray) -> tuple[np.ndarray, list[dict]] | None:
                 continue
             mask |= rows
             rails.append({"axis": "xyz"[a], "side": side, "level_nT": float(values[idx]), "rows": k})
-            levels.add(abs(float(values[idx])))
-    for level in sorted(levels):  # one converter's range: another axis at that rail is clipped too
+    for level in sorted({abs(r["level_nT"]) for r in rails}):  # one converter's range: another axis at that rail is clipped too
         for a in range(3):
             for value in (level, -level):
                 rows = raw[:, a] == value

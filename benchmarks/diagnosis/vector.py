@@ -1000,14 +1000,14 @@ class Diagnosis:
             return named
         if d.temp_C is None or d.t_s is None:
             return named
+        temp = np.asarray(d.temp_C, dtype=float)
         for name in [s for s in named if _is_thermal(s)]:
             with_res = np.nan_to_num(self.model_residuals(named))
             others = [s for s in named if s != name]
             switch = range_switch_explains(np.nan_to_num(self.model_residuals(others)), self.unit, d.t_s,
-                                           float(np.sum(with_res ** 2)), np.asarray(d.temp_C, dtype=float))
+                                           float(np.sum(with_res ** 2)), temp)
             if switch is None:
                 continue
-            temp = np.asarray(d.temp_C, dtype=float)
             after = d.t_s >= switch["time_s"]
             spread = float(np.sum((temp - temp.mean()) ** 2))
             left_by_step = sum(float(np.sum((temp[m] - temp[m].mean()) ** 2)) for m in (after, ~after) if m.any())
