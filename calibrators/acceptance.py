@@ -16,7 +16,9 @@ off-diagonal limits, offset limit, fitness), but each check names its cause:
 - **structure**: the optimum's residual against noise the fit did not make (``independent_noise``: from
   neighbouring samples in time, as the diagnosis's floor, or from repeated attitudes): a residual far
   above that noise is structure the model lacks (a step in the offsets, a drift) and is rejected, the
-  structure named (``describe_structure``: the best single step, located in time order);
+  structure named (``describe_structure``: the best single step, located in time order); at random attitudes
+  that noise is the scatter about the nearest attitudes (over the record, its halves and thirds in time), and a
+  drift in time is fitted (``drift_in_time``);
 - **scale**: a mean scale factor more than 5 % from unity is a warning (a fluxgate's scales are within a
   few per cent of 1: the reference or the units are likely wrong).
 
@@ -457,6 +459,13 @@ KNN_NEIGHBOURS = 5
 KNN_ROWS = 2000
 """Random attitudes: the noise from each reading's residual about the mean of its KNN_NEIGHBOURS nearest attitudes
 (the reading's direction), on a systematic sample of at most KNN_ROWS rows (brute force, in blocks)."""
+TIME_BLOCKS = (2, 3)
+"""... taken also with each reading's nearest attitudes within its own block of time (each of these many consecutive
+blocks of equal counts: halves, thirds), the lowest scatter kept, as the diagnosis's floor does with halves
+(``blocked_knn_floor``): a sensor that changed mid-record (an axis's sign or gain, a remount) leaves a residual that
+follows the attitude differently before and after, which cancels only between neighbours on the same side (over the
+whole record, sphere9 with z's sign flipped halfway was accepted at 194 nT against a noise of 2, and with it
+flipped over the middle third at 190 nT)."""
 REPEAT_FRACTION = 1e-3
 """Two readings closer than 0.1 % of the field are one attitude measured twice."""
 MIN_REPEATS = 10
@@ -498,6 +507,8 @@ class NoiseGeometry:
     samples are at unrelated attitudes and the time neighbours' differences hold what follows the attitude."""
     neighbours: tuple[slice | np.ndarray, np.ndarray] | None = None
     """``attitude_neighbours`` of the readings, when consecutive samples are at unrelated attitudes."""
+    block_neighbours: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
+    """... and ``blocked_attitude_neighbours`` for each count of TIME_BLOCKS (those whose blocks are long enough)."""
     resolution_nT: float = 0.0
     """``readings_resolution`` of the readings: below it a residual is not judged for structure."""
     holds: np.ndarray | None = None
@@ -526,7 +537,7 @@ def noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float) 
         geometry = replace(geometry, revisits=revisit_neighbours(raw_nT, geometry.order, REVISIT_SEPARATION,
                                                                  geometry.holds))
     for part in (geometry.order, *(geometry.weights or ()), *(geometry.pairs or ()), geometry.holds,
-                 *(geometry.revisits or ())):
+                 *(geometry.revisits or ()), *(part for pair in geometry.block_neighbours for part in pair)):
         if part is not None:
             part.setflags(write=False)
     return geometry
@@ -548,6 +559,7 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
         unrelated = rough is not None and rough > UNRELATED_ROUGHNESS
         return NoiseGeometry("time", order, _interpolation_weights(t_s[order]), roughness=rough,
                              neighbours=attitude_neighbours(raw_nT, order if share < 1.0 else None) if unrelated else None,
+                             block_neighbours=_blocked_neighbours(raw_nT, order) if unrelated else (),
                              distinct_share=share)
     from scipy.spatial import cKDTree
 
@@ -610,6 +622,28 @@ def attitude_neighbours(raw_nT: np.ndarray, among: np.ndarray | None = None
     nearest, _ = _nearest_directions(raw_nT[rows], itself)
     nearest.setflags(write=False)
     return rows, nearest
+
+
+def _blocked_neighbours(raw_nT: np.ndarray, order: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    found = (blocked_attitude_neighbours(raw_nT, order, blocks) for blocks in TIME_BLOCKS)
+    return tuple(f for f in found if f is not None)
+
+
+def blocked_attitude_neighbours(raw_nT: np.ndarray, order: np.ndarray, blocks: int = 2
+                               ) -> tuple[np.ndarray, np.ndarray] | None:
+    """``attitude_neighbours`` within each of ``blocks`` consecutive blocks of the time ``order`` (equal counts), as
+    one (rows sampled, their nearest as indices into those rows) pair for ``attitude_neighbour_noise``.  None when a
+    block has too few rows."""
+    rows, nearest, start = [], [], 0
+    for part in np.array_split(np.asarray(order), blocks):
+        found = attitude_neighbours(raw_nT, part)
+        if found is None:
+            return None
+        sampled = np.asarray(found[0])
+        rows.append(sampled)
+        nearest.append(found[1] + start)
+        start += len(sampled)
+    return np.concatenate(rows), np.concatenate(nearest)
 
 
 KNN_BLOCK = 500
@@ -1013,19 +1047,26 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
     if rough is not None and rough > UNRELATED_ROUGHNESS:
         # the time neighbours' differences hold whatever the model misses that follows the attitude: the
         # scatter about the nearest attitudes is the better bound of the noise (both are upper bounds)
-        attitude = None if geometry.neighbours is None else attitude_neighbour_noise(r, geometry.neighbours)
+        scatters = [attitude_neighbour_noise(r, near) for near in (geometry.neighbours, *geometry.block_neighbours)
+                    if near is not None]
+        attitude = min(scatters) if scatters else None
         if attitude is not None and attitude < sigma:
             sigma, how = attitude, "attitudes"
             info["noise_independent_nT"], info["noise_independent_from"] = float(sigma), how
         ratio = rms_nT / max(sigma, 1e-12)
         if ratio <= STRUCTURE_RATIO:
-            against = (f"its scatter about the {KNN_NEIGHBOURS} nearest attitudes" if how == "attitudes" else
+            against = (f"its scatter about the {KNN_NEIGHBOURS} nearest attitudes (over the record, or within its "
+                       "halves or thirds in time, the lowest)" if how == "attitudes" else
                        "the time neighbours' scatter (lower than its scatter about the nearest attitudes)")
             warnings.append(f"consecutive samples are at unrelated attitudes (roughness {rough:.2g}, sqrt(3) for "
                             f"random ones): the residual was judged against {against} ({sigma:.3g} nT), which holds "
-                            "whatever the model misses that follows time (a drift); a continuous path or repeated "
-                            "attitudes would judge that too")
+                            "whatever the model misses that follows time (a drift); smooth drifts and single steps "
+                            "were looked for by a fit, and a continuous path or repeated attitudes would judge the rest")
     floor = max(STRUCTURE_FLOOR_FRACTION * field_nT, RESOLUTION_SHARE * geometry.resolution_nT)
+    # at random attitudes a drift in time passes for noise, or for structure that follows the attitude: fitted
+    # (after a single step, which a drift's polynomials would only approximate)
+    drifting = drift_in_time(objective, x, r, t_in, rms_nT, floor, info) if (
+        rough is not None and rough > UNRELATED_ROUGHNESS and t_in is not None and rms_nT > floor) else None
     if geometry.holds is not None and len(geometry.holds) == len(r):
         info["hold_design_effect"] = hold_design_effect(r, geometry.holds)
     if geometry.distinct_share < 1.0:
@@ -1068,18 +1109,81 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
             if step_dominates(step):
                 shape = describe_structure(step, order, 1e-300, rows, t_s, len(order))
                 return [f"the residual {rms_nT:.3g} nT is structured: {shape}"], warnings
+        if drifting is not None:
+            return [drifting], warnings
         return _revisits_check(objective, r, rms_nT, floor, geometry, 1, info), warnings
     source = {"time": "neighbouring samples in time", "repeats": "repeated attitudes", "rows": "neighbouring rows",
               "decorrelated": f"samples {info.get('noise_correlated_samples')} apart in time, where the noise has "
                               f"decorrelated; noise correlated in time accounts for at most {DECORRELATED_RATIO:g} times "
                               "that level",
-              "attitudes": f"the {KNN_NEIGHBOURS} nearest attitudes; consecutive samples are at unrelated ones"}[how]
+              "attitudes": f"the {KNN_NEIGHBOURS} nearest attitudes, over the record or within its halves or thirds "
+                           "in time (the lowest); consecutive samples are at unrelated ones"}[how]
     step = best_step(objective, x, r, order, jacobian, gram, geometry.in_order) if order is not None else None
     shape = describe_structure(step, order, sigma, rows, t_s, len(r) if order is None else len(order))
     if how == "attitudes" and not (step is not None and step_dominates(step)):
+        if drifting is not None:
+            return [drifting], warnings
         shape = "structure that follows the attitude, which the model lacks (magbench diagnose says where it lies)"
     return [f"the residual {rms_nT:.3g} nT is {rms_nT / max(sigma, 1e-12):.3g} times the noise estimated independently "
             f"of the fit ({sigma:.3g} nT, from {source}): {shape}"], warnings
+
+
+DRIFT_MAX_DEGREE = 12
+"""``drift_in_time``: the drifts' Legendre polynomials of time go up to this degree (fewer on a short record: at
+least DRIFT_ROWS_PER_COLUMN rows per column)."""
+DRIFT_ROWS_PER_COLUMN = 5
+DRIFT_ROWS = 20_000
+"""... on a systematic sample of at most this many rows (in time order) of a longer record."""
+DRIFT_P = 1e-6
+"""... and the drifts' columns must lower the sum of squares significantly at this level (F test) besides."""
+
+
+def drift_in_time(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, t_s: np.ndarray, rms_nT: float,
+                  floor: float, info: dict) -> str | None:
+    """At random attitudes, a rejection when the residual drifts in time.  There each reading's time neighbours and
+    its nearest attitudes lie far apart in the other variable, so a drift of the offsets (hard iron, a zero drifting
+    with warming) or of the field moves both noise estimates with it: sphere9 with its offsets drifting by 300 nT
+    over the record was accepted at 60 nT against a noise of 2, judged against 60.  Random attitudes make the drift
+    easy to fit instead: the residual is regressed on the model's Jacobian and on Legendre polynomials of time of
+    degree 1..D (D up to DRIFT_MAX_DEGREE), alone (the field's magnitude) and times each axis's direction cosine (the
+    offsets), and rejected when what is left is less than 1 / STRUCTURE_RATIO of the residual (less ``floor``) and
+    the drift's columns are significant (F test, ``DRIFT_P``)."""
+    n = len(r)
+    rows = np.argsort(t_s, kind="stable")
+    if n > DRIFT_ROWS:
+        rows = rows[systematic_rows(n, DRIFT_ROWS)]
+    m, p = len(rows), len(x)
+    degree = min(DRIFT_MAX_DEGREE, (m // DRIFT_ROWS_PER_COLUMN - p) // 4)
+    t = t_s[rows]
+    if degree < 1 or not np.ptp(t) > 0:
+        return None
+    raw = objective.raw_nT[rows]
+    sub = ScalarObjective(raw, objective.f_ref_nT[rows], objective.model)
+    tau = 2.0 * (t - t.min()) / np.ptp(t) - 1.0
+    legendre = np.polynomial.legendre.legvander(tau, degree)[:, 1:]  # (m, degree)
+    u = raw / np.maximum(np.linalg.norm(raw, axis=1), 1e-300)[:, None]
+    drift = np.hstack([legendre] + [legendre * u[:, [a]] for a in range(3)])
+    design = np.hstack([sub.jacobian(x), drift])
+    design /= np.maximum(np.linalg.norm(design, axis=0), 1e-300)  # columns of unit length: a fair rank cut
+    rr = r[rows]
+    coef, *_ = np.linalg.lstsq(design, rr, rcond=1e-10)
+    left = rr - design @ coef
+    ss0, ss1 = float(rr @ rr), float(left @ left)
+    q, dof = drift.shape[1], m - p - drift.shape[1]
+    rms_left = math.sqrt(ss1 / m)
+    info["drift_check"] = {"degree": int(degree), "rms_left_nT": rms_left, "rows": int(m)}
+    if dof < 1 or not rms_nT > STRUCTURE_RATIO * rms_left + floor:
+        return None
+    from scipy.special import fdtrc  # only here, on the rare way to a rejection
+
+    stat = (ss0 - ss1) / q / (ss1 / dof) if ss1 > 0 else np.inf
+    p_value = float(fdtrc(q, dof, stat)) if np.isfinite(stat) else 0.0
+    info["drift_check"]["p"] = p_value
+    if p_value >= DRIFT_P:
+        return None
+    return (f"the residual {rms_nT:.3g} nT drifts in time: offsets or a field drifting smoothly (Legendre polynomials "
+            f"of time to degree {degree}) leave {rms_left:.3g} nT of it ({rms_nT / max(rms_left, 1e-12):.3g} times less; "
+            f"F test p {p_value:.1g}), which the model lacks (magbench diagnose says which)")
 
 
 def _revisits_check(objective: ScalarObjective, r: np.ndarray, rms_nT: float, floor: float, geometry: NoiseGeometry,
