@@ -34,7 +34,16 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from magbench.numerics import at_optimum, lm_normal, median, median_and_sigma, repeated_rows, roughness, systematic_rows
+from magbench.numerics import (
+    at_optimum,
+    drift_columns,
+    lm_normal,
+    median,
+    median_and_sigma,
+    repeated_rows,
+    roughness,
+    systematic_rows,
+)
 from magbench.simulate.effects import HOLD_ANGLE_RAD, HOLD_MIN_SAMPLES, HOLD_SHARE
 from magbench.simulate.sensor import PARAM_NAMES, embed
 
@@ -1159,12 +1168,10 @@ def drift_in_time(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, t_s:
         return None
     raw = objective.raw_nT[rows]
     sub = ScalarObjective(raw, objective.f_ref_nT[rows], objective.model)
-    tau = 2.0 * (t - t.min()) / np.ptp(t) - 1.0
-    legendre = np.polynomial.legendre.legvander(tau, degree)[:, 1:]  # (m, degree)
     u = raw / np.maximum(np.linalg.norm(raw, axis=1), 1e-300)[:, None]
-    drift = np.hstack([legendre] + [legendre * u[:, [a]] for a in range(3)])
-    design = np.hstack([sub.jacobian(x), drift])
-    design /= np.maximum(np.linalg.norm(design, axis=0), 1e-300)  # columns of unit length: a fair rank cut
+    drift = drift_columns(t, u, degree, constant=False)  # the model's own columns hold the constant
+    jac = sub.jacobian(x)
+    design = np.hstack([jac / np.maximum(np.linalg.norm(jac, axis=0), 1e-300), drift])  # unit columns: a fair rank cut
     rr = r[rows]
     coef, *_ = np.linalg.lstsq(design, rr, rcond=1e-10)
     left = rr - design @ coef
@@ -1181,9 +1188,10 @@ def drift_in_time(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, t_s:
     info["drift_check"]["p"] = p_value
     if p_value >= DRIFT_P:
         return None
+    shown = f"p {p_value:.1g}" if p_value > 0 else "p < 1e-300"
     return (f"the residual {rms_nT:.3g} nT drifts in time: offsets or a field drifting smoothly (Legendre polynomials "
             f"of time to degree {degree}) leave {rms_left:.3g} nT of it ({rms_nT / max(rms_left, 1e-12):.3g} times less; "
-            f"F test p {p_value:.1g}), which the model lacks (magbench diagnose says which)")
+            f"F test {shown}), which the model lacks (magbench diagnose says which)")
 
 
 def _revisits_check(objective: ScalarObjective, r: np.ndarray, rms_nT: float, floor: float, geometry: NoiseGeometry,

@@ -107,6 +107,19 @@ def systematic_rows(n: int, limit: int) -> slice:
     return slice(None, None, max(1, -(-n // limit)))
 
 
+def drift_columns(t_s: np.ndarray, unit: np.ndarray, degree: int, constant: bool = True) -> np.ndarray:
+    """Columns of a drift in time, each scaled to unit length: Legendre polynomials of the time mapped onto [-1, 1]
+    of degree 0 (``constant``) or 1 to ``degree``, alone (a drift of the field's magnitude) and times each axis's
+    direction cosine ``unit`` (n, 3) (a drift of the body's offsets, seen in the magnitude along the field).
+    The acceptance checks' and the diagnosis's floor's fit of a drift at random attitudes."""
+    t = np.asarray(t_s, dtype=float)
+    tau = 2.0 * (t - t.min()) / max(float(np.ptp(t)), 1e-300) - 1.0
+    legendre = np.polynomial.legendre.legvander(tau, degree)[:, (0 if constant else 1):]
+    design = np.hstack([legendre] + [legendre * unit[:, [a]] for a in range(3)])
+    design /= np.maximum(np.linalg.norm(design, axis=0), 1e-300)
+    return design
+
+
 def median(x: np.ndarray) -> float:
     """``np.median`` of a 1-D array, the same number, faster: one partition about the upper middle element (the
     lower one of an even count is then the largest before it), where np.median partitions about both, which

@@ -19,7 +19,7 @@ from scipy.signal import lfilter
 from scipy.spatial import cKDTree
 from scipy.stats import norm, spearmanr
 
-from magbench.numerics import repeated_rows, systematic_rows
+from magbench.numerics import drift_columns, repeated_rows, systematic_rows
 from magbench.simulate.effects import SPIKE_SIGMA, Columns, f_test_p, robust_sigma
 
 KNN_NEIGHBOURS = 6
@@ -46,11 +46,36 @@ def _knn_errors(features: np.ndarray, r: np.ndarray, k: int) -> np.ndarray:
     return r - r[idx[:, 1:]].mean(axis=1)
 
 
-TIME_BLOCKS = 2
-"""``attitude_floor`` also takes the attitude neighbours within each of this many consecutive blocks of time."""
+TIME_BLOCKS = (2, 3)
+"""``attitude_floor`` also takes the attitude neighbours within each of these many consecutive blocks of time
+(halves, thirds: a change over the middle third of a record mixes both sides in either half)."""
+DRIFT_MAX_DEGREE = 12
+DRIFT_ROWS_PER_COLUMN = 5
+"""``drift_floor``: Legendre polynomials of time up to this degree, at least this many rows per column."""
 
 
-def blocked_knn_floor(features: np.ndarray, r: np.ndarray, t_s: np.ndarray, blocks: int = TIME_BLOCKS,
+def drift_floor(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray, n_free: int) -> float | None:
+    """At random attitudes, the RMS of ``r`` left by a regression on Legendre polynomials of time of degree 0..D
+    (D up to DRIFT_MAX_DEGREE, at least DRIFT_ROWS_PER_COLUMN rows per column), alone and times each axis's
+    direction cosine ``unit`` (the field's magnitude and the body's offsets drifting), scaled for the ``n_free``
+    parameters of the fit that left ``r`` and the regression's columns.  A third upper bound of the noise: there a
+    drift in time moves both the time neighbours' scatter and the attitude neighbours' with it (an offset
+    oscillating 3 times over sphere9, 150 nT, left a floor of 50 nT and a verdict of ``none``), while random
+    attitudes make it easy to fit.  None when too short."""
+    m = len(r)
+    degree = min(DRIFT_MAX_DEGREE, m // DRIFT_ROWS_PER_COLUMN // 4)
+    if degree < 1 or not np.ptp(t_s) > 0:
+        return None
+    design = drift_columns(t_s, unit, degree)  # degree 0 too: r need not have a zero mean
+    coef, *_ = np.linalg.lstsq(design, r, rcond=1e-10)
+    left = r - design @ coef
+    dof = m - n_free - design.shape[1]
+    if dof < 10:
+        return None
+    return float(np.sqrt(float(left @ left) / dof))
+
+
+def blocked_knn_floor(features: np.ndarray, r: np.ndarray, t_s: np.ndarray, blocks: int = 2,
                       k: int = KNN_NEIGHBOURS) -> float | None:
     """``knn_floor`` with each sample's neighbours taken within its own block of time (``blocks`` consecutive
     blocks of equal counts): structure that is a smooth function of the attitude within each block but differs
@@ -496,7 +521,8 @@ def attitude_floor(fl: dict, r_model: np.ndarray, unit: np.ndarray, gravity: np.
     floor holds it, so that no remainder is ever seen.  With times, the neighbours are also taken within each of
     TIME_BLOCKS blocks of time (``blocked_knn_floor``) and the lower scatter kept: structure that depends on the
     attitude differently before and after a change of the sensor (axes swapped halfway: 578 nT of scatter over the
-    whole record, 183 nT within the halves, 537 nT of residual) cancels only there.  It replaces the floor when
+    whole record, 183 nT within the halves, 537 nT of residual) cancels only there; and the RMS a drift in time leaves
+    (``drift_floor``), which moves both neighbours' scatter at random attitudes.  It replaces the floor when
     lower by more than LEAK_Z standard errors (both estimates are upper bounds of the noise: structure on scales
     below the neighbour spacing stays in either); its standard error counts a third of the samples as independent, as for the
     overlapping time differences.  Not when the residual follows the motion or the neighbouring readings
@@ -518,19 +544,32 @@ def attitude_floor(fl: dict, r_model: np.ndarray, unit: np.ndarray, gravity: np.
     inflate = float(np.sqrt(n / (n - n_free)))
     sigma = knn_floor(features, r_model[rows]) * inflate
     where = ""
+    se_count = int(INDEPENDENT_SHARE * len(rows))
+    drift = None
     if t_s is not None:
-        blocked = blocked_knn_floor(features, r_model[rows], np.asarray(t_s, dtype=float)[rows])
-        if blocked is not None and blocked * inflate < sigma:
-            sigma, where = blocked * inflate, f" within each of {TIME_BLOCKS} blocks of time"
-    se = _interval(sigma, int(INDEPENDENT_SHARE * len(rows)))[0]
+        t_rows = np.asarray(t_s, dtype=float)[rows]
+        for blocks in TIME_BLOCKS:
+            blocked = blocked_knn_floor(features, r_model[rows], t_rows, blocks)
+            if blocked is not None and blocked * inflate < sigma:
+                sigma, where = blocked * inflate, f" within each of {blocks} blocks of time"
+        drift = drift_floor(r_model[rows], unit[rows], t_rows, n_free)
     out = dict(fl)
     out["floor_attitude_nT"] = float(sigma)
+    method = (f"scatter about the {KNN_NEIGHBOURS} nearest neighbours in attitude{where}"
+              f"{' (field and gravity directions)' if len(feats) > 1 else ' (field direction)'} of the residual of the "
+              f"fit with every effect free (random attitudes: the time floor, {fl['noise_floor_nT']:.3g} nT, holds "
+              "structure that depends on the attitude)")
+    if drift is not None:
+        out["floor_drift_nT"] = drift
+        if drift < sigma:  # a regression's residual: every sample counts
+            sigma, se_count = drift, len(rows)
+            method = ("RMS left by drifts in time (Legendre polynomials of time, alone and times each axis's direction "
+                      "cosine) of the residual of the fit with every effect free (random attitudes: the time floor, "
+                      f"{fl['noise_floor_nT']:.3g} nT, and the scatter about the nearest attitudes hold a drift in time)")
+    se = _interval(sigma, se_count)[0]
     if fl["noise_floor_nT"] - sigma <= LEAK_Z * np.hypot(fl["floor_se_nT"], se):
         return out
     out.update({"noise_floor_nT": float(sigma), "floor_se_nT": float(se),
                 "floor_interval_nT": [float(max(sigma - 1.96 * se, 0.0)), float(sigma + 1.96 * se)],
-                "floor_method": f"scatter about the {KNN_NEIGHBOURS} nearest neighbours in attitude{where}"
-                                f"{' (field and gravity directions)' if len(feats) > 1 else ' (field direction)'} of the "
-                                "residual of the fit with every effect free (random attitudes: the time floor, "
-                                f"{fl['noise_floor_nT']:.3g} nT, holds structure that depends on the attitude)"})
+                "floor_method": method})
     return out
