@@ -18,7 +18,8 @@ off-diagonal limits, offset limit, fitness), but each check names its cause:
   above that noise is structure the model lacks (a step in the offsets, a drift) and is rejected, the
   structure named (``describe_structure``: the best single step, located in time order); at random attitudes
   that noise is the scatter about the nearest attitudes (over the record, its halves and thirds in time), and a
-  drift in time is fitted (``drift_in_time``);
+  drift in time is fitted (``drift_in_time``); on a continuous path a direction that jumps between two samples is
+  a sensor that changed (``path_jump``);
 - **scale**: a mean scale factor more than 5 % from unity is a warning (a fluxgate's scales are within a
   few per cent of 1: the reference or the units are likely wrong).
 
@@ -1137,6 +1138,51 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
             f"of the fit ({sigma:.3g} nT, from {source}): {shape}"], warnings
 
 
+JUMP_MIN_DEG = 30.0
+JUMP_RATIO = 20.0
+JUMP_MAX = 2
+JUMP_GAP = 3.0
+"""``path_jump``: on a continuous path, at most JUMP_MAX steps of the readings' direction beyond JUMP_MIN_DEG between
+consecutive samples, each JUMP_RATIO times the 99.5th percentile of the other steps, across a time step at most
+JUMP_GAP times the median one."""
+
+
+def path_jump(raw_nT: np.ndarray, t_s: np.ndarray, rough: float | None = None, holds: np.ndarray | None = None
+              ) -> str | None:
+    """A rejection when the readings' direction jumps once or twice between consecutive samples of an otherwise
+    continuous path, across no gap in time: no rotation does that, but a sensor that changed does (an axis's wires
+    reversed, a range switched, a remount), or rows of two records put together.  A level vehicle whose z axis's
+    sign flips halfway reads as if it had been turned over, so that one calibration fits both halves (3.3 nT on a
+    2 nT sensor, accepted with its angles 2400\" off); only the jump between two rows shows it.  Not at random
+    attitudes (``rough`` above UNRELATED_ROUGHNESS), nor on a record of held attitudes (``holds``: the moves between
+    holds are not logged), nor on fewer than 20 samples."""
+    n = len(t_s)
+    if n < 20 or holds is not None:
+        return None
+    order = np.argsort(t_s, kind="stable")
+    if rough is None:
+        rough = roughness(t_s, raw_nT, order, ROUGHNESS_ROWS)
+    if rough is None or rough > UNRELATED_ROUGHNESS:
+        return None
+    u = raw_nT[order] / np.maximum(np.linalg.norm(raw_nT[order], axis=1), 1e-300)[:, None]
+    steps = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1.0, 1.0)))
+    big = np.flatnonzero(steps > JUMP_MIN_DEG)
+    if not 1 <= len(big) <= JUMP_MAX:
+        return None
+    dt = np.diff(t_s[order])
+    others = np.delete(steps, big)
+    usual = float(np.quantile(others, 0.995))
+    typical_dt = float(np.median(dt))
+    if not all(steps[i] > JUMP_RATIO * usual and dt[i] <= JUMP_GAP * typical_dt for i in big):
+        return None
+    where = "; ".join(f"{steps[i]:.3g} deg between rows {order[i]} and {order[i + 1]} (t {t_s[order[i]]:.6g} -> "
+                      f"{t_s[order[i + 1]]:.6g} s)" for i in big)
+    return (f"the readings' direction jumps by {where}, where the rest of the path turns by at most {usual:.2g} deg "
+            "per sample: no rotation does that between two samples, a sensor that changed does (an axis's wires "
+            "reversed, a range switched, a remount) or rows from two records; split the record there, or find what "
+            "changed")
+
+
 DRIFT_MAX_DEGREE = 12
 """``drift_in_time``: the drifts' Legendre polynomials of time go up to this degree (fewer on a short record: at
 least DRIFT_ROWS_PER_COLUMN rows per column)."""
@@ -1315,6 +1361,12 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     structure, notes = structure_check(inliers, x_ref, rms_ref, field_nT, rows, t_s, info, at=ref,
                                        geometry=geometry)
     rejections += structure
+    if t_s is not None and not structure:
+        t_in = np.asarray(t_s, dtype=float)[rows]
+        jump = path_jump(inliers.raw_nT, t_in, None if geometry is None else geometry.roughness,
+                         None if geometry is None else geometry.holds)
+        if jump is not None:
+            rejections.append(jump)
     # with a reference estimated from the readings (field='auto') the overall gain is relative to it: a mean
     # scale away from 1 then says nothing about the reference or the units
     warnings += notes + ([] if reference_estimated else scale_warning(x, objective.model))

@@ -118,3 +118,41 @@ def test_drift_check_leaves_the_noise_of_a_clean_record():
     d = _drifting("tumble9", 0, offsets_nT=(300.0, -200.0, 100.0))
     res = make("lsq").fit(d)
     assert not res.accepted and not any("drifts in time" in w for w in res.rejections), res.rejections
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("where", ["half", "middle third"])
+def test_a_level_vehicle_whose_z_sign_flips_is_rejected_at_the_jump(seed, where):
+    """On a level vehicle z's readings are nearly constant, so its sign flipped reads as the vehicle turned over: one
+    calibration fits both parts (3-6 nT on a 2 nT sensor; the two 'caps' even make the attitudes look covered) and was
+    accepted with its angles 2400" off.  Only the jump between two consecutive rows shows it (``path_jump``)."""
+    d = simulate("vehicle9", seed)
+    raw = d.raw_nT.copy()
+    n = len(raw)
+    rows = slice(n // 2, n) if where == "half" else slice(n // 3, 2 * n // 3)
+    raw[rows, 2] *= -1.0
+    res = make("lsq").fit(Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s))
+    assert not res.accepted
+    jumps = [w for w in res.rejections if "the readings' direction jumps by" in w]
+    assert jumps and f"between rows {rows.start - 1} and {rows.start}" in jumps[0], res.rejections
+
+
+def test_path_jump_controls():
+    """No jump on intact continuous paths (tumble9, vehicle9), on random attitudes (every step large), across a gap
+    in time (the move was not logged), or on a record of held attitudes (the moves between holds are not logged)."""
+    from magbench.calibrators.acceptance import path_jump
+
+    for scenario in ("tumble9", "vehicle9", "sphere9"):
+        d = simulate(scenario, 0)
+        assert path_jump(d.raw_nT, d.t_s) is None
+    d = simulate("vehicle9", 0)
+    raw, t = d.raw_nT.copy(), d.t_s.copy()
+    half = len(raw) // 2
+    raw[half:, 2] *= -1.0
+    assert path_jump(raw, t) is not None
+    t[half:] += 60.0  # a minute unlogged: the sensor may have been turned over
+    assert path_jump(raw, t) is None
+    rng = np.random.default_rng(0)
+    directions = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 0, 0], [0, -1, 0], [0, 0, -1]], dtype=float)
+    held = np.repeat(directions, 40, axis=0) * 5e4 + rng.normal(0.0, 2.0, (240, 3))
+    assert path_jump(held, np.arange(240.0)) is None
