@@ -586,7 +586,13 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
             i = np.flatnonzero(close)
             return NoiseGeometry("repeats", pairs=(first[i], first[idx[i, 1]]), distinct_share=share)
     rows = np.arange(n) if share == 1.0 else np.flatnonzero(~repeated_rows(raw_nT))
-    return NoiseGeometry("rows", rows, _interpolation_weights(rows.astype(float)), distinct_share=share)
+    # rows in file order at unrelated attitudes (the shots of a handheld calibration): the rows' differences hold
+    # whatever follows the attitude, so the nearest attitudes judge too (and the halves and thirds of the file)
+    rough = roughness(np.arange(n, dtype=float), raw_nT, rows, ROUGHNESS_ROWS) if len(rows) >= 5 else None
+    unrelated = rough is not None and rough > UNRELATED_ROUGHNESS
+    return NoiseGeometry("rows", rows, _interpolation_weights(rows.astype(float)), roughness=rough,
+                         neighbours=attitude_neighbours(raw_nT, rows if share < 1.0 else None) if unrelated else None,
+                         block_neighbours=_blocked_neighbours(raw_nT, rows) if unrelated else (), distinct_share=share)
 
 
 def independent_noise(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float,
@@ -1075,8 +1081,10 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
     floor = max(STRUCTURE_FLOOR_FRACTION * field_nT, RESOLUTION_SHARE * geometry.resolution_nT)
     # at random attitudes a drift in time passes for noise, or for structure that follows the attitude: fitted
     # (after a single step, which a drift's polynomials would only approximate)
-    drifting = drift_in_time(objective, x, r, t_in, rms_nT, floor, info) if (
-        rough is not None and rough > UNRELATED_ROUGHNESS and t_in is not None and rms_nT > floor) else None
+    along = t_in if t_in is not None else (np.arange(len(r), dtype=float) if geometry.how == "rows" else None)  # file order
+    drifting = drift_in_time(objective, x, r, along, rms_nT, floor, info, "in time" if t_in is not None else
+                             "along the rows (no t column: file order taken for time order)") if (
+        rough is not None and rough > UNRELATED_ROUGHNESS and along is not None and rms_nT > floor) else None
     if geometry.holds is not None and len(geometry.holds) == len(r):
         info["hold_design_effect"] = hold_design_effect(r, geometry.holds)
     if geometry.distinct_share < 1.0:
@@ -1194,7 +1202,7 @@ DRIFT_P = 1e-6
 
 
 def drift_in_time(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, t_s: np.ndarray, rms_nT: float,
-                  floor: float, info: dict) -> str | None:
+                  floor: float, info: dict, along: str = "in time") -> str | None:
     """At random attitudes, a rejection when the residual drifts in time.  There each reading's time neighbours and
     its nearest attitudes lie far apart in the other variable, so a drift of the offsets (hard iron, a zero drifting
     with warming) or of the field moves both noise estimates with it: sphere9 with its offsets drifting by 300 nT
@@ -1235,8 +1243,8 @@ def drift_in_time(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, t_s:
     if p_value >= DRIFT_P:
         return None
     shown = f"p {p_value:.1g}" if p_value > 0 else "p < 1e-300"
-    return (f"the residual {rms_nT:.3g} nT drifts in time: offsets or a field drifting smoothly (Legendre polynomials "
-            f"of time to degree {degree}) leave {rms_left:.3g} nT of it ({rms_nT / max(rms_left, 1e-12):.3g} times less; "
+    return (f"the residual {rms_nT:.3g} nT drifts {along}: offsets or a field drifting smoothly (Legendre polynomials "
+            f"to degree {degree}) leave {rms_left:.3g} nT of it ({rms_nT / max(rms_left, 1e-12):.3g} times less; "
             f"F test {shown}), which the model lacks (magbench diagnose says which)")
 
 

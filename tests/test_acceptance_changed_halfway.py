@@ -156,3 +156,23 @@ def test_path_jump_controls():
     directions = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 0, 0], [0, -1, 0], [0, 0, -1]], dtype=float)
     held = np.repeat(directions, 40, axis=0) * 5e4 + rng.normal(0.0, 2.0, (240, 3))
     assert path_jump(held, np.arange(240.0)) is None
+
+
+@pytest.mark.parametrize("scenario", ["sphere9", "cap9"])
+@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("change", ["sign z", "gain 1.01", "offsets drifting", "intact"])
+def test_without_a_time_column_the_rows_in_file_order_are_judged_the_same_way(scenario, seed, change):
+    """No t column (the shots of a handheld calibration): the rows are taken in file order, where consecutive rows at
+    unrelated attitudes hold the structure in their differences, so every such record was accepted (sign flipped,
+    gain stepped, offsets drifting: 60-200 nT on a 2 nT sensor).  The nearest attitudes, over the file and its halves
+    and thirds, and the drift fit along the rows judge them now; the intact records stay accepted."""
+    if change == "offsets drifting":
+        d = _drifting(scenario, seed, offsets_nT=(300.0, -200.0, 100.0))
+    elif change == "intact":
+        d = simulate(scenario, seed)
+    else:
+        d = changed_halfway(scenario, seed, change)
+    res = make("lsq").fit(Dataset(d.raw_nT, f_ref_nT=d.f_ref_nT))
+    assert res.accepted == (change == "intact"), res.rejections
+    if change == "offsets drifting":
+        assert any("drifts along the rows (no t column" in w for w in res.rejections), res.rejections
