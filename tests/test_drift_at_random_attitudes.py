@@ -62,3 +62,24 @@ def test_drift_floor_is_the_noise_without_a_drift_and_sees_through_one():
     drifting = noise + 100.0 * np.sin(2.0 * np.pi * t / 120.0) * unit[:, 1] + 0.3 * t
     assert 1.8 < drift_floor(drifting, unit, t, 9) < 2.6
     assert drift_floor(noise[:15], unit[:15], t[:15], 9) is None  # too short for one degree
+
+
+@pytest.mark.parametrize("scenario", ["sphere9", "cap9"])
+@pytest.mark.parametrize("kind", ["sign z halfway", "gain x halfway", "offsets drifting", "intact"])
+def test_without_a_time_column_the_file_order_stands_in_for_time(scenario, kind):
+    """No t column: the floor was the scatter about the nearest attitudes over the whole file, which held a change
+    between its parts or a drift along it (sphere9 with z's sign flipped halfway: `none` at 200 nT against a 182 nT
+    floor).  The halves and thirds of the file and a drift along its rows are taken too; the floor stays an upper
+    bound, and the intact record stays `none`."""
+    d = simulate(scenario, 0)
+    raw = d.raw_nT.copy()
+    n = len(raw)
+    if kind == "sign z halfway":
+        raw[n // 2:, 2] *= -1.0
+    elif kind == "gain x halfway":
+        raw[n // 2:, 0] *= 1.01
+    elif kind == "offsets drifting":
+        raw += np.linspace(0.0, 1.0, n)[:, None] * np.array([300.0, -200.0, 100.0])
+    report = diagnose(Dataset(raw, f_ref_nT=d.f_ref_nT))
+    assert report["floor_is_upper_bound"]
+    assert report["verdict"] == ("none" if kind == "intact" else "unexplained"), report["verdict"]
