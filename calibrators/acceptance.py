@@ -38,6 +38,7 @@ import numpy as np
 from magbench.numerics import (
     at_optimum,
     drift_columns,
+    drift_degree,
     lm_normal,
     median,
     median_and_sigma,
@@ -1060,7 +1061,8 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
         warnings.append("the noise could not be estimated independently of the fit (no t column and no repeated "
                         "attitudes): it was estimated from neighbouring rows taken in file order")
     rough = geometry.roughness
-    if rough is not None and rough > UNRELATED_ROUGHNESS:
+    unrelated = rough is not None and rough > UNRELATED_ROUGHNESS
+    if unrelated:
         # the time neighbours' differences hold whatever the model misses that follows the attitude: the
         # scatter about the nearest attitudes is the better bound of the noise (both are upper bounds)
         scatters = [attitude_neighbour_noise(r, near) for near in (geometry.neighbours, *geometry.block_neighbours)
@@ -1084,7 +1086,7 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
     along = t_in if t_in is not None else (np.arange(len(r), dtype=float) if geometry.how == "rows" else None)  # file order
     drifting = drift_in_time(objective, x, r, along, rms_nT, floor, info, "in time" if t_in is not None else
                              "along the rows (no t column: file order taken for time order)") if (
-        rough is not None and rough > UNRELATED_ROUGHNESS and along is not None and rms_nT > floor) else None
+        unrelated and along is not None and rms_nT > floor) else None
     if geometry.holds is not None and len(geometry.holds) == len(r):
         info["hold_design_effect"] = hold_design_effect(r, geometry.holds)
     if geometry.distinct_share < 1.0:
@@ -1094,7 +1096,7 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
                         "ones, and the stated "
                         f"deviations are widened {np.sqrt(1.0 / geometry.distinct_share):.3g} times for them")
     level = None
-    if how == "time" and t_in is not None and not (rough is not None and rough > UNRELATED_ROUGHNESS):
+    if how == "time" and t_in is not None and not unrelated:
         assert order is not None
         level = noise_correlation(r, objective.raw_nT, t_in, order)
         if level is not None and (level[1] == 1 or level[0] < DECORRELATION_RISE * sigma):
@@ -1172,7 +1174,8 @@ def path_jump(raw_nT: np.ndarray, t_s: np.ndarray, rough: float | None = None, h
         rough = roughness(t_s, raw_nT, order, ROUGHNESS_ROWS)
     if rough is None or rough > UNRELATED_ROUGHNESS:
         return None
-    u = raw_nT[order] / np.maximum(np.linalg.norm(raw_nT[order], axis=1), 1e-300)[:, None]
+    raw = raw_nT[order]
+    u = raw / np.maximum(np.linalg.norm(raw, axis=1), 1e-300)[:, None]
     steps = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1.0, 1.0)))
     big = np.flatnonzero(steps > JUMP_MIN_DEG)
     if not 1 <= len(big) <= JUMP_MAX:
@@ -1191,10 +1194,6 @@ def path_jump(raw_nT: np.ndarray, t_s: np.ndarray, rough: float | None = None, h
             "changed")
 
 
-DRIFT_MAX_DEGREE = 12
-"""``drift_in_time``: the drifts' Legendre polynomials of time go up to this degree (fewer on a short record: at
-least DRIFT_ROWS_PER_COLUMN rows per column)."""
-DRIFT_ROWS_PER_COLUMN = 5
 DRIFT_ROWS = 20_000
 """... on a systematic sample of at most this many rows (in time order) of a longer record."""
 DRIFT_P = 1e-6
@@ -1208,15 +1207,16 @@ def drift_in_time(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, t_s:
     with warming) or of the field moves both noise estimates with it: sphere9 with its offsets drifting by 300 nT
     over the record was accepted at 60 nT against a noise of 2, judged against 60.  Random attitudes make the drift
     easy to fit instead: the residual is regressed on the model's Jacobian and on Legendre polynomials of time of
-    degree 1..D (D up to DRIFT_MAX_DEGREE), alone (the field's magnitude) and times each axis's direction cosine (the
-    offsets), and rejected when what is left is less than 1 / STRUCTURE_RATIO of the residual (less ``floor``) and
-    the drift's columns are significant (F test, ``DRIFT_P``)."""
+    degree 1..D (``numerics.drift_degree``, the model's parameters reserved), alone (the field's magnitude) and
+    times each axis's direction cosine (the offsets), and rejected when what is left is less than 1 /
+    STRUCTURE_RATIO of the residual (less ``floor``) and the drift's columns are significant (F test,
+    ``DRIFT_P``)."""
     n = len(r)
     rows = np.argsort(t_s, kind="stable")
     if n > DRIFT_ROWS:
         rows = rows[systematic_rows(n, DRIFT_ROWS)]
     m, p = len(rows), len(x)
-    degree = min(DRIFT_MAX_DEGREE, (m // DRIFT_ROWS_PER_COLUMN - p) // 4)
+    degree = drift_degree(m, p)
     t = t_s[rows]
     if degree < 1 or not np.ptp(t) > 0:
         return None

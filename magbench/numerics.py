@@ -107,6 +107,18 @@ def systematic_rows(n: int, limit: int) -> slice:
     return slice(None, None, max(1, -(-n // limit)))
 
 
+DRIFT_MAX_DEGREE = 12
+DRIFT_ROWS_PER_COLUMN = 5
+"""``drift_degree``: a drift's Legendre polynomials of time go up to this degree, with at least this many rows per
+column (four columns per degree)."""
+
+
+def drift_degree(m: int, reserved: int = 0) -> int:
+    """The degree of ``drift_columns`` for ``m`` rows, ``reserved`` of the rows' columns' worth kept for other
+    parameters fitted beside it (0 or less: too short for a drift)."""
+    return min(DRIFT_MAX_DEGREE, (m // DRIFT_ROWS_PER_COLUMN - reserved) // 4)
+
+
 def drift_columns(t_s: np.ndarray, unit: np.ndarray, degree: int, constant: bool = True) -> np.ndarray:
     """Columns of a drift in time, each scaled to unit length: Legendre polynomials of the time mapped onto [-1, 1]
     of degree 0 (``constant``) or 1 to ``degree``, alone (a drift of the field's magnitude) and times each axis's

@@ -19,7 +19,7 @@ from scipy.signal import lfilter
 from scipy.spatial import cKDTree
 from scipy.stats import norm, spearmanr
 
-from magbench.numerics import drift_columns, repeated_rows, systematic_rows
+from magbench.numerics import drift_columns, drift_degree, repeated_rows, systematic_rows
 from magbench.simulate.effects import SPIKE_SIGMA, Columns, f_test_p, robust_sigma
 
 KNN_NEIGHBOURS = 6
@@ -49,21 +49,18 @@ def _knn_errors(features: np.ndarray, r: np.ndarray, k: int) -> np.ndarray:
 TIME_BLOCKS = (2, 3)
 """``attitude_floor`` also takes the attitude neighbours within each of these many consecutive blocks of time
 (halves, thirds: a change over the middle third of a record mixes both sides in either half)."""
-DRIFT_MAX_DEGREE = 12
-DRIFT_ROWS_PER_COLUMN = 5
-"""``drift_floor``: Legendre polynomials of time up to this degree, at least this many rows per column."""
 
 
 def drift_floor(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray, n_free: int) -> float | None:
     """At random attitudes, the RMS of ``r`` left by a regression on Legendre polynomials of time of degree 0..D
-    (D up to DRIFT_MAX_DEGREE, at least DRIFT_ROWS_PER_COLUMN rows per column), alone and times each axis's
+    (``numerics.drift_degree``), alone and times each axis's
     direction cosine ``unit`` (the field's magnitude and the body's offsets drifting), scaled for the ``n_free``
     parameters of the fit that left ``r`` and the regression's columns.  A third upper bound of the noise: there a
     drift in time moves both the time neighbours' scatter and the attitude neighbours' with it (an offset
     oscillating 3 times over sphere9, 150 nT, left a floor of 50 nT and a verdict of ``none``), while random
     attitudes make it easy to fit.  None when too short."""
     m = len(r)
-    degree = min(DRIFT_MAX_DEGREE, m // DRIFT_ROWS_PER_COLUMN // 4)
+    degree = drift_degree(m)
     if degree < 1 or not np.ptp(t_s) > 0:
         return None
     design = drift_columns(t_s, unit, degree)  # degree 0 too: r need not have a zero mean
@@ -73,6 +70,13 @@ def drift_floor(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray, n_free: int) -
     if dof < 10:
         return None
     return float(np.sqrt(float(left @ left) / dof))
+
+
+def lowest_blocked_knn_floor(features: np.ndarray, r: np.ndarray, t_s: np.ndarray) -> tuple[float, int] | None:
+    """The lowest ``blocked_knn_floor`` over the block counts of TIME_BLOCKS, with its count (None when no count
+    leaves its blocks long enough)."""
+    found = [(f, b) for b in TIME_BLOCKS if (f := blocked_knn_floor(features, r, t_s, b)) is not None]
+    return min(found, key=lambda fb: fb[0]) if found else None
 
 
 def blocked_knn_floor(features: np.ndarray, r: np.ndarray, t_s: np.ndarray, blocks: int = 2,
@@ -352,11 +356,10 @@ def vector_floor(unit: np.ndarray, d: Columns, r: np.ndarray, rows_in_time_order
     # the file, or drifting along it, cancels within its halves or thirds, or in a drift's fit (sphere9 with z's sign
     # flipped halfway and no t column was 'none' with 200 nT of residual against a 182 nT floor)
     rows = np.arange(n, dtype=float)
-    for blocks in TIME_BLOCKS:
-        blocked = blocked_knn_floor(unit, r, rows, blocks)
-        if blocked is not None and blocked < sigma:
-            sigma, method = blocked, (f"nearest neighbours in attitude within each of {blocks} blocks of the rows in file "
-                                      "order (no time column: an upper bound, structure included)")
+    blocked = lowest_blocked_knn_floor(unit, r, rows)
+    if blocked is not None and blocked[0] < sigma:
+        sigma, method = blocked[0], (f"nearest neighbours in attitude within each of {blocked[1]} blocks of the rows in "
+                                     "file order (no time column: an upper bound, structure included)")
     drift = drift_floor(r, unit, rows, 9)  # r: the base fit's residual, at most nine parameters
     if drift is not None and drift < sigma:
         sigma, method = drift, ("RMS left by drifts along the rows in file order (no time column: an upper bound, "
@@ -561,10 +564,9 @@ def attitude_floor(fl: dict, r_model: np.ndarray, unit: np.ndarray, gravity: np.
     drift = None
     if t_s is not None:
         t_rows = np.asarray(t_s, dtype=float)[rows]
-        for blocks in TIME_BLOCKS:
-            blocked = blocked_knn_floor(features, r_model[rows], t_rows, blocks)
-            if blocked is not None and blocked * inflate < sigma:
-                sigma, where = blocked * inflate, f" within each of {blocks} blocks of time"
+        blocked = lowest_blocked_knn_floor(features, r_model[rows], t_rows)
+        if blocked is not None and blocked[0] * inflate < sigma:
+            sigma, where = blocked[0] * inflate, f" within each of {blocked[1]} blocks of time"
         drift = drift_floor(r_model[rows], unit[rows], t_rows, n_free)
     out = dict(fl)
     out["floor_attitude_nT"] = float(sigma)
