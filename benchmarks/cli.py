@@ -42,6 +42,7 @@ from magbench.benchmarks.progress import slow_phase
 from magbench.benchmarks.runner import run_one
 from magbench.benchmarks.tables import to_terminal
 from magbench.calibrators import available, make
+from magbench.calibrators.artifacts import EXTENSIONS as EXPORT_EXTENSIONS
 from magbench.calibrators.artifacts import apply_problems, apply_to_csv, export, export_path, load_calibration
 from magbench.calibrators.registry import plugin_errors
 from magbench.errors import InputError
@@ -166,6 +167,10 @@ def _positive_int(text: str) -> int:
     return integer(text, 1, "must be at least 1")
 
 
+def _folds(text: str) -> int:
+    return integer(text, 2, "must be at least 2")
+
+
 def _printable(text: str) -> str:
     """A message safe for a terminal: control characters (escape sequences, carriage returns, NUL) are
     shown escaped, never echoed raw."""
@@ -198,6 +203,8 @@ def _parse_params(items) -> dict:
         if "=" not in item:
             raise InputError(f"--param wants KEY=VALUE, got {item!r}")
         key, value = item.split("=", 1)
+        if not key.strip():
+            raise InputError(f"--param {item}: the name before '=' is empty (KEY=VALUE)")
         if key.strip() in OWN_SETTINGS:  # what a campaign sets itself has its own option here too
             raise InputError(f"--param {item}: {key.strip()} has its own option, --{key.strip()}")
         try:
@@ -293,15 +300,30 @@ def _field_value(text: str):
         raise argparse.ArgumentTypeError(f"{text!r} is neither a number of nT nor 'auto'") from None
 
 
-def _save_target(args):
-    """The calibration file --save/--export will write, checked before the fit (None without --save)."""
+SAVE_FORMATS = {".json": ("json", "matlab"), ".mat": ("matlab",), ".param": ("ardupilot",), ".params": ("px4",)}
+"""The formats a --save name's extension may hold (matlab's magcal also as JSON text); without --export the first is
+the format written."""
+
+
+def _save_target(args) -> tuple[Path | None, str]:
+    """The calibration file --save/--export will write and its format, checked before the fit ((None, '') without
+    --save).  Without --export the format is the extension's (``SAVE_FORMATS``; json for another or none); an
+    --export that the extension contradicts (JSON text in a .mat file, ArduPilot's parameters in a .json) is
+    refused."""
     if args.save is None:
         if args.export is not None:
             raise InputError("--export picks the format of --save PATH: give --save too")
-        return None
-
-    path = export_path(args.save, args.export or "json")
-    return check_output(path, [args.file], args.force, what="--save file")
+        return None, ""
+    if not os.fspath(args.save).strip():
+        raise InputError("--save: the file name is empty")
+    suffix = Path(os.fspath(args.save)).suffix.lower()
+    allowed = SAVE_FORMATS.get(suffix)
+    fmt = args.export or (allowed[0] if allowed else "json")
+    if allowed and fmt not in allowed:
+        raise InputError(f"--save {args.save}: a {suffix} file does not hold --export {fmt} (that writes "
+                         f"{EXPORT_EXTENSIONS[fmt]}): give a {EXPORT_EXTENSIONS[fmt]} name, or --export {allowed[0]}")
+    path = export_path(args.save, fmt)
+    return check_output(path, [args.file], args.force, what="--save file"), fmt
 
 
 def _calibration_lines(result, n_points: int) -> list[str]:
@@ -349,7 +371,7 @@ def cmd_calibrate(args) -> int:
     if field_auto:
         args.field = None  # the reference options below then only read the file
     cal = make(args.method, model=args.model, seed=args.seed, **params)  # an unknown method before reading
-    target = _save_target(args)
+    target, fmt = _save_target(args)
 
     talk = not getattr(args, "json", False)
     with slow_phase(f"reading {args.file}", talk):
@@ -375,8 +397,8 @@ def cmd_calibrate(args) -> int:
     saved = None
     if target is not None and (result.accepted or args.accept_any):
 
-        saved = export(result.calibration(), target, args.export or "json", force=args.force, inputs=[args.file])
-        lines.append(f"  saved {args.export or 'json'} calibration to {saved}")
+        saved = export(result.calibration(), target, fmt, force=args.force, inputs=[args.file])
+        lines.append(f"  saved {fmt} calibration to {saved}")
     obj["saved"] = str(saved) if saved else None
     if result.accepted:
         _emit(args, obj, "\n".join(lines))
@@ -835,8 +857,9 @@ def _add_calibrate_parser(sub) -> None:
     p.add_argument("--save", metavar="PATH", help="write the calibration to PATH (the extension of --export is added "
                    "when PATH has none); an accepted calibration only, unless --accept-any")
     p.add_argument("--export", choices=["json", "matlab", "ardupilot", "px4"],
-                   help="format of --save: json (magbench's schema, default), matlab (A, b, expmfs: .mat, or .json; "
-                        "corrected = (D - b) * A), ardupilot (COMPASS_* .param), px4 (CAL_MAG0_* .params)")
+                   help="format of --save: json (magbench's schema), matlab (A, b, expmfs: .mat, or .json; "
+                        "corrected = (D - b) * A), ardupilot (COMPASS_* .param), px4 (CAL_MAG0_* .params); by default "
+                        "the --save name's extension says it (.mat matlab, .param ardupilot, .params px4), else json")
     p.add_argument("--force", action="store_true", help="overwrite the --save file")
     p.add_argument("--json", action="store_true")
     _add_reference_options(p)
@@ -869,7 +892,7 @@ def _add_diagnose_parser(sub) -> None:
     p = sub.add_parser("diagnose", help="where the calibration residual lies and which unmodelled effect causes it")
     p.add_argument("file", metavar="FILE.csv")
     p.add_argument("--model", default="nine", choices=["angles", "nine"], help="the base calibration model")
-    p.add_argument("--folds", type=_positive_int, default=5, help="cross-validation folds (default 5)")
+    p.add_argument("--folds", type=_folds, default=5, help="cross-validation folds (at least 2; default 5)")
     p.add_argument("--seed", type=seed, default=0, help="random seed, a non-negative integer (default 0)")
     p.add_argument("--figure", metavar="PATH.png", help="write the figure of the residual before/after the selected "
                    "effects to PATH (no figure without it)")

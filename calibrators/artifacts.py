@@ -83,7 +83,7 @@ from magbench import __version__
 from magbench.calibrators.acceptance import reference_problems
 from magbench.errors import InputError
 from magbench.safeio import InputBytes, atomic_output, atomic_write, check_output, read_input
-from magbench.simulate.dataset import UNIT_FACTORS_NT, _header, _parse_head, read_csv
+from magbench.simulate.dataset import UNIT_FACTORS_NT, _header, _parse_head, newline_lines, read_csv
 from magbench.simulate.sensor import FREE, MODELS, NEUTRAL, NINE_NAMES, ErrorParams
 
 SCHEMA = "magbench.calibration"
@@ -603,7 +603,7 @@ def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = Fa
     mixed = mixed_units(data.raw_nT) or zero_readings(data.raw_nT)
     if mixed:
         raise InputError(f"{src}: {mixed}")
-    head = _parse_head(source.data, str(src))
+    head = _parse_head(newline_lines(source.data), str(src))
     sep, names = _header(src, head.header)
     clash = [c for c in CAL_COLUMNS if c in names]
     if clash:

@@ -26,7 +26,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from magbench.errors import InputError
-from magbench.numerics import median, repeated_rows, systematic_rows
+from magbench.numerics import median, repeated_rows, systematic_rows, time_column_note
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
 
@@ -376,6 +376,9 @@ class Calibrator(metaclass=_Sealed):
         spread = known.get("reference_spread", lambda: np.ptp(dataset.f_ref_nT) / field_nT)
         if spread > 0.05:
             warnings.append(f"the reference magnitude varies by {100 * spread:.1f} % over the record")
+        note = time_column_note(dataset.t_s)  # not cached: the cache is keyed by the readings and reference alone
+        if note:
+            warnings.append(note)
         return warnings
 
     def fit(self, data, *, f_ref_nT=None, field=None, units: str = "nT") -> CalibrationResult:

@@ -193,3 +193,31 @@ def roughness(t_s: np.ndarray | None, raw_nT: np.ndarray, order: np.ndarray | No
         num += float(np.sum(d2 ** 2))
         den += float(np.sum(d1 ** 2))
     return float(np.sqrt(num / den)) if den > 0 else None
+
+
+TIME_REPEAT_SHARE = 0.01
+"""``time_column_note`` speaks of repeated times when at least this share of the rows repeat the previous row's."""
+
+
+def time_column_note(t_s: np.ndarray | None) -> str | None:
+    """What a user should know of a time column that is not a clock read once per sample in file order (None when
+    it is): times that step back between rows (a logger restarted, files joined out of order: every time-based
+    check then takes the rows in time order, where stretches that overlap in time interleave), and times that
+    repeat the previous row's in at least ``TIME_REPEAT_SHARE`` of the rows (a clock coarser than the sampling:
+    rows of one time are taken in file order).  A column in reverse time order throughout is only reversed."""
+    if t_s is None or len(t_s) < 3:
+        return None
+    d = np.diff(np.asarray(t_s, dtype=float))
+    notes = []
+    back = np.flatnonzero(d < 0)
+    if len(back) and not np.all(d <= 0):
+        i = int(back[0])
+        notes.append(f"the t column steps back {len(back):,} time{'s' if len(back) > 1 else ''} in file order (first "
+                     f"between data rows {i + 1:,} and {i + 2:,}: {t_s[i]:.6g} -> {t_s[i + 1]:.6g} s; a logger restarted "
+                     "or files joined?): the time-based checks take the rows in time order, where stretches that "
+                     "overlap in time interleave")
+    repeats = int(np.count_nonzero(d == 0))
+    if repeats and repeats >= TIME_REPEAT_SHARE * len(d) and np.ptp(t_s) > 0:
+        notes.append(f"{repeats:,} rows ({100 * repeats / len(d):.0f} %) repeat the previous row's t (a clock coarser "
+                     "than the sampling?): rows of one time are taken in file order")
+    return "; ".join(notes) or None

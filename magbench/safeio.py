@@ -111,7 +111,10 @@ def _same_file(a: Path, b) -> bool:
 def check_output(path, inputs=(), force: bool = False, what: str = "output") -> Path:
     """``path`` as a file a command may write: refused (``InputError``) when it is a directory or another
     non-regular file, when its folder does not exist, when it exists and ``force`` is false, and when it
-    is one of ``inputs`` (paths or ``InputBytes``; compared by inode, so hard links and symlinks count)."""
+    is one of ``inputs`` (paths or ``InputBytes``; compared by inode, so hard links and symlinks count), and when
+    its folder takes no new file (``_probe_folder``: a read-only folder, ``/proc``), before any work is done."""
+    if not str(path).strip():
+        raise InputError(f"the {what} name is empty: give a file name")
     path = Path(path)
     for item in inputs:
         if item is None:
@@ -136,7 +139,21 @@ def check_output(path, inputs=(), force: bool = False, what: str = "output") -> 
             raise InputError(f"{path} exists and is {_kind(st.st_mode)}: refusing to replace it")
         if not force:
             raise InputError(f"{path} exists; refusing to overwrite it (use --force)")
+    _probe_folder(path)
     return path
+
+
+def _probe_folder(path: Path) -> None:
+    """Refuse ``path`` when its folder takes no new file: one created there (the temporary name ``atomic_output``
+    would use) and removed again.  Permission bits alone do not say it (root ignores them; a read-only mount and
+    ``/proc`` refuse whatever they say), and a write refused after a long fit lost the fit."""
+    try:
+        fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".probe")
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {os_reason(exc)}") from None
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(name)
 
 
 @contextlib.contextmanager

@@ -246,6 +246,12 @@ PACKED_FORMATS = ((b"\x1f\x8b", "gzip-compressed"), (b"PK\x03\x04", "a zip archi
 """Files a user may give for a CSV, recognized by their first bytes and named in the refusal."""
 
 
+def newline_lines(data: bytes) -> bytes:
+    """A file's bytes with classic Mac OS line endings (carriage returns only, no line feed anywhere) turned into line
+    feeds, so that its lines are read as lines (the file itself is not changed); any other file as it is."""
+    return data.replace(b"\r", b"\n") if b"\r" in data and b"\n" not in data else data
+
+
 def _parse_head(data: bytes, where: str) -> _Head:
     """The ``#`` metadata before the header, the number of lines before it, the header line and where the
     rows start; refuses what is not UTF-8 text, and an overlong header."""
@@ -594,7 +600,7 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
     if units not in UNIT_FACTORS_NT:
         raise InputError(f"unknown unit {units!r}: use one of nT, uT, mG, G")
     src = source if source is not None else read_input(path, "data file")
-    data = src.data
+    data = newline_lines(src.data)
     head = _parse_head(data, str(path))
     sep, names = _header(path, head.header)
     _check_meta_units(path, head.meta, units)
@@ -650,8 +656,21 @@ def check_units(magnitude: float, units: str, expected_field_nT: float | None = 
         ok = ok and 0.2 <= nt / expected_field_nT <= 5.0
     if not ok:
         guess = guess_unit(magnitude, reference)
-        hint = f"they look like {guess}: read with units='{guess}'" if guess != units else \
-            "check the file and the reference"
+        converted = magnitude * UNIT_FACTORS_NT[guess]
+        # a unit is named only where it brings the readings within the factor 5 of a plausible reference; readings
+        # plausible in their own unit against an implausible reference (--field 1e300) are the reference's fault
+        fits = 1.0e3 <= reference <= 1.0e7 and 0.2 <= converted / reference <= 5.0
+        if guess != units and fits:
+            hint = f"they look like {guess}: read with units='{guess}'"
+        elif expected_field_nT and 1.0e3 <= nt <= 1.0e7 and not 1.0e3 <= expected_field_nT <= 1.0e7:
+            ref_unit = guess_unit(expected_field_nT, nt)  # the unit the reference was perhaps given in
+            in_nt = expected_field_nT * UNIT_FACTORS_NT[ref_unit]
+            hint = (f"the reference is in nT: {expected_field_nT:g} {ref_unit} would be {in_nt:g} nT"
+                    if ref_unit != "nT" and 0.2 <= in_nt / nt <= 5.0 else
+                    f"the reference is no geomagnetic or laboratory field (plausible: {1.0e3:g} to {1.0e7:g} nT): "
+                    "check it")
+        else:
+            hint = "check the file and the reference"
         ref = f" against a reference of {expected_field_nT:.6g} nT" if expected_field_nT else ""
         raise InputError(f"{where}: median field magnitude {magnitude:.4g} {units} is implausible{ref}; {hint}")
 

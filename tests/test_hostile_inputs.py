@@ -176,6 +176,22 @@ CASES = [
     ("field-option-used", _csv(RAW, header=("bx", "by", "bz"), meta=()), ["--field", "50000"], 0, ""),
     ("field-option-negative", _csv(RAW, header=("bx", "by", "bz"), meta=()), ["--field", "-3"], 2, "positive"),
     ("field-option-nan", _csv(RAW, header=("bx", "by", "bz"), meta=()), ["--field", "nan"], 2, "positive"),
+    # a reference given in another unit is said so (the readings' unit was named: 'they look like G')
+    ("field-option-in-gauss", _csv(RAW, header=("bx", "by", "bz"), meta=()), ["--field", "0.5"], 2,
+     "the reference is in nT: 0.5 G would be 50000 nT"),
+    ("field-option-absurd", _csv(RAW, header=("bx", "by", "bz"), meta=()), ["--field", "1e300"], 2,
+     "the reference is no geomagnetic or laboratory field"),
+    # classic Mac OS line endings (carriage returns only) are lines: the file was 'no header row and no data'
+    ("cr-only-line-ends", GOOD.replace("\n", "\r"), [], 0, ""),
+    # --save refused before the fit, in one line (a folder that takes no file was found after it, under the
+    # reference's notice), and never a file whose name says another format than the one written
+    ("save-into-proc", GOOD, ["--save", "/proc/magbench-cal.json"], 2, "cannot write /proc/magbench-cal.json"),
+    ("save-empty-name", GOOD, ["--save", ""], 2, "--save: the file name is empty"),
+    ("save-mat-as-json", GOOD, ["--save", "cal.mat", "--export", "json"], 2,
+     "a .mat file does not hold --export json (that writes .json)"),
+    ("save-json-as-ardupilot", GOOD, ["--save", "cal.json", "--export", "ardupilot"], 2,
+     "a .json file does not hold --export ardupilot"),
+    ("param-empty-name", GOOD, ["--param", "=1"], 2, "the name before '=' is empty"),
     # attitude coverage
     ("plane-36", _csv(_plane(36)), [], 2, "degenerate attitude coverage"),
     ("plane-3600", _csv(_plane(3600)), [], 2, "degenerate attitude coverage"),

@@ -26,6 +26,7 @@ from magbench.calibrators.base import input_problems
 from magbench.calibrators.core.objective import ScalarObjective, identity_vector
 from magbench.calibrators.fisher import coverage
 from magbench.errors import InputError, check_int
+from magbench.numerics import time_column_note
 from magbench.simulate.dataset import Dataset, ScalarSeries, real_array
 from magbench.simulate.sensor import PARAM_NAMES
 
@@ -58,41 +59,51 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
     if gravity is not None and not isinstance(data, ScalarSeries):
         gravity = gravity_problem_free(gravity, len(data))
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
-        if isinstance(data, ScalarSeries):
-            return diagnose_scalar(data, folds=folds, seed=seed)
-        problem = reference_mismatch(data)
-        if problem:  # wrong units, mixed units, a jumping reference: bad input on every path (as the calibrators say)
-            raise InputError(problem)
-        refusal = attitude_refusal(data, base)
-        if refusal is not None and not turned(data):  # a fixed sensor: the time question still has an answer
-            return time_only(data, refusal)
-        data, gravity, held = without_logger_holds(data, gravity)
-        whole, whole_gravity = data, gravity
-        data, gravity, clipped = without_rails(data, gravity)
+        out = _diagnose(data, base, folds, seed, gravity, progress)
+    note = time_column_note(data.t_s)
+    if note:
+        out["time_column"] = note
+    return out
+
+
+def _diagnose(data, base: str, folds: int, seed: int, gravity, progress: bool | None) -> dict:
+    if isinstance(data, ScalarSeries):
+        return diagnose_scalar(data, folds=folds, seed=seed)
+    problem = reference_mismatch(data)
+    if problem:  # wrong units, mixed units, a jumping reference: bad input on every path (as the calibrators say)
+        raise InputError(problem)
+    refusal = attitude_refusal(data, base)
+    if refusal is not None and not turned(data):  # a fixed sensor: the time question still has an answer
+        return time_only(data, refusal)
+    data, gravity, held = without_logger_holds(data, gravity)
+    whole, whole_gravity = data, gravity
+    data, gravity, clipped = without_rails(data, gravity)
+    try:
+        out = Diagnosis(data, base, folds, seed, gravity=gravity, progress=progress, degenerate=refusal).run()
+    except InputError as exc:
+        if clipped is None:
+            raise
+        # the rest alone cannot be diagnosed: the whole record's figures, clipped readings included, and no name
         try:
-            out = Diagnosis(data, base, folds, seed, gravity=gravity, progress=progress, degenerate=refusal).run()
-        except InputError as exc:
-            if clipped is None:
-                raise
-            # the rest alone cannot be diagnosed: the whole record's figures, clipped readings included, and no name
-            try:
-                out = Diagnosis(whole, base, folds, seed, gravity=whole_gravity, progress=progress,
-                                degenerate=refusal).run()
-            except InputError as whole_exc:
-                raise InputError(f"{clipped['clipped_statement']}; the record cannot be diagnosed: {whole_exc}") from None
-            clipped = dict(clipped, clipped_rows_left_out=0, clipped_statement=clipped_statement(
-                clipped["clipped_rows_left_out"], clipped["clipped"], str(exc).splitlines()[0]))
-            out["selected"] = []
-            if out["verdict"] != "insufficient_data":
-                out["verdict"] = "unexplained"
-        if held is not None:
-            statement = held.pop("held_statement")
-            out.update(held)
-            out["floor_method"] = out.get("floor_method", "") + statement
-        if clipped is not None:
-            out.update(clipped)
-            out["verdict"] = with_unexplained(out["verdict"])
-        return out
+            out = Diagnosis(whole, base, folds, seed, gravity=whole_gravity, progress=progress,
+                            degenerate=refusal).run()
+        except InputError as whole_exc:
+            raise InputError(f"{clipped['clipped_statement']}; the record cannot be diagnosed: {whole_exc}") from None
+        clipped = dict(clipped, clipped_rows_left_out=0, clipped_statement=clipped_statement(
+            clipped["clipped_rows_left_out"], clipped["clipped"], str(exc).splitlines()[0]))
+        out["selected"] = []
+        if out["verdict"] != "insufficient_data":
+            out["verdict"] = "unexplained"
+    if refusal is not None:
+        out = _few_directions(data, out)
+    if held is not None:
+        statement = held.pop("held_statement")
+        out.update(held)
+        out["floor_method"] = out.get("floor_method", "") + statement
+    if clipped is not None:
+        out.update(clipped)
+        out["verdict"] = with_unexplained(out["verdict"])
+    return out
 
 
 def diagnosed_rows(data, result: dict):
@@ -177,6 +188,40 @@ sensor was rotated (on a level vehicle, about one axis), though perhaps not enou
 base model.  Its diagnosis holds the directions the attitudes leave free with the weak prior on the scales and angles
 (a fluxgate's scales within a few percent of 1, its axes within a degree or so of orthogonal) instead of answering the
 time question only; a fixed sensor's directions move by the field's own variation, thousandths of a radian."""
+
+
+MIN_DIRECTIONS = 8
+"""A record whose attitudes cannot determine the base model (``attitude_refusal``) and whose readings point in fewer
+than this many distinct directions (``distinct_directions``: a sensor moved between a few held positions, not turned
+through a band of them) says nothing of the attitude-dependent effects: the base correction's weak prior absorbs
+whatever the few positions show.  Its verdict ``none`` is then ``insufficient_data`` (what the time effects show is
+still named)."""
+DIRECTION_CELL_RAD = 0.0175
+"""The cell (about 1 degree) in which ``distinct_directions`` counts the readings' directions."""
+
+
+def distinct_directions(raw_nT: np.ndarray) -> int:
+    """How many ~1 degree cells (``DIRECTION_CELL_RAD``) the readings' directions fall in."""
+    raw = np.asarray(raw_nT, dtype=float)
+    norms = np.linalg.norm(raw, axis=1)
+    ok = np.isfinite(norms) & (norms > 0)
+    cells = np.floor(raw[ok] / norms[ok, None] / DIRECTION_CELL_RAD).astype(np.int64)
+    return int(len(np.unique(cells, axis=0))) if len(cells) else 0
+
+
+def _few_directions(data, out: dict) -> dict:
+    """``MIN_DIRECTIONS``: a verdict ``none`` on a record of a few held positions is ``insufficient_data``, said in
+    ``attitude`` and ``attitude_reason`` as on the fixed sensor's path."""
+    k = distinct_directions(data.raw_nT)
+    if k >= MIN_DIRECTIONS:
+        return out
+    reason = (f"the readings point in {k} distinct direction{'s' if k != 1 else ''} (about 1 degree apart), fewer than "
+              f"{MIN_DIRECTIONS}: the base correction's weak prior absorbs what so few positions show, so no effect that "
+              "depends on the attitude can be seen; turn the sensor through a band of attitudes")
+    out = {**out, "attitude": "insufficient_data", "attitude_reason": reason}
+    if out["verdict"] == "none":
+        out["verdict"] = "insufficient_data"
+    return out
 
 
 def turned(data) -> bool:

@@ -57,6 +57,8 @@ def _table(result: dict, source: str) -> list[str]:
         lines.append(f"  base fit: {result['base_fit']}{why}")
     if "power" in result:
         lines.append(f"  power: {result['power']['statement']}")
+    if result.get("attitude_reason"):
+        lines.append(f"  attitude part: {result.get('attitude', 'insufficient_data')}: {result['attitude_reason']}")
     for name, why in result.get("not_tested", {}).items():
         lines.append(f"  not tested: {name}: {why}")
     for name, why in result.get("not_applicable", {}).items():
@@ -104,9 +106,10 @@ def time_only_text(result: dict, source: str = "") -> str:
 
 def diagnosis_text(result: dict, source: str = "") -> str:
     """The human table of a diagnosis (``magbench diagnose`` without ``--json``)."""
+    note = [f"  time column: {result['time_column']}"] if result.get("time_column") else []
     if result.get("kind") == "time_only":
-        return time_only_text(result, source)
-    lines = _table(result, source) + _localization(result.get("localization", {}))
+        return time_only_text(result, source) + "".join("\n" + ln for ln in note)
+    lines = _table(result, source) + note + _localization(result.get("localization", {}))
     if "resimulation" in result and "skipped" in result["resimulation"]:
         lines += ["", "  " + result["resimulation"]["skipped"]]
     elif "resimulation" in result:
