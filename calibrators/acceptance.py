@@ -1300,6 +1300,11 @@ def scale_warning(x: np.ndarray, model: str) -> list[str]:
             f"within a few per cent of 1, so the reference magnitude or the units are likely wrong"]
 
 
+SEARCH_STOPPED_SHORT = "the search stopped short (budget, premature convergence) or ended in a local minimum"
+"""Why an iterative answer is far from the data's optimum, unless it ended on its search box's bound (``base``: the
+box then excludes the optimum, which the rejection says instead)."""
+
+
 def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust: bool, closed_form: bool,
            physical_box: tuple[np.ndarray, np.ndarray], limits: AcceptanceLimits = DEFAULT_LIMITS,
            info: dict | None = None, t_s: np.ndarray | None = None, at: PassAt | None = None,
@@ -1352,7 +1357,7 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     if rms_x > limits.fitness_ratio * rms_ref + floor:
         why = ("a closed-form fit does not minimize the total-field error (it assumes one constant field "
                "magnitude and equal weights)" if closed_form else
-               "the search stopped short (budget, premature convergence) or ended in a local minimum")
+               SEARCH_STOPPED_SHORT)
         rejections.append(f"the residual {rms_x:.3g} nT is {rms_x / max(rms_ref, floor):.3g} times the optimum these "
                           f"data allow ({rms_ref:.3g} nT): {why}")
     with np.errstate(all="ignore"):

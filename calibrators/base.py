@@ -30,7 +30,7 @@ from magbench.numerics import median, repeated_rows, systematic_rows, time_colum
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
 
-from .acceptance import DEFAULT_LIMITS, AcceptanceLimits, assess, reference_problems
+from .acceptance import DEFAULT_LIMITS, SEARCH_STOPPED_SHORT, AcceptanceLimits, assess, reference_problems
 from .artifacts import Calibration, zero_readings
 from .core.evaluator import Budget, BudgetExhausted, Evaluator
 from .core.loop import Stopped, Termination, drive
@@ -466,7 +466,13 @@ class Calibrator(metaclass=_Sealed):
         uncertainty, noise = _uncertainty(info.get("inliers", objective), x, info.get("noise_nT"),
                                           info.get("crb_std_at"), info.get("uncertainty_inflation", 1.0))
         if not self.closed_form:
-            rejections += _at_bounds(x, lower, upper, model)
+            bound = _at_bounds(x, lower, upper, model)
+            if bound:  # far from the optimum because the box excludes it, not because the search stopped short
+                names = bound[0].split(" ended on")[0]
+                rejections = [r.replace(SEARCH_STOPPED_SHORT, f"the optimum lies outside {self.name}'s search box "
+                                        f"({names} ended on its bound): a box too small for this sensor (its *_range "
+                                        "settings), or a reference or units that are wrong") for r in rejections]
+            rejections += bound
         rejections += _budget_breaches(evaluator, budget)
         warnings += notes
         extra = dict(out.extra)

@@ -192,6 +192,10 @@ CASES = [
     ("save-json-as-ardupilot", GOOD, ["--save", "cal.json", "--export", "ardupilot"], 2,
      "a .json file does not hold --export ardupilot"),
     ("param-empty-name", GOOD, ["--param", "=1"], 2, "the name before '=' is empty"),
+    # a reference 30 % high puts lsq's scales at 0.77 (a warning); the GA's box cannot reach them: said so, not that its
+    # search stopped short
+    ("reference-30pct-high-ga", _csv(RAW, f_ref=1.3 * F_NT), ["--method", "ga"], 3,
+     "the optimum lies outside ga's search box (kx, ky, kz ended on its bound)"),
     # attitude coverage
     ("plane-36", _csv(_plane(36)), [], 2, "degenerate attitude coverage"),
     ("plane-3600", _csv(_plane(3600)), [], 2, "degenerate attitude coverage"),

@@ -49,7 +49,8 @@ class LeastSquares(Calibrator):
     for ``nine``, the axis-aligned ellipsoid for ``diag``, the sphere for ``offset``; none for ``angles``);
     ``auto`` uses the algebraic start when it fits and is better than the identity, and searches again from the
     identity when the search from the algebraic start spends ``max_nfev`` without converging (on attitudes that leave
-    a valley of the model nearly free, the ellipsoid can start far along it), keeping the lower sum of squares.
+    a valley of the model nearly free, the ellipsoid can start far along it), keeping it when it converges to a lower
+    sum of squares.
     """
 
     name = "lsq"
@@ -89,10 +90,11 @@ class LeastSquares(Calibrator):
             # The algebraic start can sit far along a valley that the attitudes leave nearly free (a towed body
             # that stays level: the ellipsoid's scales of 0.75 and offsets of 10^4 nT, from which the search had
             # not reached the least squares after 200 steps, while from no correction it does in 60): the search
-            # again from no correction, and the lower sum of squares kept.
+            # again from no correction, kept when it converges to a lower sum of squares (two searches that both
+            # stop short are both somewhere along the valley: the first is kept, as before).
             again = yield from levenberg_marquardt(problem, problem.x0, self.tol, self.max_nfev, bounded=self.bounded)
             nfev += again.nfev
-            if again.cost < sol.cost:
+            if again.status == 2 and again.cost < sol.cost:  # a converged search replaces one that was not
                 first = sol.message
                 sol = again
                 sol.message = f"{again.message} from no correction, after the search from the algebraic start {first}"
