@@ -142,6 +142,7 @@ def load_dataset(args, require_vector: bool = True):
 
     cli_ref = _reference_from_args(args)
     data = read_csv(args.file, units=args.units, require_vector=require_vector, expected_field_nT=cli_ref)
+    _FIRST_DATA_LINE[0] = data.meta.get("first_data_line")
     ignored = None
     source: str | None
     if data.f_ref_nT is not None:
@@ -191,10 +192,33 @@ CLI_WORDS = (  # the Python API's words -> the command line's (Python errors spe
 
 
 def cli_words(message: str) -> str:
-    """A message of the Python API in the command line's words (its option names)."""
+    """A message of the Python API in the command line's words (its option names), its data rows (counted from 0,
+    as the API counts them) also given as the file's lines when the file read had them on consecutive lines."""
     for pattern, words in CLI_WORDS:
         message = pattern.sub(words, message)
-    return message
+    return _with_lines(message)
+
+
+_FIRST_DATA_LINE: list[int | None] = [None]
+"""The file line of data row 0 of the data file this command read (``load_dataset``), when its rows are consecutive
+lines."""
+_NUMBER = r"\d+(?:,\d{3})*(?!\d|,\d)"  # 7, 1234 or 1,234 (a list's ", " is not a thousands separator)
+_ROWS = re.compile(rf"\b(rows?|row\(s\)) ({_NUMBER}(?:(?:, | and ){_NUMBER}(?! more))*)(?! \(line)")
+
+
+def _with_lines(message: str) -> str:
+    """``row 7`` -> ``row 7 (line 11)``, ``rows 0, 2, 4`` -> ``rows 0, 2, 4 (lines 4, 6, 8)``: an API message counts
+    data rows from 0, the CSV reader's messages name lines; both are said once a file has been read."""
+    first = _FIRST_DATA_LINE[0]
+    if first is None:
+        return message
+
+    def lines(m: re.Match) -> str:
+        rows = [int(x.replace(",", "")) for x in re.split(r", | and ", m.group(2))]
+        where = ", ".join(f"{first + r:,}" for r in rows)
+        return f"{m.group(0)} (line{'s' if len(rows) > 1 else ''} {where})"
+
+    return _ROWS.sub(lines, message)
 
 
 def _parse_params(items) -> dict:
@@ -348,7 +372,7 @@ def _calibration_lines(result, n_points: int) -> list[str]:
                  + (f" (and {result.extra['one_time_s']:.2f} s of one-time setup: its solver's imports, compiles "
                     "or cache loads, once per process)" if result.extra.get("one_time_s") else "")
                  + f", seed {result.seed}")
-    return lines + [f"  warning: {w}" for w in result.warnings]
+    return lines + [f"  warning: {cli_words(w)}" for w in result.warnings]
 
 
 ONE_BLAS_THREAD_ROWS = 100_000
@@ -408,7 +432,7 @@ def cmd_calibrate(args) -> int:
         obj["warnings"] = obj["warnings"] + [f"rejection kept by --accept-any: {r}" for r in result.rejections]
         _emit(args, obj, "\n".join(lines))
         return EXIT_OK
-    lines += [f"  REJECTED: {r}" for r in result.rejections]
+    lines += [f"  REJECTED: {cli_words(r)}" for r in result.rejections]
     _emit(args, obj, "\n".join(lines))
     more = f" (+{len(result.rejections) - 1} more)" if len(result.rejections) > 1 else ""
     unsaved = f"; not saved to {target}" if target is not None else ""
@@ -989,6 +1013,7 @@ def main(argv=None) -> int:
 
     parser = build_parser()
     caught: list = []
+    _FIRST_DATA_LINE[0] = None  # this command's data file, once read, says where its rows are
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")

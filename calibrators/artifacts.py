@@ -571,7 +571,8 @@ def zero_readings(raw_nT: np.ndarray) -> str | None:
     if not zero.any():
         return None
     rows = np.flatnonzero(zero)
-    return (f"raw readings are exactly 0 on all three axes in {len(rows)} row(s) ({', '.join(map(str, rows[:5]))}"
+    return (f"raw readings are exactly 0 on all three axes in {len(rows)} row(s) (row{'s' if len(rows) > 1 else ''} "
+            f"{', '.join(map(str, rows[:5]))}"
             f"{', ...' if len(rows) > 5 else ''}): a dropout or a missing value written as 0, not a reading of a "
             "field; remove those rows")
 

@@ -213,7 +213,7 @@ def time_column_note(t_s: np.ndarray | None) -> str | None:
     if len(back) and not np.all(d <= 0):
         i = int(back[0])
         notes.append(f"the t column steps back {len(back):,} time{'s' if len(back) > 1 else ''} in file order (first "
-                     f"between data rows {i + 1:,} and {i + 2:,}: {t_s[i]:.6g} -> {t_s[i + 1]:.6g} s; a logger restarted "
+                     f"between rows {i:,} and {i + 1:,}: {t_s[i]:.6g} -> {t_s[i + 1]:.6g} s; a logger restarted "
                      "or files joined?): the time-based checks take the rows in time order, where stretches that "
                      "overlap in time interleave")
     repeats = int(np.count_nonzero(d == 0))

@@ -306,14 +306,15 @@ def _header(path, line: str) -> tuple[str, list[str]]:
     return sep, names
 
 
-def _check_rows(where, data: bytes, offset: int, sep: str, n_names: int, first_line: int) -> int:
-    """The number of non-blank data lines of ``data[offset:]``; refuses a line longer than
+def _check_rows(where, data: bytes, offset: int, sep: str, n_names: int, first_line: int) -> tuple[int, bool]:
+    """The number of non-blank data lines of ``data[offset:]`` and whether they are consecutive lines (no blank line
+    before the last of them: data row i is then line ``first_line + i``); refuses a line longer than
     ``MAX_LINE_BYTES`` and a line whose number of fields differs from the header's (vectorized over the
     positions of line ends and separators, so memory stays a small fraction of the file's; with quoted
     fields, Python's csv module counts instead)."""
     arr = np.frombuffer(data, dtype=np.uint8)[offset:]
     if arr.size == 0:
-        return 0
+        return 0, True
     ends = np.flatnonzero(arr == 10)
     if ends.size == 0 or ends[-1] != arr.size - 1:
         ends = np.append(ends, arr.size)
@@ -342,15 +343,21 @@ def _check_rows(where, data: bytes, offset: int, sep: str, n_names: int, first_l
                          + (f" (and {wrong.size - 1} more such lines)" if wrong.size > 1 else "")
                          + ("; it is a '#' comment: comment and metadata lines go before the header"
                             if comment else ""))
-    return int((~blank).sum())
+    return _consecutive(blank)
 
 
-def _nonblank(arr, starts, ends, blank, suspects) -> int:
-    """Lines not blank, the ``suspects`` (short lines) checked for whitespace only."""
+def _consecutive(blank: np.ndarray) -> tuple[int, bool]:
+    """(lines not blank, whether no blank line comes before the last of them)."""
+    kept = np.flatnonzero(~blank)
+    return int(kept.size), bool(kept.size == 0 or kept[-1] == kept.size - 1)
+
+
+def _nonblank(arr, starts, ends, blank, suspects) -> tuple[int, bool]:
+    """``_consecutive`` of the lines, the ``suspects`` (short lines) checked for whitespace only."""
     blank = blank.copy()
     for i in suspects:
         blank[i] = not bytes(arr[starts[i]:ends[i]]).strip()
-    return int((~blank).sum())
+    return _consecutive(blank)
 
 
 def _check_quoted_rows(where, body: bytes, sep: str, n_names: int, first_line: int) -> None:
@@ -415,14 +422,15 @@ def _small_table(path, body: bytes, sep: str, names: list[str], numeric: list[st
     return out
 
 
-def _table(path, data: bytes, head: _Head, sep: str, names: list[str], numeric: list[str]) -> dict[str, np.ndarray]:
-    """The data rows as ``{column: array}``: the numeric columns parsed straight to float64 (the fast path:
-    two million rows in about a second by pandas' C parser, no string objects; small files by the csv
-    module, without importing pandas); a column that does not parse as text (object), so that the bad
-    value can be named by ``_numeric``.  Parsed from the bytes already read; the row count is checked
-    against the line count, so a quote that swallows rows (or a quoted line break) is refused."""
+def _table(path, data: bytes, head: _Head, sep: str, names: list[str],
+           numeric: list[str]) -> tuple[dict[str, np.ndarray], bool]:
+    """The data rows as ``{column: array}`` and whether they are consecutive lines (``_check_rows``): the numeric
+    columns parsed straight to float64 (the fast path: two million rows in about a second by pandas' C parser, no
+    string objects; small files by the csv module, without importing pandas); a column that does not parse as text
+    (object), so that the bad value can be named by ``_numeric``.  Parsed from the bytes already read; the row count
+    is checked against the line count, so a quote that swallows rows (or a quoted line break) is refused."""
     body = memoryview(data)[head.body_start:]
-    n_lines = _check_rows(path, data, head.body_start, sep, len(names), head.skipped + 2)
+    n_lines, consecutive = _check_rows(path, data, head.body_start, sep, len(names), head.skipped + 2)
     if len(body) <= SMALL_TABLE_BYTES:
         table = _small_table(path, bytes(body), sep, names, numeric)
     else:
@@ -441,7 +449,7 @@ def _table(path, data: bytes, head: _Head, sep: str, names: list[str], numeric: 
             row = head.skipped + 2 + int(np.flatnonzero(has_break)[0])
             raise InputError(f"{path}: column {c or '(unnamed)'} holds a line break inside quotes (row starting "
                              f"on line {row}): fields may not span lines")
-    return table
+    return table, consecutive
 
 
 def _pandas_table(path, body: memoryview, sep: str, names: list[str], numeric: list[str]) -> dict[str, np.ndarray]:
@@ -613,9 +621,11 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
         raise InputError(f"{path} lacks column(s) {', '.join(missing)}{extra} (its columns: "
                          f"{', '.join(names[:12])}{', ...' if len(names) > 12 else ''}; units go in --units or a "
                          f"'# units:' line, not in the column names){_non_ascii(names, missing)}")
-    frame = _table(path, data, head, sep, names, numeric)
+    frame, consecutive = _table(path, data, head, sep, names, numeric)
     first_line = head.skipped + 2
     meta = head.meta
+    if consecutive:  # data row i is line first_line + i (the command line names rows by their lines too)
+        meta = {**meta, "first_data_line": first_line}
 
     def column(name):
         return _numeric(path, frame, name, first_line) if name in names else None

@@ -61,7 +61,7 @@ def test_time_column_notes():
     assert time_column_note(t) is None and time_column_note(t[::-1]) is None and time_column_note(None) is None
     back = np.concatenate([t, t + 5])  # a logger restarted 5 s on: overlapping stretches
     note = time_column_note(back)
-    assert note is not None and "steps back 1 time" in note and "data rows 10 and 11: 9 -> 5 s" in note
+    assert note is not None and "steps back 1 time" in note and "rows 9 and 10: 9 -> 5 s" in note
     coarse = np.repeat(t, 2)
     note = time_column_note(coarse)
     assert note is not None and "10 rows (53 %) repeat the previous row's t" in note

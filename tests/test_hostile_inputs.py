@@ -162,6 +162,11 @@ CASES = [
     ("half-rows-in-uT", _half_uT(), [], 2, "mixes units"),
     ("reference-alternating", _alternating_reference(), [], 2, "reference jumps"),
     ("f-ref-zero-row", _edit_row(GOOD, 7, "1000,2000,3000,0"), [], 2, "positive"),
+    # the calibrators count data rows from 0, the reader names file lines: the command line says both (GOOD's data
+    # row 0 is its line 3)
+    ("readings-zero-row", _edit_row(GOOD, 7, "0,0,0,50000"), [], 2, "in 1 row(s) (row 7 (line 10))"),
+    ("reference-steps-once", _csv(RAW, f_ref=np.where(np.arange(len(RAW)) < 150, F_NT, 0.9 * F_NT)), [], 2,
+     "at row 150 (line 153)"),
     ("f-ref-negative", _csv(RAW, f_ref=-50000.0), [], 2, "positive"),
     ("meta-field-negative", _csv(RAW, header=("bx", "by", "bz"), meta=("# field_nT: -50000",)), [], 2,
      "positive number"),
