@@ -573,6 +573,10 @@ def _campaign_from_args(args):
 def cmd_compare(args) -> int:
     import shlex
 
+    figure_options = [a.split("=")[0] for a in args._argv if a.split("=")[0] in ("--format", "--dpi")]
+    if args.no_figures and figure_options:
+        raise InputError(f"{' and '.join(dict.fromkeys(figure_options))} set{'s' if len(set(figure_options)) == 1 else ''} "
+                         "the figures, which --no-figures leaves out: give one or the other")
     campaign, out = _campaign_from_args(args)
     command = "magbench " + shlex.join(args._argv)
     with campaign_lock(out, command):  # one campaign per folder; held until the report is written

@@ -84,3 +84,13 @@ def test_calibrate_and_diagnose_say_a_clock_that_stepped_back(tmp_path, capsys, 
     assert not any("t column" in w for w in json.loads(capsys.readouterr().out)["warnings"])
     assert main(["diagnose", str(reversed_), "--json"]) == 0
     assert "time_column" not in json.loads(capsys.readouterr().out)
+
+
+def test_compare_refuses_figure_options_with_no_figures(tmp_path, capsys):
+    args = ["compare", "--scenarios", "sphere9", "--methods", "lsq", "ellipsoid", "--trials", "1", "--out",
+            str(tmp_path / "c"), "--no-figures", "--quiet"]
+    assert main(args + ["--format", "png"]) == 2
+    err = capsys.readouterr().err
+    assert "--format sets the figures, which --no-figures leaves out" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "c").exists()  # refused before the campaign's folder is made
+    assert main(args) == 0  # negative control
