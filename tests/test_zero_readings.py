@@ -23,7 +23,7 @@ def _with_zero_rows(rows=(7, 57, 107)):
 @pytest.mark.parametrize("method", ["lsq", "nlopt", "ellipsoid"])
 def test_calibrators_refuse_zero_readings_naming_the_rows(method):
     d, raw = _with_zero_rows()
-    with pytest.raises(InputError, match=r"exactly 0 on all three axes in 3 row\(s\) \(7, 57, 107\)"):
+    with pytest.raises(InputError, match=r"exactly 0 on all three axes in 3 row\(s\) \(rows 7, 57, 107\)"):
         make(method).fit(Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s))
     # the negative control: a reading of 0 on two axes is a reading (along the third axis)
     raw[[7, 57, 107]] = [0.0, 0.0, 5e4]
@@ -32,7 +32,7 @@ def test_calibrators_refuse_zero_readings_naming_the_rows(method):
 
 def test_diagnose_refuses_zero_readings():
     d, raw = _with_zero_rows((3,))
-    with pytest.raises(InputError, match=r"exactly 0 on all three axes in 1 row\(s\) \(3\)"):
+    with pytest.raises(InputError, match=r"exactly 0 on all three axes in 1 row\(s\) \(row 3\)"):
         diagnose(Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s))
 
 
@@ -46,7 +46,7 @@ def test_the_commands_say_it_in_one_line_with_exit_2(command, tmp_path):
                        text=True)
     assert p.returncode == 2, p.stderr
     lines = p.stderr.strip().splitlines()
-    assert len(lines) == 1 and "6 row(s) (7, 57, 107, 157, 207, ...)" in lines[0] and "Traceback" not in p.stderr
+    assert len(lines) == 1 and "6 row(s) (rows 7, 57, 107, 157, 207 (lines 9, 59, 109, 159, 209), ...)" in lines[0] and "Traceback" not in p.stderr
     assert path.read_bytes() == before  # the input is not changed
 
 
@@ -66,4 +66,4 @@ def test_apply_refuses_them_and_writes_nothing(tmp_path):
         assert p.returncode == code, p.stderr
         assert out.exists() == (code == 0)
         if code:
-            assert "exactly 0 on all three axes in 2 row(s) (4, 9)" in p.stderr
+            assert "exactly 0 on all three axes in 2 row(s) (rows 4, 9)" in p.stderr
