@@ -514,8 +514,9 @@ class NoiseGeometry:
     weights: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
     pairs: tuple[np.ndarray, np.ndarray] | None = None
     roughness: float | None = None
-    """``numerics.roughness`` of the readings in time order ("time" only): above UNRELATED_ROUGHNESS, consecutive
-    samples are at unrelated attitudes and the time neighbours' differences hold what follows the attitude."""
+    """``numerics.roughness`` of the readings in time order ("time"; "rows": in file order): above
+    UNRELATED_ROUGHNESS, consecutive samples are at unrelated attitudes and the time neighbours' differences hold
+    what follows the attitude."""
     neighbours: tuple[slice | np.ndarray, np.ndarray] | None = None
     """``attitude_neighbours`` of the readings, when consecutive samples are at unrelated attitudes."""
     block_neighbours: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
@@ -566,12 +567,7 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
             order = order[distinct]
         else:
             share = 1.0
-        rough = roughness(t_s, raw_nT, order, ROUGHNESS_ROWS)
-        unrelated = rough is not None and rough > UNRELATED_ROUGHNESS
-        return NoiseGeometry("time", order, _interpolation_weights(t_s[order]), roughness=rough,
-                             neighbours=attitude_neighbours(raw_nT, order if share < 1.0 else None) if unrelated else None,
-                             block_neighbours=_blocked_neighbours(raw_nT, order) if unrelated else (),
-                             distinct_share=share)
+        return _ordered_geometry("time", raw_nT, order, t_s, roughness(t_s, raw_nT, order, ROUGHNESS_ROWS), share)
     from scipy.spatial import cKDTree
 
     # identical readings are one reading written again, not a repeated attitude measured again: the pairs are
@@ -589,11 +585,20 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
     rows = np.arange(n) if share == 1.0 else np.flatnonzero(~repeated_rows(raw_nT))
     # rows in file order at unrelated attitudes (the shots of a handheld calibration): the rows' differences hold
     # whatever follows the attitude, so the nearest attitudes judge too (and the halves and thirds of the file)
-    rough = roughness(np.arange(n, dtype=float), raw_nT, rows, ROUGHNESS_ROWS) if len(rows) >= 5 else None
+    along = np.arange(n, dtype=float)
+    rough = roughness(along, raw_nT, rows, ROUGHNESS_ROWS) if len(rows) >= 5 else None
+    return _ordered_geometry("rows", raw_nT, rows, along, rough, share)
+
+
+def _ordered_geometry(how: str, raw_nT: np.ndarray, order: np.ndarray, times: np.ndarray, rough: float | None,
+                      share: float) -> NoiseGeometry:
+    """The ``NoiseGeometry`` of readings taken in ``order`` at ``times`` (the t column, or the rows' places in the
+    file): the time neighbours' interpolation weights, and, when consecutive readings are at unrelated attitudes
+    (``rough`` above UNRELATED_ROUGHNESS), the nearest attitudes over the record and within its blocks of time."""
     unrelated = rough is not None and rough > UNRELATED_ROUGHNESS
-    return NoiseGeometry("rows", rows, _interpolation_weights(rows.astype(float)), roughness=rough,
-                         neighbours=attitude_neighbours(raw_nT, rows if share < 1.0 else None) if unrelated else None,
-                         block_neighbours=_blocked_neighbours(raw_nT, rows) if unrelated else (), distinct_share=share)
+    return NoiseGeometry(how, order, _interpolation_weights(times[order]), roughness=rough,
+                         neighbours=attitude_neighbours(raw_nT, order if share < 1.0 else None) if unrelated else None,
+                         block_neighbours=_blocked_neighbours(raw_nT, order) if unrelated else (), distinct_share=share)
 
 
 def independent_noise(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float,

@@ -108,11 +108,12 @@ def _same_file(a: Path, b) -> bool:
         return False
 
 
-def check_output(path, inputs=(), force: bool = False, what: str = "output") -> Path:
+def check_output(path, inputs=(), force: bool = False, what: str = "output", probe: bool = True) -> Path:
     """``path`` as a file a command may write: refused (``InputError``) when it is a directory or another
     non-regular file, when its folder does not exist, when it exists and ``force`` is false, and when it
     is one of ``inputs`` (paths or ``InputBytes``; compared by inode, so hard links and symlinks count), and when
-    its folder takes no new file (``_probe_folder``: a read-only folder, ``/proc``), before any work is done."""
+    its folder takes no new file (``_probe_folder``: a read-only folder, ``/proc``), before any work is done (not
+    with ``probe=False``: ``atomic_output`` creates its own file there at once)."""
     if not str(path).strip():
         raise InputError(f"the {what} name is empty: give a file name")
     path = Path(path)
@@ -139,7 +140,8 @@ def check_output(path, inputs=(), force: bool = False, what: str = "output") -> 
             raise InputError(f"{path} exists and is {_kind(st.st_mode)}: refusing to replace it")
         if not force:
             raise InputError(f"{path} exists; refusing to overwrite it (use --force)")
-    _probe_folder(path)
+    if probe:
+        _probe_folder(path)
     return path
 
 
@@ -161,7 +163,7 @@ def atomic_output(path, inputs=(), force: bool = False, what: str = "output"):
     """Yield a temporary path in ``path``'s folder (same suffix, so writers that go by the extension
     work); when the block ends without error, the file is synced and renamed onto ``path``.  On any error
     the temporary file is removed and ``path`` is left as it was."""
-    path = check_output(path, inputs, force, what)
+    path = check_output(path, inputs, force, what, probe=False)  # the temporary file below is the probe
     try:
         fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=f".tmp{path.suffix}")
         os.close(fd)
@@ -173,7 +175,7 @@ def atomic_output(path, inputs=(), force: bool = False, what: str = "output"):
         with open(tmp, "rb+") as handle:
             os.fsync(handle.fileno())
         os.chmod(tmp, 0o666 & ~_umask())
-        check_output(path, inputs, force=True, what=what)  # nothing became an input meanwhile
+        check_output(path, inputs, force=True, what=what, probe=False)  # nothing became an input meanwhile
         os.replace(tmp, path)
     except OSError as exc:
         with contextlib.suppress(OSError):

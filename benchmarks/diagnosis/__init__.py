@@ -200,12 +200,17 @@ DIRECTION_CELL_RAD = 0.0175
 """The cell (about 1 degree) in which ``distinct_directions`` counts the readings' directions."""
 
 
-def distinct_directions(raw_nT: np.ndarray) -> int:
-    """How many ~1 degree cells (``DIRECTION_CELL_RAD``) the readings' directions fall in."""
+def _directions(raw_nT: np.ndarray) -> np.ndarray:
+    """The unit directions of the readings whose magnitude is finite and not zero."""
     raw = np.asarray(raw_nT, dtype=float)
     norms = np.linalg.norm(raw, axis=1)
     ok = np.isfinite(norms) & (norms > 0)
-    cells = np.floor(raw[ok] / norms[ok, None] / DIRECTION_CELL_RAD).astype(np.int64)
+    return raw[ok] / norms[ok, None]
+
+
+def distinct_directions(raw_nT: np.ndarray) -> int:
+    """How many ~1 degree cells (``DIRECTION_CELL_RAD``) the readings' directions fall in."""
+    cells = np.floor(_directions(raw_nT) / DIRECTION_CELL_RAD).astype(np.int64)
     return int(len(np.unique(cells, axis=0))) if len(cells) else 0
 
 
@@ -226,12 +231,9 @@ def _few_directions(data, out: dict) -> dict:
 
 def turned(data) -> bool:
     """Whether the readings' directions spread more than TURNED_RAD (RMS angle from their mean direction)."""
-    raw = np.asarray(data.raw_nT, dtype=float)
-    norms = np.linalg.norm(raw, axis=1)
-    ok = np.isfinite(norms) & (norms > 0)
-    if ok.sum() < 2:
+    u = _directions(data.raw_nT)
+    if len(u) < 2:
         return False
-    u = raw[ok] / norms[ok, None]
     mean = u.mean(axis=0)
     mean /= max(float(np.linalg.norm(mean)), 1e-300)
     angle = np.arccos(np.clip(u @ mean, -1.0, 1.0))
