@@ -43,6 +43,7 @@ from magbench.numerics import (
     median,
     median_and_sigma,
     repeated_rows,
+    residual_sum_of_squares,
     roughness,
     systematic_rows,
 )
@@ -1232,9 +1233,7 @@ def drift_in_time(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, t_s:
     jac = sub.jacobian(x)
     design = np.hstack([jac / np.maximum(np.linalg.norm(jac, axis=0), 1e-300), drift])  # unit columns: a fair rank cut
     rr = r[rows]
-    coef, *_ = np.linalg.lstsq(design, rr, rcond=1e-10)
-    left = rr - design @ coef
-    ss0, ss1 = float(rr @ rr), float(left @ left)
+    ss0, ss1 = float(rr @ rr), residual_sum_of_squares(design, rr, rcond=1e-10)
     q, dof = drift.shape[1], m - p - drift.shape[1]
     rms_left = math.sqrt(ss1 / m)
     info["drift_check"] = {"degree": int(degree), "rms_left_nT": rms_left, "rows": int(m)}

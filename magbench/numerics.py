@@ -132,6 +132,28 @@ def drift_columns(t_s: np.ndarray, unit: np.ndarray, degree: int, constant: bool
     return design
 
 
+LSTSQ_FULL_RANK = 1e-6
+"""``residual_sum_of_squares``: the triangular factor's smallest diagonal entry, relative to its largest, above which
+the design is taken as of full rank (the QR's residual); at or below it, ``np.linalg.lstsq``'s rank cut decides."""
+
+
+def residual_sum_of_squares(design: np.ndarray, y: np.ndarray, rcond: float) -> float:
+    """``|y - design coef|²`` of the least-squares ``coef``, as ``np.linalg.lstsq(design, y, rcond)`` leaves it,
+    from the triangular factor of one QR of ``[design | y]``: its last diagonal entry is the length of what the
+    columns leave of ``y``.  A third to a quarter of lstsq's singular value decomposition (the acceptance checks'
+    and the floor's drifts, on every fit).  A design whose factor's diagonal spans more than 1 / LSTSQ_FULL_RANK,
+    nearly rank deficient, goes to lstsq itself, whose cut at ``rcond`` then decides what is fitted."""
+    m, q = design.shape
+    if m > q:
+        r = np.linalg.qr(np.column_stack([design, y]), mode="r")
+        diag = np.abs(np.diagonal(r)[:q])
+        if q == 0 or diag.min() > LSTSQ_FULL_RANK * diag.max():
+            return float(r[q, q] ** 2)
+    coef, *_ = np.linalg.lstsq(design, y, rcond=rcond)
+    left = y - design @ coef
+    return float(left @ left)
+
+
 def median(x: np.ndarray) -> float:
     """``np.median`` of a 1-D array, the same number, faster: one partition about the upper middle element (the
     lower one of an even count is then the largest before it), where np.median partitions about both, which

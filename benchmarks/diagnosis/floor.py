@@ -19,7 +19,7 @@ from scipy.signal import lfilter
 from scipy.spatial import cKDTree
 from scipy.stats import norm, spearmanr
 
-from magbench.numerics import drift_columns, drift_degree, repeated_rows, systematic_rows
+from magbench.numerics import drift_columns, drift_degree, repeated_rows, residual_sum_of_squares, systematic_rows
 from magbench.simulate.effects import SPIKE_SIGMA, Columns, f_test_p, robust_sigma
 
 KNN_NEIGHBOURS = 6
@@ -64,12 +64,10 @@ def drift_floor(r: np.ndarray, unit: np.ndarray, t_s: np.ndarray, n_free: int) -
     if degree < 1 or not np.ptp(t_s) > 0:
         return None
     design = drift_columns(t_s, unit, degree)  # degree 0 too: r need not have a zero mean
-    coef, *_ = np.linalg.lstsq(design, r, rcond=1e-10)
-    left = r - design @ coef
     dof = m - n_free - design.shape[1]
     if dof < 10:
         return None
-    return float(np.sqrt(float(left @ left) / dof))
+    return float(np.sqrt(residual_sum_of_squares(design, r, rcond=1e-10) / dof))
 
 
 def lowest_blocked_knn_floor(features: np.ndarray, r: np.ndarray, t_s: np.ndarray) -> tuple[float, int] | None:
