@@ -145,7 +145,7 @@ def residual_sum_of_squares(design: np.ndarray, y: np.ndarray, rcond: float) -> 
     nearly rank deficient, goes to lstsq itself, whose cut at ``rcond`` then decides what is fitted."""
     m, q = design.shape
     if m > q:
-        r = np.linalg.qr(np.column_stack([design, y]), mode="r")
+        r = np.asarray(np.linalg.qr(np.column_stack([design, y]), mode="r"))  # mode "r": R alone
         diag = np.abs(np.diagonal(r)[:q])
         if q == 0 or diag.min() > LSTSQ_FULL_RANK * diag.max():
             return float(r[q, q] ** 2)
