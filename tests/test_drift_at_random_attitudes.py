@@ -83,3 +83,33 @@ def test_without_a_time_column_the_file_order_stands_in_for_time(scenario, kind)
     report = diagnose(Dataset(raw, f_ref_nT=d.f_ref_nT))
     assert report["floor_is_upper_bound"]
     assert report["verdict"] == ("none" if kind == "intact" else "unexplained"), report["verdict"]
+
+
+@pytest.mark.parametrize("shape", [(300, 57), (60, 57), (58, 57), (20, 3), (57, 57), (10, 12)])
+def test_residual_sum_of_squares_is_lstsq_s(shape):
+    """The drift checks' sum of squares from one QR of [design | y] equals what np.linalg.lstsq leaves, for tall,
+    barely tall, square and wide designs (the last two: lstsq itself)."""
+    from magbench.numerics import residual_sum_of_squares
+
+    rng = np.random.default_rng(shape[0] * 100 + shape[1])
+    design, y = rng.normal(size=shape), rng.normal(size=shape[0])
+    coef, *_ = np.linalg.lstsq(design, y, rcond=1e-10)
+    left = y - design @ coef
+    assert residual_sum_of_squares(design, y, 1e-10) == pytest.approx(float(left @ left), rel=1e-9, abs=1e-20)
+
+
+def test_residual_sum_of_squares_rank_deficient_design_keeps_lstsq_s_cut():
+    """A fixed attitude makes the drift's direction-cosine columns multiples of its time columns: the triangular
+    factor's diagonal collapses and lstsq's rank cut decides, as before.  Negative control: plain Householder QR of
+    that design removes extra directions of y (a smaller sum of squares), which the helper must not return."""
+    from magbench.numerics import drift_columns, residual_sum_of_squares
+
+    t = np.linspace(0.0, 100.0, 300)
+    design = drift_columns(t, np.tile([0.6, 0.0, 0.8], (300, 1)), 12, constant=False)
+    y = np.random.default_rng(3).normal(size=300)
+    coef, *_ = np.linalg.lstsq(design, y, rcond=1e-10)
+    left = y - design @ coef
+    r = np.linalg.qr(np.column_stack([design, y]), mode="r")
+    q = design.shape[1]
+    assert residual_sum_of_squares(design, y, 1e-10) == pytest.approx(float(left @ left), rel=1e-9)
+    assert float(r[q, q] ** 2) < 0.95 * float(left @ left)  # what the plain QR would have said
