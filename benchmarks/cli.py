@@ -45,7 +45,7 @@ from magbench.calibrators import available, make
 from magbench.calibrators.artifacts import EXTENSIONS as EXPORT_EXTENSIONS
 from magbench.calibrators.artifacts import apply_problems, apply_to_csv, export, export_path, load_calibration
 from magbench.calibrators.registry import plugin_errors
-from magbench.errors import InputError
+from magbench.errors import InputError, with_file_lines
 from magbench.paper import ARCSEC_PER_RAD
 from magbench.safeio import atomic_output, check_output, os_reason
 from magbench.simulate.dataset import UNIT_FACTORS_NT, read_csv, write_truth
@@ -202,23 +202,11 @@ def cli_words(message: str) -> str:
 _FIRST_DATA_LINE: list[int | None] = [None]
 """The file line of data row 0 of the data file this command read (``load_dataset``), when its rows are consecutive
 lines."""
-_NUMBER = r"\d+(?:,\d{3})*(?!\d|,\d)"  # 7, 1234 or 1,234 (a list's ", " is not a thousands separator)
-_ROWS = re.compile(rf"\b(rows?|row\(s\)) ({_NUMBER}(?:(?:, | and ){_NUMBER}(?! more))*)(?! \(line)")
 
 
 def _with_lines(message: str) -> str:
-    """``row 7`` -> ``row 7 (line 11)``, ``rows 0, 2, 4`` -> ``rows 0, 2, 4 (lines 4, 6, 8)``: an API message counts
-    data rows from 0, the CSV reader's messages name lines; both are said once a file has been read."""
-    first = _FIRST_DATA_LINE[0]
-    if first is None:
-        return message
-
-    def lines(m: re.Match) -> str:
-        rows = [int(x.replace(",", "")) for x in re.split(r", | and ", m.group(2))]
-        where = ", ".join(f"{first + r:,}" for r in rows)
-        return f"{m.group(0)} (line{'s' if len(rows) > 1 else ''} {where})"
-
-    return _ROWS.sub(lines, message)
+    """``errors.with_file_lines`` for the data file this command read."""
+    return with_file_lines(message, _FIRST_DATA_LINE[0])
 
 
 def _parse_params(items) -> dict:

@@ -81,7 +81,7 @@ import numpy as np
 
 from magbench import __version__
 from magbench.calibrators.acceptance import reference_problems
-from magbench.errors import InputError
+from magbench.errors import InputError, with_file_lines
 from magbench.safeio import InputBytes, atomic_output, atomic_write, check_output, read_input
 from magbench.simulate.dataset import UNIT_FACTORS_NT, _header, _parse_head, newline_lines, read_csv
 from magbench.simulate.sensor import FREE, MODELS, NEUTRAL, NINE_NAMES, ErrorParams
@@ -603,7 +603,7 @@ def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = Fa
     data = read_csv(src, units=units, require_vector=True, expected_field_nT=field, source=source)
     mixed = mixed_units(data.raw_nT) or zero_readings(data.raw_nT)
     if mixed:
-        raise InputError(f"{src}: {mixed}")
+        raise InputError(f"{src}: {with_file_lines(mixed, data.meta.get('first_data_line'))}")
     head = _parse_head(newline_lines(source.data), str(src))
     sep, names = _header(src, head.header)
     clash = [c for c in CAL_COLUMNS if c in names]

@@ -3,11 +3,31 @@ that raise them from the library's entry points (seeds, counts, non-negative num
 from __future__ import annotations
 
 import math
+import re
 from numbers import Integral
 
 
 class InputError(ValueError):
     """Bad input or usage: the command line reports it in one line and exits with status 2."""
+
+
+_NUMBER = r"\d+(?:,\d{3})*(?!\d|,\d)"  # 7, 1234 or 1,234 (a list's ", " is not a thousands separator)
+_ROWS = re.compile(rf"\b(rows?|row\(s\)) ({_NUMBER}(?:(?:, | and ){_NUMBER}(?! more))*)(?! \(line)")
+
+
+def with_file_lines(message: str, first_data_line: int | None) -> str:
+    """``row 7`` -> ``row 7 (line 11)``, ``rows 0, 2, 4`` -> ``rows 0, 2, 4 (lines 4, 6, 8)``: the library's messages
+    count data rows from 0, a file's reader names its lines; both are said once a file has been read whose data row 0
+    is on line ``first_data_line`` and whose rows are consecutive lines (None: the message as it is)."""
+    if first_data_line is None:
+        return message
+
+    def lines(m: re.Match) -> str:
+        rows = [int(x.replace(",", "")) for x in re.split(r", | and ", m.group(2))]
+        where = ", ".join(f"{first_data_line + r:,}" for r in rows)
+        return f"{m.group(0)} (line{'s' if len(rows) > 1 else ''} {where})"
+
+    return _ROWS.sub(lines, message)
 
 
 def check_nonneg(value, name: str) -> float:

@@ -67,4 +67,4 @@ def test_apply_refuses_them_and_writes_nothing(tmp_path):
         assert p.returncode == code, p.stderr
         assert out.exists() == (code == 0)
         if code:
-            assert "exactly 0 on all three axes in 2 row(s) (rows 4, 9)" in p.stderr
+            assert "exactly 0 on all three axes in 2 row(s) (rows 4, 9 (lines 6, 11))" in p.stderr  # rows, and lines
