@@ -76,7 +76,11 @@ class AcceptanceLimits:
     most this multiple of the optimum the data allow (plus ``fitness_floor_fraction`` of the field, so that
     exact data are not judged on rounding).  ``profile_chi2``: moving the offset by its tolerance along
     the least-covered direction must raise the sum of squares by at least this many noise variances (a
-    likelihood-ratio test at about 3 sigma).
+    likelihood-ratio test at about 3 sigma).  ``fitness_alpha``: besides, the sum of squares the answer leaves
+    above the optimum's, in noise variances, must be below the chi-square quantile of the model's parameters
+    at this level (an answer within its Cramér-Rao ellipse of the optimum raises it by a chi-square of p degrees
+    of freedom; at 1e-6 and 9 parameters, 44.8, about 7 deviations jointly).  Not for robust methods, whose answer
+    trades efficiency for robustness by design.
     """
 
     crb_angle_rad: float = 3e-3
@@ -85,6 +89,7 @@ class AcceptanceLimits:
     outlier_sigmas: float = 6.0
     fitness_ratio: float = 2.0
     fitness_floor_fraction: float = 1e-7
+    fitness_alpha: float = 1e-6
     profile_chi2: float = 9.0
     physical_range: bool = True  # the fluxgate's physical range applies (a magcal-style general ellipsoid: False)
 
@@ -1304,6 +1309,36 @@ def scale_warning(x: np.ndarray, model: str) -> list[str]:
             f"within a few per cent of 1, so the reference magnitude or the units are likely wrong"]
 
 
+FITNESS_CHI2_MIN = 23.9
+"""The smallest chi-square quantile ``excess_over_optimum`` can ask for (1 degree of freedom at 1e-6): below it no
+quantile is computed (scipy.special stays unimported on the common path)."""
+
+
+def excess_over_optimum(rms_x: float, rms_ref: float, n: int, p: int, floor: float, alpha: float,
+                        why: str) -> list[str]:
+    """A rejection (a list of at most one) when the answer's sum of squares exceeds the optimum's by more than its
+    parameters' uncertainty explains: ``n (rms_x² - rms_ref²) / sigma²``, sigma² = ``rms_ref² n / (n - p)`` (at least
+    ``floor``²), is a chi-square of ``p`` degrees of freedom for an answer within its Cramér-Rao ellipse of the
+    optimum; beyond its ``alpha`` quantile the answer is that many deviations away, whatever its RMS looks like (a
+    DIRECT search cut at 3000 evaluations left 3.44 nT against 2.02 and a scale 15 deviations off, within the
+    ratio test's factor 2)."""
+    dof = n - p
+    if dof < 1 or not rms_x > rms_ref:
+        return []
+    sigma2 = max(rms_ref * rms_ref * n / dof, floor * floor)
+    excess = n * (rms_x * rms_x - rms_ref * rms_ref) / sigma2
+    if not excess > FITNESS_CHI2_MIN:
+        return []
+    from scipy.special import chdtri  # only here, past the cheap bound
+
+    limit = float(chdtri(p, alpha))
+    if not excess > limit:
+        return []
+    return [f"the residual {rms_x:.4g} nT is above the optimum these data allow ({rms_ref:.4g} nT) by {excess:.3g} noise "
+            f"variances, more than the {limit:.3g} that {p} parameters within their uncertainty explain (chi-square, "
+            f"p < {alpha:g}): the answer is far from the optimum in its parameters; {why}"]
+
+
 SEARCH_STOPPED_SHORT = "the search stopped short (budget, premature convergence) or ended in a local minimum"
 """Why an iterative answer is far from the data's optimum, unless it ended on its search box's bound (``base``: the
 box then excludes the optimum, which the rejection says instead)."""
@@ -1358,12 +1393,13 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     on_inliers = at if not n_out else None
     x_ref, rms_ref = reference_fit(inliers, x, physical_box, rms_start=rms_x, at=on_inliers)
     floor = limits.fitness_floor_fraction * field_nT
+    why = ("a closed-form fit does not minimize the total-field error (it assumes one constant field magnitude and "
+           "equal weights)" if closed_form else SEARCH_STOPPED_SHORT)
     if rms_x > limits.fitness_ratio * rms_ref + floor:
-        why = ("a closed-form fit does not minimize the total-field error (it assumes one constant field "
-               "magnitude and equal weights)" if closed_form else
-               SEARCH_STOPPED_SHORT)
         rejections.append(f"the residual {rms_x:.3g} nT is {rms_x / max(rms_ref, floor):.3g} times the optimum these "
                           f"data allow ({rms_ref:.3g} nT): {why}")
+    elif not robust:
+        rejections += excess_over_optimum(rms_x, rms_ref, n, p, floor, limits.fitness_alpha, why)
     with np.errstate(all="ignore"):
         ref = on_inliers if on_inliers is not None and np.array_equal(x_ref, on_inliers.x) else one_pass(inliers, x_ref)
     misfit = nested_misfit(inliers, x_ref, rms_ref, field_nT)
@@ -1415,8 +1451,13 @@ MAGNITUDE_RATIO_RANGE = (0.45, 5.0)
 UNIT_OUTLIER_FACTOR = 30.0
 """A row whose magnitude differs from the median row by more than this factor looks like another unit."""
 MIXED_UNITS_FRACTION = 0.05
-"""When at least this fraction of rows is off by ``UNIT_OUTLIER_FACTOR``, the file mixes units (fewer
-such rows are spikes, left to the outlier screening after the fit)."""
+"""When at least this fraction of rows is off by ``UNIT_OUTLIER_FACTOR``, the file mixes units (fewer such rows are
+spikes, left to the outlier screening after the fit, and to the robust methods)."""
+GLITCH_FACTOR = 1000.0
+"""A row whose magnitude is more than this many times the median row's is refused by name: beyond the range of any
+magnetometer that reads the geomagnetic field (a MEMS part's 4.9 mT is 100 times it), so not a spike of the sensor
+but a corrupt row (a spike of 1e12 nT had left the diagnosis a noise floor of 0.002 nT and a verdict of ``none``, and
+one of 1e200 nT a LinAlgError)."""
 REFERENCE_JUMP = 0.02
 """A change of the reference by more than 2 % from one row to the next is a jump, not a field variation."""
 SMOOTH_STEP_RATE = 3.0
@@ -1465,6 +1506,15 @@ def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray, t_s: np.ndarray
         factor = float(np.median(ratio[off]) / typical)
         return (f"{off.sum()} of {len(off)} rows (e.g. rows {', '.join(map(str, rows[:3]))}) have {factor:.3g} "
                 "times the magnitude of the others: the file mixes units")
+    absurd = ~(ratio <= typical * GLITCH_FACTOR)  # a few such rows: no sensor's reading (1e200 breaks the numerics)
+    if absurd.any():
+        rows = np.flatnonzero(absurd)
+        worst = int(rows[np.argmax(mag[rows])])
+        size = f"{mag[worst]:.4g}" if np.isfinite(mag[worst]) else "beyond 1e308"
+        return (f"{len(rows)} row(s) (row{'s' if len(rows) > 1 else ''} {', '.join(map(str, rows[:5]))}"
+                f"{', ...' if len(rows) > 5 else ''}) have a magnitude more than {GLITCH_FACTOR:g} times the others' "
+                f"(row {worst}: {size} against a median of {np.median(mag):.4g}): beyond any magnetometer's range in "
+                "this field, not a reading (a glitch, a corrupt row); remove those rows")
     if len(f_ref_nT) > 1:
         step = np.abs(np.diff(f_ref_nT)) / f_ref_nT[:-1]
         big = step > REFERENCE_JUMP
