@@ -1448,6 +1448,9 @@ MAGNITUDE_RATIO_RANGE = (0.45, 5.0)
 """The median reading magnitude over the reference that a sensor in the physical box can produce: scales
 0.5..2 (an offset only raises the median magnitude of a covered sphere) and offsets up to twice the field
 (up to about 5 with the largest scale): outside it, the units or the reference are wrong."""
+MIN_REFERENCE_NT = 1000.0
+"""The smallest median reference magnitude taken (``reference_problems``): readings in uT against a reference of 50
+had been calibrated as nT, and refused as 'degenerate attitude coverage' (condition number 1.6) instead of units."""
 UNIT_OUTLIER_FACTOR = 30.0
 """A row whose magnitude differs from the median row by more than this factor looks like another unit."""
 MIXED_UNITS_FRACTION = 0.05
@@ -1494,6 +1497,11 @@ def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray, t_s: np.ndarray
     row to the next is not a jump when its rate (per second) is in line with the reference's own rate of change
     at the rows around it (``_smooth_steps``): a model field along a satellite's orbit, across a gap in the
     sampling, changes by several per cent between two rows without jumping."""
+    reference = median(f_ref_nT)
+    if not reference >= MIN_REFERENCE_NT:
+        return (f"the reference magnitude is {reference:.4g} nT: the geomagnetic field is 22,000 to 67,000 nT, and no "
+                f"calibration field is below {MIN_REFERENCE_NT:g} nT; readings and reference in another unit (uT: read "
+                "them with units='uT'), or a wrong reference")
     mag = np.sqrt(np.einsum("ij,ij->i", raw_nT, raw_nT))  # the row norms (a third of np.linalg.norm's time)
     ratio = mag / f_ref_nT
     typical = median(ratio)

@@ -82,9 +82,9 @@ import numpy as np
 from magbench import __version__
 from magbench.calibrators.acceptance import reference_problems
 from magbench.errors import InputError, with_file_lines
-from magbench.safeio import InputBytes, atomic_output, atomic_write, check_output, read_input
+from magbench.safeio import InputBytes, as_path, atomic_output, atomic_write, check_output, read_input
 from magbench.simulate.dataset import UNIT_FACTORS_NT, _header, _parse_head, newline_lines, read_csv
-from magbench.simulate.sensor import FREE, MODELS, NEUTRAL, NINE_NAMES, ErrorParams
+from magbench.simulate.sensor import FREE, MODELS, NEUTRAL, NINE_NAMES, ErrorParams, readings_array
 
 SCHEMA = "magbench.calibration"
 SCHEMA_VERSION = 1
@@ -136,8 +136,7 @@ class Calibration:
     # -- applying ------------------------------------------------------------------------------------
     def correct(self, raw_nT: np.ndarray) -> np.ndarray:
         """B = M (raw - o) for readings (n, 3) in nT."""
-        raw = np.asarray(raw_nT, dtype=float)
-        return (raw - np.asarray(self.offset_nT)) @ self.matrix.T
+        return (readings_array(raw_nT) - np.asarray(self.offset_nT)) @ self.matrix.T
 
     @property
     def field_nT(self) -> float:
@@ -449,7 +448,7 @@ def load_calibration(path, source: InputBytes | None = None) -> Calibration:
     special file, a file over ``MAX_JSON_BYTES`` (``MAX_MAT_BYTES`` for .mat, inflated size included),
     JSON nested deeper than ``MAX_JSON_DEPTH`` or with numbers longer than ``MAX_JSON_DIGITS``.  The
     file is read once (``source``: bytes read already)."""
-    path = Path(path)
+    path = as_path(path, "calibration file")
     mat = path.suffix.lower() == ".mat"
     src = source or read_input(path, "calibration file", MAX_MAT_BYTES if mat else MAX_JSON_BYTES)
     if mat:

@@ -431,8 +431,10 @@ class Calibrator(metaclass=_Sealed):
         try:
             if not self.closed_form:
                 # The start is the first counted evaluation, so the counter's best point (what a run cut
-                # short by its budget returns) is never worse than no calibration.
+                # short by its budget returns) is never worse than no calibration; a time budget counts from
+                # after it (a budget spent before the first evaluation left no point to return).
                 evaluator.values(x0[None, :])
+                evaluator.start_clock()
             with _decoys_exposed(objective):
                 out = self._solve(problem)
                 if isinstance(out, Generator):  # a strategy: the framework evaluates what it asks for

@@ -34,7 +34,7 @@ FIELD_AUTO_NOTE = ("field magnitude estimated from the readings (--field auto, a
 def as_dataset(data, f_ref_nT=None, field=None, units: str = "nT", model: str = "nine") -> Dataset:
     """``data`` (a Dataset, an (N, 3) array or a DataFrame) as a Dataset, with the reference given by
     ``f_ref_nT`` (scalar or per row), ``field`` (a number of nT, or ``"auto"``), else the data's own."""
-    if units not in UNIT_FACTORS_NT:
+    if not isinstance(units, str) or units not in UNIT_FACTORS_NT:
         raise InputError(f"unknown unit {units!r}: use one of nT, uT, mG, G")
     factor = UNIT_FACTORS_NT[units]
     if isinstance(data, Dataset):

@@ -74,6 +74,11 @@ BUDGET = (Interval(Integral, 1, None), Budget, None)
 SEED = (Interval(Integral, 0, MAX_SEED), None)
 PROBABILITY = [Interval(Real, 0, 1)]
 AT_LEAST_ONE = [Interval(Integral, 1, None)]
+MAX_POPULATION = 1_000_000
+"""The largest population (individuals, ants, archive, contestants) a method takes: a million points of nine
+parameters per generation; 1e30 had reached numpy as 'maximum allowed dimension exceeded', and 1e7 with a budget
+of 1000 evaluations ran for 133 s."""
+POPULATION = [Interval(Integral, 1, MAX_POPULATION)]
 NON_NEGATIVE = [Interval(Real, 0, None)]
 POSITIVE = [Interval(Real, 0, None, "neither")]
 BOX = {"angle_range_rad": [Interval(Real, 0, math.pi / 2, "right")], "scale_range": [Interval(Real, 0, 1, "neither")],

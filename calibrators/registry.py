@@ -76,6 +76,8 @@ def plugin_errors() -> dict[str, str]:
 
 
 def get(name: str) -> type[Calibrator]:
+    if not isinstance(name, str):
+        raise InputError(f"a calibrator is named by a string (magbench list), not a {type(name).__name__}")
     calibrators = available()
     if name in calibrators:
         return calibrators[name]

@@ -57,10 +57,22 @@ def os_reason(exc: OSError) -> str:
     return exc.strerror or (errno.errorcode.get(exc.errno, "") if exc.errno else "") or type(exc).__name__
 
 
+def as_path(path, what: str = "file") -> Path:
+    """``path`` (a string or an ``os.PathLike``) as a ``Path``, else ``InputError`` (None, a number, a name with a NUL
+    byte had reached the operating system's TypeError or ValueError)."""
+    if isinstance(path, bytes):
+        path = os.fsdecode(path)
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError(f"a {what} is named by a path (a string), not a {type(path).__name__}")
+    if "\0" in os.fspath(path):
+        raise InputError(f"the {what} name {os.fspath(path)!r} holds a NUL byte, which no file name can")
+    return Path(path)
+
+
 def read_input(path, what: str = "file", max_bytes: int = MAX_INPUT_BYTES) -> InputBytes:
     """Read a regular file once, at most ``max_bytes`` (``InputError`` beyond, naming the limit), with its
     sha256.  A directory, FIFO, device or socket is refused without reading (or blocking on) it."""
-    path = Path(path)
+    path = as_path(path, what)
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
     except FileNotFoundError:

@@ -23,7 +23,7 @@ FIELD_COLUMNS = ("bx", "by", "bz", "f_ref", "f_meas", "f_meas_before", "f_meas_a
 
 
 from magbench.errors import InputError  # noqa: E402  (re-exported: magbench.simulate.InputError)
-from magbench.safeio import InputBytes, atomic_write, check_output, read_input  # noqa: E402
+from magbench.safeio import InputBytes, as_path, atomic_write, check_output, read_input  # noqa: E402
 
 
 def real_array(values, what: str, not_numbers: str | None = None) -> np.ndarray:
@@ -110,6 +110,10 @@ class Dataset:
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self):
+        if self.raw_nT is None:
+            raise InputError("raw_nT must be readings of shape (n, 3) (bx, by, bz), got None")
+        if not isinstance(self.meta, dict):
+            raise InputError(f"meta must be a dict, got {type(self.meta).__name__}")
         raw = readonly_copy(self.raw_nT, ndim=2, name="raw_nT")
         if raw.shape[1] != 3:
             raise InputError(f"raw_nT must have 3 columns (bx, by, bz), got {raw.shape[1]}")
@@ -129,6 +133,9 @@ class Dataset:
             if len(bad):  # a NaN time would sort last and reorder the judge's time neighbours without a word
                 rows = ", ".join(map(str, bad[:5])) + (f" and {len(bad) - 5} more" if len(bad) > 5 else "")
                 raise InputError(f"{name} has NaN or infinite values in row(s) {rows}")
+            if name != "f_ref_nT" and n and float(np.max(np.abs(arr))) > MAX_ABS_OTHER:  # the reader's own limit
+                raise InputError(f"{name} has values beyond {MAX_ABS_OTHER:g} in magnitude (up to "
+                                 f"{float(np.max(np.abs(arr))):.3g}): a broken column, not {name}")
             object.__setattr__(self, name, arr)
         object.__setattr__(self, "meta", dict(self.meta))
 
@@ -604,8 +611,8 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
     from those bytes by pandas' C parser (two million rows in about a second); the metadata records its
     sha256 (``file_sha256``).
     """
-    path = Path(path)
-    if units not in UNIT_FACTORS_NT:
+    path = as_path(path, "data file")
+    if not isinstance(units, str) or units not in UNIT_FACTORS_NT:
         raise InputError(f"unknown unit {units!r}: use one of nT, uT, mG, G")
     src = source if source is not None else read_input(path, "data file")
     data = newline_lines(src.data)

@@ -106,6 +106,24 @@ def _three_numbers(values, name: str) -> tuple[float, float, float]:
     return a, b, c
 
 
+
+def readings_array(raw_nT) -> np.ndarray:
+    """Readings to correct as a float array of shape (n, 3) or (3,) (one reading), else ``InputError``: a (4, 3, 1)
+    array had broadcast into (4, 3, 3), ``None`` had become a reading of NaN, a number a 3-vector, and a complex
+    reading lost its imaginary part without a word."""
+    if raw_nT is None or isinstance(raw_nT, (str, bytes)):
+        raise InputError(f"readings to correct must be numbers of shape (n, 3) or (3,), got {type(raw_nT).__name__}")
+    if np.iscomplexobj(raw_nT):
+        raise InputError("readings to correct must be real numbers, got complex ones")
+    try:
+        raw = np.asarray(raw_nT, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"readings to correct must be numbers of shape (n, 3) or (3,), got {type(raw_nT).__name__}"
+                         ) from None
+    if raw.shape[-1:] != (3,) or raw.ndim > 2:
+        raise InputError(f"readings to correct must have shape (n, 3) or (3,) (bx, by, bz), got shape {raw.shape}")
+    return raw
+
 @dataclass(frozen=True)
 class ErrorParams:
     """The nine calibration parameters of CONTRACT section 1, in the paper's convention.
@@ -134,8 +152,7 @@ class ErrorParams:
 
     def correct(self, raw_nT: np.ndarray) -> np.ndarray:
         """B = P · K^-1 · (raw - o) (CONTRACT section 1; seed 000 eq. 2 when K = I, o = 0)."""
-        raw = np.asarray(raw_nT, dtype=float)
-        return (raw - np.asarray(self.offset_nT)) @ self.matrix.T
+        return (readings_array(raw_nT) - np.asarray(self.offset_nT)) @ self.matrix.T
 
     def to_vector(self, model: str = "nine") -> np.ndarray:
         """Parameter vector in the order of ``PARAM_NAMES[model]``."""

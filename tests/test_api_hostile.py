@@ -65,3 +65,90 @@ def test_a_corrupt_row_far_beyond_any_sensor_s_range_is_refused_by_name(sphere, 
     res = magbench.calibrate(spike, f_ref_nT=5e4)
     assert not res.accepted and "outliers" in res.rejections[0]
     assert magbench.diagnose(Dataset(spike, f_ref_nT=sphere.f_ref_nT, t_s=sphere.t_s))["verdict"] != "none"
+
+
+def test_a_scalar_series_is_checked_before_it_is_diagnosed():
+    """A reference of 1 nT against 5e4 measured, magnitudes in uT, or a negative reference came back as an ``offset``;
+    a NaN as ``unexplained`` with NaN figures; bad shapes reached numpy.  Control: the same series in nT."""
+    from magbench.simulate.dataset import ScalarSeries
+
+    hd = np.arange(0, 360, 15.0)
+    fm = 5e4 + 30 * np.cos(np.radians(hd))
+    ref = np.full(24, 5e4)
+    bad = {"times the reference": dict(f_meas_nT=fm, heading_deg=hd, f_ref_nT=np.ones(24)),
+           "0.001 times the reference": dict(f_meas_nT=fm / 1000, heading_deg=hd, f_ref_nT=ref),
+           "must be positive": dict(f_meas_nT=fm, heading_deg=hd, f_ref_nT=-ref),
+           r"f_meas_nT is NaN or infinite in row\(s\) 0": dict(f_meas_nT=np.r_[np.nan, fm[1:]], heading_deg=hd,
+                                                                f_ref_nT=ref),
+           r"heading_deg is NaN": dict(f_meas_nT=fm, heading_deg=np.r_[np.nan, hd[1:]], f_ref_nT=ref),
+           "f_ref_nT has 23 values for 24 rows": dict(f_meas_nT=fm, heading_deg=hd, f_ref_nT=ref[:23]),
+           "one value per row": dict(f_meas_nT=np.c_[fm, fm], heading_deg=hd, f_ref_nT=ref)}
+    for message, columns in bad.items():
+        with pytest.raises(InputError, match=message):
+            magbench.diagnose(ScalarSeries(**columns))
+    assert magbench.diagnose(ScalarSeries(f_meas_nT=fm, heading_deg=hd, f_ref_nT=ref))["verdict"] == "offset"
+
+
+@pytest.mark.parametrize("readings", [np.ones((4, 3, 1)), None, 5.0, np.ones((4, 2)), np.ones(2), "abc",
+                                      np.ones((3, 3)) + 1j])
+def test_correct_takes_readings_of_shape_n_by_3_only(sphere, readings):
+    """``correct`` broadcast (4, 3, 1) into (4, 3, 3), made NaN of None, a 3-vector of a number and dropped an
+    imaginary part; a calibration loaded from its file did the same.  Control: (n, 3) and (3,)."""
+    res = magbench.calibrate(sphere)
+    for obj in (res, res.calibration()):
+        with pytest.raises(InputError, match="readings to correct must"):
+            obj.correct(readings)
+        assert obj.correct(sphere.raw_nT[:5]).shape == (5, 3) and obj.correct(sphere.raw_nT[0]).shape == (3,)
+
+
+def test_hyper_parameters_out_of_range_are_refused_by_make():
+    """Each had passed ``make`` and failed inside a library (pycma's 'number of weights', numpy's 'maximum allowed
+    dimension', SWIG's OverflowError, SciPy's unknown strategy) or run for minutes (a population of 1e7 on a budget of
+    1000).  Control: the same methods with values in range."""
+    from magbench.calibrators import make
+
+    for name, params in [("cmaes", {"population": 1}), ("cmaes", {"population": 10**7, "max_evaluations": 1000}),
+                         ("cmaes", {"population": 500, "max_evaluations": 100}), ("ga", {"population": 10**30}),
+                         ("ga", {"tournament": 10**30}), ("aga", {"population": 10**30}), ("aco", {"ants": 10**30}),
+                         ("aco", {"archive_size": 10**30}), ("de", {"popsize": 10**30}), ("nlopt", {"population": 10**30}),
+                         ("de", {"strategy": "nonsense"}), ("de", {"mutation": -1}), ("twostep", {"max_iterations": -1}),
+                         ("twostep", {"tol": -1.0})]:
+        with pytest.raises(InputError):
+            make(name, **params)
+    for name, params in [("cmaes", {"population": 10}), ("de", {"mutation": (0.5, 1.0), "strategy": "rand1bin"}),
+                         ("ga", {"tournament": 3}), ("twostep", {"max_iterations": 5})]:
+        make(name, **params)
+
+
+def test_tiny_settings_and_budgets_give_answers_not_internal_errors(sphere):
+    """RANSAC with inlier_fraction 0.02 (w^9 = 5e-16 rounded 1 - w^9 to 1: ZeroDivisionError); ACO with q = 1e-310
+    (eq. 7's factor overflowed: IndexError); a time budget spent before the first evaluation (the counter's own
+    BudgetExhausted escaped from fit, for every method).  Now an answer each: the time-starved ones rejected."""
+    from magbench.calibrators.core.evaluator import Budget
+
+    assert magbench.calibrate(sphere, method="ransac", inlier_fraction=0.02, max_iterations=100).accepted
+    assert magbench.calibrate(sphere, method="aco", q=1e-310).rms_after_nT < 3.0
+    for method in ("lsq", "ga", "cmaes", "nlopt", "de"):
+        res = magbench.calibrate(sphere, method=method, budget=Budget(max_time_s=1e-9))
+        assert not res.accepted and res.status in ("budget", "maxtime_reached") and res.n_evaluations >= 1
+    with pytest.raises(InputError, match="max_evaluations must be at least 1"):
+        Budget(max_evaluations=0)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda d: magbench.load_calibration(None), "named by a path"),
+    (lambda d: magbench.load_calibration("a\0b"), "NUL byte"),
+    (lambda d: magbench.read_csv(3), "named by a path"),
+    (lambda d: magbench.calibrate(d, units=["nT"]), "unknown unit"),
+    (lambda d: magbench.calibrate(d, method=["lsq"]), "named by a string"),
+    (lambda d: Dataset(None), "got None"),
+    (lambda d: Dataset(d.raw_nT, meta=[1, 2]), "meta must be a dict"),
+    (lambda d: magbench.diagnose(Dataset(d.raw_nT, f_ref_nT=d.f_ref_nT, t_s=np.arange(300) * 1e300)), "beyond 1e\\+12"),
+    (lambda d: magbench.diagnose(d, seed=2**70), "seed must be an integer from 0 to 2\\*\\*64 - 1"),
+    (lambda d: magbench.calibrate(d.raw_nT / 1000, f_ref_nT=50.0), "reference magnitude is 50 nT"),
+])
+def test_wrong_types_and_units_are_input_errors(sphere, call, message):
+    """Each had been a TypeError, ValueError, AttributeError or OverflowError from inside, or (readings in uT against a
+    reference of 50) a refusal for 'degenerate attitude coverage' at a condition number of 1.6."""
+    with pytest.raises(InputError, match=message):
+        call(sphere)

@@ -25,7 +25,7 @@ from magbench.calibrators.acceptance import reference_problems
 from magbench.calibrators.base import input_problems
 from magbench.calibrators.core.objective import ScalarObjective, identity_vector
 from magbench.calibrators.fisher import coverage
-from magbench.errors import InputError, check_int
+from magbench.errors import MAX_SEED, InputError, check_int
 from magbench.numerics import time_column_note
 from magbench.simulate.dataset import Dataset, ScalarSeries, real_array
 from magbench.simulate.sensor import PARAM_NAMES
@@ -53,6 +53,8 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
     # one BLAS thread: every product here is a tall-skinny block (65536 x <= 50); a second thread gains
     # nothing, and on a loaded machine spin-waiting BLAS threads made the Gram products up to 100x slower
     folds, seed = check_int(folds, "folds", 2), check_int(seed, "seed", 0)
+    if seed > MAX_SEED:
+        raise InputError(f"seed must be an integer from 0 to 2**64 - 1, got {seed}")
     if not isinstance(data, (Dataset, ScalarSeries)):
         raise InputError(f"diagnose takes a Dataset (readings, reference, times) or a ScalarSeries, not "
                          f"{type(data).__name__}")

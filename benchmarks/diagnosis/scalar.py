@@ -57,11 +57,59 @@ def together_columns(heading_rad: np.ndarray, tau=None) -> list[np.ndarray]:
     return [c for name in TOGETHER for c in EFFECTS[name].scalar_columns(heading_rad, tau)]
 
 
+def series_problem(series: ScalarSeries) -> str | None:
+    """Why a scalar series cannot be diagnosed as it is, or None: its columns one finite number per row (a reference
+    given as one number is taken for every row), a positive reference, and measured magnitudes that fit it (a
+    reference of 1 nT against 5e4 measured, or magnitudes in uT, had come back as an ``offset``, NaN as
+    ``unexplained``)."""
+    n = None
+    for name in ("f_meas_nT", "heading_deg", "f_ref_nT", "t_s", "temp_C"):
+        value = getattr(series, name)
+        if value is None:
+            continue
+        try:
+            a = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            return f"{name} must be numbers, got {type(value).__name__}"
+        if name == "f_ref_nT" and a.ndim == 0:
+            continue
+        if a.ndim != 1:
+            return f"{name} must be one value per row (a 1-D array), got shape {a.shape}"
+        n = len(a) if n is None else n
+        if len(a) != n:
+            return f"{name} has {len(a)} values for {n} rows"
+        bad = np.flatnonzero(~np.isfinite(a))
+        if len(bad):
+            return f"{name} is NaN or infinite in row(s) {', '.join(map(str, bad[:5]))}"
+    after = series.extra.get("f_meas_after") if isinstance(series.extra, dict) else None
+    if after is not None and (np.shape(after) != (n,) or not np.all(np.isfinite(np.asarray(after, dtype=float)))):
+        return "f_meas_after must be one finite value per row"
+    if series.f_ref_nT is None:
+        return None
+    ref, meas = np.asarray(series.f_ref_nT, dtype=float), np.asarray(series.f_meas_nT, dtype=float)
+    if np.any(ref <= 0):
+        return "the reference magnitude must be positive on every row"
+    ratio = float(np.median(meas) / np.median(ref))
+    if not SCALAR_RATIO_RANGE[0] <= ratio <= SCALAR_RATIO_RANGE[1]:
+        return (f"the measured magnitude (median {np.median(meas):.4g}) is {ratio:.3g} times the reference (median "
+                f"{np.median(ref):.6g} nT): wrong units (f_meas_nT and f_ref_nT are in nT), or a wrong reference")
+    return None
+
+
+SCALAR_RATIO_RANGE = (0.5, 2.0)
+"""The median measured magnitude over the reference's that a scalar series of one instrument in one field can have
+(its own calibration applied, or not: scales and offsets of a few per cent); outside it the units or the reference
+are wrong."""
+
+
 def _checked(series: ScalarSeries) -> ScalarFit:
     if series.heading_deg is None:
         raise InputError("a scalar-only series needs heading_deg to be diagnosed")
     if series.f_ref_nT is None:
         raise InputError("no reference magnitude: give an f_ref column, --field NT, or a '# field_nT:' line")
+    problem = series_problem(series)
+    if problem:
+        raise InputError(problem)
     r = scalar_residual(series)
     n = len(r)
     if n < MIN_HEADINGS:

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from magbench.errors import InputError
+
 
 @dataclass(frozen=True)
 class Budget:
@@ -18,9 +20,9 @@ class Budget:
 
     def __post_init__(self):
         if self.max_evaluations is not None and self.max_evaluations < 1:
-            raise ValueError("max_evaluations must be at least 1")
-        if self.max_time_s is not None and self.max_time_s <= 0:
-            raise ValueError("max_time_s must be positive")
+            raise InputError(f"max_evaluations must be at least 1, got {self.max_evaluations}")
+        if self.max_time_s is not None and not self.max_time_s > 0:
+            raise InputError(f"max_time_s must be positive, got {self.max_time_s}")
 
 
 class BudgetExhausted(Exception):
@@ -106,6 +108,12 @@ class Evaluator:
     def budget(self) -> Budget:
         return self._budget
 
+    def start_clock(self) -> None:
+        """The time budget counts from now: the framework calls it once the start has been evaluated, when the
+        strategy takes over (a time budget spent before the first evaluation had let the counter's own
+        ``BudgetExhausted`` escape from ``fit``, with no point to return)."""
+        self._t0 = time.perf_counter()
+
     @property
     def n_params(self) -> int:
         return self._objective.n_params
@@ -142,8 +150,8 @@ class Evaluator:
             self._refuse("the budget was already spent")
         if b.max_evaluations is None and b.max_time_s is None:
             return m
-        if b.max_time_s is not None and time.perf_counter() - self._t0 >= b.max_time_s:
-            self._refuse(f"time budget of {b.max_time_s} s reached")
+        if b.max_time_s is not None and (self._n_f or self._n_j) and time.perf_counter() - self._t0 >= b.max_time_s:
+            self._refuse(f"time budget of {b.max_time_s} s reached")  # the first evaluation is always made
         if b.max_evaluations is None:
             return m
         left = b.max_evaluations - self.n_evaluations

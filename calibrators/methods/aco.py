@@ -25,7 +25,7 @@ import numpy as np
 from ..base import Calibrator
 from ..core import loop
 from ..core.problem import Problem, SolveOutput, population_box
-from ..params import AT_LEAST_ONE, BOX, NON_NEGATIVE, POSITIVE, Interval
+from ..params import AT_LEAST_ONE, BOX, MAX_POPULATION, NON_NEGATIVE, POPULATION, POSITIVE, Interval
 
 TOL = 1e-6
 
@@ -39,8 +39,8 @@ class AntColony(Calibrator):
     stochastic = True
     check_tolerance = {"angle_rad": 2e-4, "scale": 2e-4, "offset_nT": 5.0}
 
-    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "archive_size": [Interval(Integral, 2, None)],
-                              "ants": AT_LEAST_ONE, "q": POSITIVE, "xi": POSITIVE, "iterations": AT_LEAST_ONE,
+    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "archive_size": [Interval(Integral, 2, MAX_POPULATION)],
+                              "ants": POPULATION, "q": POSITIVE, "xi": POSITIVE, "iterations": AT_LEAST_ONE,
                               "tol": NON_NEGATIVE}
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, archive_size: int = 50,
@@ -77,8 +77,11 @@ class AntColony(Calibrator):
         lo, hi = problem.lower, problem.upper
         span, p = hi - lo, len(lo)
         rank = np.arange(k)
-        w = np.exp(-rank**2 / (2.0 * (self.q * k) ** 2)) / (self.q * k * np.sqrt(2 * np.pi))  # eq. 7
-        cum = np.cumsum(w / w.sum())  # eq. 8
+        with np.errstate(all="ignore"):
+            w = np.exp(-rank**2 / (2.0 * (self.q * k) ** 2)) / (self.q * k * np.sqrt(2 * np.pi))  # eq. 7
+            cum = np.cumsum(w / w.sum())  # eq. 8
+        if not np.all(np.isfinite(cum)):  # a q so small that eq. 7's factor overflows: the best solution alone
+            cum = np.ones(k)
 
         archive = rng.random((k, p))
         f = yield loop.values(lo + archive * span)

@@ -31,7 +31,7 @@ import numpy as np
 from ..base import Calibrator
 from ..core import loop
 from ..core.problem import Problem, SolveOutput, population_box
-from ..params import AT_LEAST_ONE, BOX, NON_NEGATIVE, Interval
+from ..params import AT_LEAST_ONE, BOX, MAX_POPULATION, NON_NEGATIVE, Interval
 
 TOLFUN_REL = 1e-6
 MARGIN = 0.05
@@ -84,9 +84,19 @@ class CMAES(Calibrator):
     check_tolerance = {"angle_rad": 2e-4, "scale": 2e-4, "offset_nT": 5.0}
     imports = ("cma",)
 
-    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "population": [Interval(Integral, 0, None)],
+    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "population": [Interval(Integral, 0, MAX_POPULATION)],
                               "sigma0": [Interval(Real, 0, 1, "right")], "max_evaluations": AT_LEAST_ONE,
                               "tolfun": NON_NEGATIVE, "tolx": NON_NEGATIVE, "tolfun_rel": NON_NEGATIVE}
+
+    @classmethod
+    def _params_together(cls, params: dict) -> str | None:
+        population = params["population"]
+        if population == 1:  # pycma's own ValueError ('number of weights must be >=2') came from inside it
+            return "population must be 0 (automatic) or at least 2 (CMA-ES recombines the best half)"
+        if population > params["max_evaluations"]:
+            return (f"population {population} is more than max_evaluations {params['max_evaluations']}: not even one "
+                    "generation fits")
+        return None
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, population: int = 0,
                  sigma0: float = 0.3, max_evaluations: int = 20000, tolfun: float = 1e-9, tolx: float = 1e-8,

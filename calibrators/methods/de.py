@@ -8,6 +8,8 @@ is off by default (``polish=True`` turns it on; its evaluations are counted like
 """
 from __future__ import annotations
 
+from numbers import Integral, Real
+
 import numpy as np
 
 from magbench.errors import InputError
@@ -15,7 +17,11 @@ from magbench.errors import InputError
 from ..base import Calibrator
 from ..core import loop
 from ..core.problem import Problem, SolveOutput, population_box
-from ..params import AT_LEAST_ONE, BOX, NON_NEGATIVE, PROBABILITY
+from ..params import AT_LEAST_ONE, BOX, MAX_POPULATION, NON_NEGATIVE, PROBABILITY, Interval, Options
+
+STRATEGIES = ("best1bin", "best1exp", "rand1bin", "rand1exp", "rand2bin", "rand2exp", "randtobest1bin",
+              "randtobest1exp", "currenttobest1bin", "currenttobest1exp", "best2exp", "best2bin")
+"""SciPy's differential_evolution strategies by name (a callable strategy is not taken here)."""
 
 
 class DifferentialEvolution(Calibrator):
@@ -29,8 +35,10 @@ class DifferentialEvolution(Calibrator):
     check_tolerance = {"angle_rad": 2e-4, "scale": 2e-4, "offset_nT": 5.0}
     imports = ("scipy.optimize",)
 
-    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "popsize": AT_LEAST_ONE,
-                              "generations": AT_LEAST_ONE, "recombination": PROBABILITY, "tol": NON_NEGATIVE}
+    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX,
+                              "popsize": [Interval(Integral, 1, MAX_POPULATION // 10)],
+                              "generations": AT_LEAST_ONE, "recombination": PROBABILITY, "tol": NON_NEGATIVE,
+                              "strategy": [Options(STRATEGIES)], "mutation": [Interval(Real, 0, 2, "left"), tuple]}
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, strategy: str = "best1bin",
                  popsize: int = 15, generations: int = 1000, mutation: float = 0.7, recombination: float = 0.9,

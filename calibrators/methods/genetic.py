@@ -18,7 +18,7 @@ from magbench.errors import InputError
 from ..base import Calibrator
 from ..core import loop
 from ..core.problem import Problem, SolveOutput, population_box
-from ..params import AT_LEAST_ONE, BOX, NON_NEGATIVE, POSITIVE, PROBABILITY, Interval, Options
+from ..params import AT_LEAST_ONE, BOX, MAX_POPULATION, NON_NEGATIVE, POPULATION, POSITIVE, PROBABILITY, Interval, Options
 from . import _gakernel
 from ._gakernel import adaptive_probability  # noqa: F401  (seed 000's eq. 4-5, part of this module's API)
 from .lsq import levenberg_marquardt
@@ -52,7 +52,7 @@ class AdaptiveGA(Calibrator):
     # halves the residual.  The tolerances say so; aga-lm is the variant that recovers them.
     check_tolerance = {"angles": {"angle_rad": 3e-3, "scale": 0.0, "offset_nT": 0.0},
                        "nine": {"angle_rad": 3e-2, "scale": 3e-2, "offset_nT": 400.0}}
-    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "population": [Interval(Integral, 2, None)],
+    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "population": [Interval(Integral, 2, MAX_POPULATION)],
                               "bits": [Interval(Integral, 1, 62)], "pc1": PROBABILITY, "pc2": PROBABILITY,
                               "pm1": PROBABILITY, "pm2": PROBABILITY, "k_max": AT_LEAST_ONE, "delta_g": NON_NEGATIVE,
                               "max_generations": AT_LEAST_ONE, "mutation": [Options(("single_bit", "per_bit"))],
@@ -193,9 +193,9 @@ class RealGA(Calibrator):
     summary = "plain real-coded GA: tournament, BLX-alpha, non-uniform mutation, fixed Pc/Pm"
     stochastic = True
     check_tolerance = {"angle_rad": 2e-4, "scale": 2e-4, "offset_nT": 5.0}
-    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "population": [Interval(Integral, 4, None)],
+    _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "population": [Interval(Integral, 4, MAX_POPULATION)],
                               "generations": AT_LEAST_ONE, "pc": PROBABILITY, "pm": PROBABILITY,
-                              "blx_alpha": NON_NEGATIVE, "nonuniform_b": NON_NEGATIVE, "tournament": AT_LEAST_ONE,
+                              "blx_alpha": NON_NEGATIVE, "nonuniform_b": NON_NEGATIVE, "tournament": POPULATION,
                               "elitism": [Interval(Integral, 0, None)]}
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, population: int = 80,

@@ -17,7 +17,7 @@ from ..base import Calibrator
 from ..core import loop
 from ..core.evaluator import BudgetExhausted
 from ..core.problem import Problem, SolveOutput, population_box
-from ..params import AT_LEAST_ONE, BOX, NON_NEGATIVE, Interval
+from ..params import AT_LEAST_ONE, BOX, MAX_POPULATION, NON_NEGATIVE, Interval
 
 RESULT_NAMES = {1: "success", 2: "stopval_reached", 3: "ftol_reached", 4: "xtol_reached", 5: "maxeval_reached",
                 6: "maxtime_reached"}
@@ -36,7 +36,8 @@ class NLoptCalibrator(Calibrator):
     check_tolerance = {"angle_rad": 5e-5, "scale": 5e-5, "offset_nT": 1.0}
 
     _parameter_constraints = {**Calibrator._parameter_constraints, **BOX, "max_evaluations": AT_LEAST_ONE,
-                              "ftol_rel": NON_NEGATIVE, "xtol_rel": NON_NEGATIVE, "population": [Interval(Integral, 0, None)]}
+                              "ftol_rel": NON_NEGATIVE, "xtol_rel": NON_NEGATIVE,
+                              "population": [Interval(Integral, 0, MAX_POPULATION)]}
 
     @classmethod
     def _params_together(cls, params: dict) -> str | None:

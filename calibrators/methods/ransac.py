@@ -17,6 +17,7 @@ and inlier fraction w.
 from __future__ import annotations
 
 import math
+import sys
 from numbers import Integral, Real
 
 import numpy as np
@@ -31,11 +32,16 @@ from ..params import AT_LEAST_ONE, POSITIVE, Interval
 
 
 def ransac_iterations(confidence: float, inlier_fraction: float, sample_size: int) -> int:
-    """Seed 003, eq. 11: the smallest K with 1 - (1 - w^q)^K >= f."""
+    """Seed 003, eq. 11: the smallest K with 1 - (1 - w^q)^K >= f.  ``log1p`` keeps a small w^q (0.02^9 = 5e-16) from
+    rounding 1 - w^q to 1 (a division by zero); a w^q that underflows to 0 asks for more iterations than any run
+    makes (``sys.maxsize``: the caller's ``max_iterations`` caps it)."""
     p_good = inlier_fraction**sample_size
     if p_good >= 1.0:
         return 1
-    return max(1, math.ceil(math.log(1.0 - confidence) / math.log(1.0 - p_good)))
+    per_draw = math.log1p(-p_good)
+    if per_draw == 0.0:
+        return sys.maxsize
+    return max(1, min(sys.maxsize, math.ceil(math.log(1.0 - confidence) / per_draw)))
 
 
 class RansacEllipsoid(Calibrator):

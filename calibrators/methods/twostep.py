@@ -25,6 +25,7 @@ from ..base import Calibrator
 from ..core import loop
 from ..core.evaluator import BudgetExhausted
 from ..core.problem import ReadingsProblem, SolveOutput
+from ..params import AT_LEAST_ONE, NON_NEGATIVE
 
 
 def centred_estimate(raw_nT: np.ndarray, f_ref_nT: np.ndarray, model: str) -> np.ndarray:
@@ -80,6 +81,8 @@ class TwoStep(Calibrator):
     supported_models = ("offset", "nine")
     check_tolerance = {"angle_rad": 2e-5, "scale": 2e-5, "offset_nT": 0.5}
     closed_form = True  # its first step reads the readings; the second is counted
+
+    _parameter_constraints = {**Calibrator._parameter_constraints, "max_iterations": AT_LEAST_ONE, "tol": NON_NEGATIVE}
 
     def __init__(self, model: str = "nine", seed: int | None = 0, budget=None, max_iterations: int = 50,
                  tol: float = 1e-12):
