@@ -413,7 +413,7 @@ class Calibrator(metaclass=_Sealed):
         model = self.model
         objective = ScalarObjective(dataset.raw_nT, dataset.f_ref_nT, model)
         budget = as_budget(self.budget)
-        evaluator = Evaluator(objective, budget)
+        evaluator = Evaluator(objective, budget, clock=False)  # its time budget counts from the start's evaluation
         box = self.search_box()
         lower, upper = search_bounds(model, field_nT, **box)
         x0 = identity_vector(model)
@@ -435,15 +435,17 @@ class Calibrator(metaclass=_Sealed):
                 # short by its budget returns) is never worse than no calibration; a time budget counts from
                 # after it (a budget spent before the first evaluation left no point to return).
                 evaluator.values(x0[None, :])
-                evaluator.start_clock()
+            evaluator.start_clock()
             with _decoys_exposed(objective):
                 out = self._solve(problem)
                 if isinstance(out, Generator):  # a strategy: the framework evaluates what it asks for
                     out, stopped = drive(out, evaluator, termination, start)
         except BudgetExhausted as exc:
-            if evaluator.best_x is None:
-                raise
-            out = SolveOutput(evaluator.best_x, status="budget", message=f"stopped: {exc}", success=True)
+            if evaluator.best_x is None:  # a closed form whose time budget was spent before its first evaluation
+                out = SolveOutput(x0.copy(), status="budget", message=f"stopped before any evaluation: {exc}",
+                                  success=False)
+            else:
+                out = SolveOutput(evaluator.best_x, status="budget", message=f"stopped: {exc}", success=True)
             stopped = Stopped(getattr(exc, "iterations", 0), "budget")
         if not isinstance(out, SolveOutput):
             out = SolveOutput(out, status="no_output", message=f"{self.name}'s _solve returned {type(out).__name__}, "

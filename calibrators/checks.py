@@ -181,8 +181,8 @@ def _independent_count():
     tally = _Tally()
     original = Evaluator.__init__
 
-    def counted_init(self, objective, budget=None):
-        original(self, _CountingObjective(objective, tally), budget)
+    def counted_init(self, objective, budget=None, clock=True):
+        original(self, _CountingObjective(objective, tally), budget, clock)
 
     Evaluator.__init__ = counted_init  # type: ignore[method-assign]
     try:

@@ -233,7 +233,7 @@ CASES = [
     ("seed-text", GOOD, ["--seed", "x"], 2, "not an integer"),
     # NLopt's srand takes 64 bits: a larger seed was an internal error (OverflowError)
     ("seed-above-64-bits", GOOD, ["--method", "nlopt", "--seed", str(2**64)], 2, "is above 2**64 - 1"),
-    ("param-not-int", GOOD, ["--method", "aga", "--param", "population=abc"], 2, "population must be an int >= 2"),
+    ("param-not-int", GOOD, ["--method", "aga", "--param", "population=abc"], 2, "population must be an int in [2, 1000000]"),
     ("param-no-equals", GOOD, ["--param", "population"], 2, "KEY=VALUE"),
     ("param-unknown", GOOD, ["--param", "colour=3"], 2, "no hyper-parameter"),
     ("param-bool-as-int", GOOD, ["--param", "bounded=1"], 2, "bounded must be a bool"),

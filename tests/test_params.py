@@ -132,7 +132,7 @@ def test_parameters_valid_alone_but_not_together_are_refused(name, params, words
 
 
 @pytest.mark.parametrize("spec,words", [
-    ("ga:population=3", "population must be an int >= 4"), ("ga:pc=2", "pc must be a float in [0, 1]"),
+    ("ga:population=3", "population must be an int in [4, 1000000]"), ("ga:pc=2", "pc must be a float in [0, 1]"),
     ("ga:elitism=80", "must be less than population"), ("cmaes:sigma0=-1", "sigma0 must be a float in (0, 1]"),
     ("ga:seed=5", "seed is not a method's parameter in a campaign"),
     ("lsq:model=angles", "model is not a method's parameter in a campaign"),

@@ -91,7 +91,7 @@ class Evaluator:
     __slots__ = ("_objective", "_budget", "_n_f", "_n_j", "n_overrun_calls", "_exhausted", "best_x", "best_f",
                  "trace", "_audit", "_t0")
 
-    def __init__(self, objective, budget: Budget | None = None):
+    def __init__(self, objective, budget: Budget | None = None, clock: bool = True):
         self._objective = objective
         self._budget = budget or Budget()
         self._n_f = 0
@@ -102,16 +102,17 @@ class Evaluator:
         self.best_f = np.inf
         self.trace: list[tuple[int, float, float]] = []
         self._audit = _AUDIT.get()
-        self._t0 = time.perf_counter()
+        self._t0: float | None = time.perf_counter() if clock else None  # None: the time budget waits for start_clock
 
     @property
     def budget(self) -> Budget:
         return self._budget
 
     def start_clock(self) -> None:
-        """The time budget counts from now: the framework calls it once the start has been evaluated, when the
-        strategy takes over (a time budget spent before the first evaluation had let the counter's own
-        ``BudgetExhausted`` escape from ``fit``, with no point to return)."""
+        """The time budget counts from now (an evaluator made with ``clock=False`` checks no time before): ``fit``
+        evaluates the start first, then starts the clock as the strategy takes over (a time budget spent before the
+        first evaluation had let the counter's own ``BudgetExhausted`` escape from ``fit``, with no point to
+        return)."""
         self._t0 = time.perf_counter()
 
     @property
@@ -150,8 +151,8 @@ class Evaluator:
             self._refuse("the budget was already spent")
         if b.max_evaluations is None and b.max_time_s is None:
             return m
-        if b.max_time_s is not None and (self._n_f or self._n_j) and time.perf_counter() - self._t0 >= b.max_time_s:
-            self._refuse(f"time budget of {b.max_time_s} s reached")  # the first evaluation is always made
+        if b.max_time_s is not None and self._t0 is not None and time.perf_counter() - self._t0 >= b.max_time_s:
+            self._refuse(f"time budget of {b.max_time_s} s reached")
         if b.max_evaluations is None:
             return m
         left = b.max_evaluations - self.n_evaluations
