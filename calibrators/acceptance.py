@@ -1323,7 +1323,7 @@ def excess_over_optimum(rms_x: float, rms_ref: float, n: int, p: int, floor: flo
     DIRECT search cut at 3000 evaluations left 3.44 nT against 2.02 and a scale 15 deviations off, within the
     ratio test's factor 2)."""
     dof = n - p
-    if dof < 1 or not rms_x > rms_ref:
+    if dof < 1 or not rms_x > max(rms_ref, floor):  # within the rounding floor: exact data, not judged on rounding
         return []
     sigma2 = max(rms_ref * rms_ref * n / dof, floor * floor)
     excess = n * (rms_x * rms_x - rms_ref * rms_ref) / sigma2
@@ -1514,11 +1514,12 @@ def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray, t_s: np.ndarray
         factor = float(np.median(ratio[off]) / typical)
         return (f"{off.sum()} of {len(off)} rows (e.g. rows {', '.join(map(str, rows[:3]))}) have {factor:.3g} "
                 "times the magnitude of the others: the file mixes units")
-    absurd = ~(ratio <= typical * GLITCH_FACTOR)  # a few such rows: no sensor's reading (1e200 breaks the numerics)
-    if absurd.any():
+    peak = np.max(np.abs(raw_nT), axis=1)  # the largest axis: finite where the squares overflow
+    absurd = ~(peak <= GLITCH_FACTOR * float(np.median(mag)))  # against the readings, not the reference (a wrong
+    if absurd.any():  # reference row is the jump below); a few such rows: no sensor's reading (1e200 breaks the numerics)
         rows = np.flatnonzero(absurd)
-        worst = int(rows[np.argmax(mag[rows])])
-        size = f"{mag[worst]:.4g}" if np.isfinite(mag[worst]) else "beyond 1e308"
+        worst = int(rows[np.argmax(peak[rows])])
+        size = f"{mag[worst]:.4g}" if np.isfinite(mag[worst]) else f"{peak[worst]:.4g} on one axis"
         return (f"{len(rows)} row(s) (row{'s' if len(rows) > 1 else ''} {', '.join(map(str, rows[:5]))}"
                 f"{', ...' if len(rows) > 5 else ''}) have a magnitude more than {GLITCH_FACTOR:g} times the others' "
                 f"(row {worst}: {size} against a median of {np.median(mag):.4g}): beyond any magnetometer's range in "

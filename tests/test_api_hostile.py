@@ -152,3 +152,22 @@ def test_wrong_types_and_units_are_input_errors(sphere, call, message):
     reference of 50) a refusal for 'degenerate attitude coverage' at a condition number of 1.6."""
     with pytest.raises(InputError, match=message):
         call(sphere)
+
+
+def test_the_new_checks_keep_out_of_what_they_do_not_judge(sphere):
+    """Found by a second probe of the fixes: the chi-square test had rejected a GA on exact readings at 0.004 nT
+    (inside the rounding floor the ratio test leaves exact data); the corrupt-row check had blamed a reading for a
+    reference row of 40 nT (the reference jump is the cause); ``model="auto"`` had met a 1e200 row in SciPy's tree."""
+    p = sphere.truth.params
+    u = np.random.default_rng(0).normal(size=(300, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    exact = np.linalg.solve(p.matrix, (u * 5e4).T).T + np.asarray(p.offset_nT)
+    assert magbench.calibrate(exact, method="ga", f_ref_nT=5e4, seed=1).accepted
+    ref = np.array(sphere.f_ref_nT)
+    ref[3] = 40.0
+    with pytest.raises(InputError, match="the reference jumps"):
+        magbench.calibrate(Dataset(sphere.raw_nT, f_ref_nT=ref, t_s=sphere.t_s))
+    raw = sphere.raw_nT.copy()
+    raw[3] = 1e200
+    with pytest.raises(InputError, match=r"row 3: 1e\+200 on one axis"):
+        magbench.calibrate(raw, f_ref_nT=5e4, model="auto")
