@@ -141,7 +141,8 @@ class Calibration:
     @property
     def field_nT(self) -> float:
         """The magnitude the corrected field is scaled to (the reference's median; magcal's expmfs)."""
-        return float(self.reference.get("median_nT", float("nan")))
+        value = self.reference.get("median_nT")
+        return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else float("nan")
 
     def symmetric_matrix(self) -> np.ndarray:
         """S = sqrtm(M^T M): the symmetric positive-definite soft-iron matrix with |S d| = |M d| (the
@@ -378,6 +379,9 @@ def validate_schema(d, where: str = "calibration") -> None:
     for key in ("parameters", "M", "o_nT", "accepted"):
         if key not in d:
             raise InputError(f"{where}: missing entry {key!r}")
+    median_nT = (d.get("reference") or {}).get("median_nT")
+    if median_nT is not None and (isinstance(median_nT, bool) or not isinstance(median_nT, (int, float))):
+        raise InputError(f"{where}: entry reference.median_nT must be a number of nT, got {median_nT!r}")
     for key in ("rejections", "warnings"):
         if not all(isinstance(v, str) for v in d.get(key) or ()):
             raise InputError(f"{where}: entry {key!r} must be a list of strings")

@@ -115,6 +115,9 @@ def readings_array(raw_nT) -> np.ndarray:
         raise InputError(f"readings to correct must be numbers of shape (n, 3) or (3,), got {type(raw_nT).__name__}")
     if np.iscomplexobj(raw_nT):
         raise InputError("readings to correct must be real numbers, got complex ones")
+    if not isinstance(raw_nT, np.ndarray) and np.asarray(raw_nT, dtype=object).dtype == object and any(
+            v is None for v in np.asarray(raw_nT, dtype=object).ravel()):  # [[1, None, 2]] had become NaN
+        raise InputError("readings to correct must be numbers: a value is None")
     try:
         raw = np.asarray(raw_nT, dtype=float)
     except (TypeError, ValueError):

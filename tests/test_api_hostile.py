@@ -75,7 +75,8 @@ def test_a_scalar_series_is_checked_before_it_is_diagnosed():
     hd = np.arange(0, 360, 15.0)
     fm = 5e4 + 30 * np.cos(np.radians(hd))
     ref = np.full(24, 5e4)
-    bad = {"times the reference": dict(f_meas_nT=fm, heading_deg=hd, f_ref_nT=np.ones(24)),
+    bad = {"reference magnitude is 1 nT": dict(f_meas_nT=fm, heading_deg=hd, f_ref_nT=np.ones(24)),
+           "times the reference": dict(f_meas_nT=fm * 3, heading_deg=hd, f_ref_nT=ref),
            "0.001 times the reference": dict(f_meas_nT=fm / 1000, heading_deg=hd, f_ref_nT=ref),
            "must be positive": dict(f_meas_nT=fm, heading_deg=hd, f_ref_nT=-ref),
            r"f_meas_nT is NaN or infinite in row\(s\) 0": dict(f_meas_nT=np.r_[np.nan, fm[1:]], heading_deg=hd,
@@ -171,3 +172,37 @@ def test_the_new_checks_keep_out_of_what_they_do_not_judge(sphere):
     raw[3] = 1e200
     with pytest.raises(InputError, match=r"row 3: 1e\+200 on one axis"):
         magbench.calibrate(raw, f_ref_nT=5e4, model="auto")
+
+
+def test_edges_the_second_probe_found_at_the_new_checks(sphere, tmp_path):
+    """Numeric strings and a one-number reference in a ScalarSeries are numbers (headings as strings had reached
+    numpy's ufuncs); complex, uT and 1e300 columns are refused; None inside readings to correct is refused (it had
+    become NaN); times at the float resolution of 1e9 s no longer break the diagnosis's rate localization; a
+    calibration file whose reference is not a number is refused when read, not when used."""
+    import json
+
+    from magbench.simulate.dataset import ScalarSeries
+
+    hd = np.arange(0, 360, 15.0)
+    fm = 5e4 + 30 * np.cos(np.radians(hd))
+    ref = np.full(24, 5e4)
+    for ok in (dict(heading_deg=[str(h) for h in hd], f_ref_nT=ref), dict(heading_deg=hd, f_ref_nT=5e4),
+               dict(heading_deg=hd, f_ref_nT=[str(v) for v in ref])):
+        assert magbench.diagnose(ScalarSeries(f_meas_nT=fm, **ok))["verdict"] == "offset"
+    for message, bad in (("complex", dict(f_meas_nT=fm + 1000j, heading_deg=hd, f_ref_nT=ref)),
+                         ("reference magnitude is 50 nT", dict(f_meas_nT=fm / 1000, heading_deg=hd, f_ref_nT=ref / 1000)),
+                         ("heading_deg has values beyond", dict(f_meas_nT=fm, heading_deg=hd * 1e300, f_ref_nT=ref))):
+        with pytest.raises(InputError, match=message):
+            magbench.diagnose(ScalarSeries(**bad))
+    res = magbench.calibrate(sphere)
+    with pytest.raises(InputError, match="a value is None"):
+        res.correct([[1.0, None, 2.0]])
+    assert res.correct([[1.0, 2.0, 3.0]]).shape == (1, 3)
+    coarse = Dataset(sphere.raw_nT, f_ref_nT=sphere.f_ref_nT, t_s=1e9 + np.arange(300) * 1e-7)
+    assert magbench.diagnose(coarse)["verdict"] in ("none", "unexplained")
+    saved = json.loads(res.to_json())
+    saved["reference"]["median_nT"] = "x"
+    path = tmp_path / "cal.json"
+    path.write_text(json.dumps(saved))
+    with pytest.raises(InputError, match="reference.median_nT must be a number"):
+        magbench.load_calibration(path)

@@ -92,8 +92,8 @@ def blocked_knn_floor(features: np.ndarray, r: np.ndarray, t_s: np.ndarray, bloc
 
 
 def unit_span(v: np.ndarray | None) -> np.ndarray | None:
-    """``v`` mapped onto [0, 1] (None when absent or constant)."""
-    if v is None or np.ptp(v) <= 0:
+    """``v`` mapped onto [0, 1] (None when absent, constant or not finite everywhere)."""
+    if v is None or not np.all(np.isfinite(v)) or np.ptp(v) <= 0:  # a rate over repeated times is infinite: no span
         return None
     return (v - v.min()) / np.ptp(v)
 

@@ -5,13 +5,14 @@ cycle/rev, scale 2, nonlinearity 3 and 4, field_drift a cubic in time, i.e. head
 spikes beyond SPIKE_SIGMA robust sigma) is scored by leave-one-out cross-validation against a constant."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from magbench import paper
+from magbench.calibrators.acceptance import MIN_REFERENCE_NT
 from magbench.errors import InputError
-from magbench.simulate.dataset import ScalarSeries
+from magbench.simulate.dataset import MAX_ABS_OTHER, ScalarSeries
 from magbench.simulate.effects import EFFECTS, OutlierEffect, library_effects
 from magbench.simulate.sensor import paper_matrix
 
@@ -49,7 +50,7 @@ def scalar_residual(series: ScalarSeries) -> np.ndarray:
     """``f_meas_after - f_ref`` (the file's calibration), else ``f_meas - f_ref``."""
     after = series.extra.get("f_meas_after")
     f = np.asarray(after if after is not None else series.f_meas_nT, dtype=float)
-    return f - np.asarray(series.f_ref_nT)
+    return f - np.asarray(series.f_ref_nT, dtype=float)
 
 
 def together_columns(heading_rad: np.ndarray, tau=None) -> list[np.ndarray]:
@@ -67,6 +68,8 @@ def series_problem(series: ScalarSeries) -> str | None:
         value = getattr(series, name)
         if value is None:
             continue
+        if np.iscomplexobj(value):
+            return f"{name} must be real numbers, got complex ones"
         try:
             a = np.asarray(value, dtype=float)
         except (TypeError, ValueError):
@@ -81,6 +84,8 @@ def series_problem(series: ScalarSeries) -> str | None:
         bad = np.flatnonzero(~np.isfinite(a))
         if len(bad):
             return f"{name} is NaN or infinite in row(s) {', '.join(map(str, bad[:5]))}"
+        if name in ("t_s", "temp_C", "heading_deg") and len(a) and float(np.max(np.abs(a))) > MAX_ABS_OTHER:
+            return f"{name} has values beyond {MAX_ABS_OTHER:g} in magnitude: a broken column, not {name}"
     after = series.extra.get("f_meas_after") if isinstance(series.extra, dict) else None
     if after is not None and (np.shape(after) != (n,) or not np.all(np.isfinite(np.asarray(after, dtype=float)))):
         return "f_meas_after must be one finite value per row"
@@ -89,6 +94,9 @@ def series_problem(series: ScalarSeries) -> str | None:
     ref, meas = np.asarray(series.f_ref_nT, dtype=float), np.asarray(series.f_meas_nT, dtype=float)
     if np.any(ref <= 0):
         return "the reference magnitude must be positive on every row"
+    if not float(np.median(ref)) >= MIN_REFERENCE_NT:
+        return (f"the reference magnitude is {float(np.median(ref)):.4g} nT: no calibration field is below "
+                f"{MIN_REFERENCE_NT:g} nT; f_meas_nT and f_ref_nT in another unit (uT?), or a wrong reference")
     ratio = float(np.median(meas) / np.median(ref))
     if not SCALAR_RATIO_RANGE[0] <= ratio <= SCALAR_RATIO_RANGE[1]:
         return (f"the measured magnitude (median {np.median(meas):.4g}) is {ratio:.3g} times the reference (median "
@@ -100,6 +108,20 @@ SCALAR_RATIO_RANGE = (0.5, 2.0)
 """The median measured magnitude over the reference's that a scalar series of one instrument in one field can have
 (its own calibration applied, or not: scales and offsets of a few per cent); outside it the units or the reference
 are wrong."""
+
+
+def _as_numbers(series: ScalarSeries) -> ScalarSeries:
+    """``series`` with its columns as float arrays (a reference of one number repeated on every row), once
+    ``series_problem`` finds nothing wrong with them (headings given as numeric strings had reached numpy's ufuncs)."""
+    problem = series_problem(series)
+    if problem:
+        raise InputError(problem)
+    n = len(np.asarray(series.f_meas_nT))
+    columns = {name: np.asarray(getattr(series, name), dtype=float) for name in
+               ("f_meas_nT", "heading_deg", "f_ref_nT", "t_s", "temp_C") if getattr(series, name) is not None}
+    if "f_ref_nT" in columns and columns["f_ref_nT"].ndim == 0:
+        columns["f_ref_nT"] = np.full(n, float(columns["f_ref_nT"]))
+    return replace(series, **columns)
 
 
 def _checked(series: ScalarSeries) -> ScalarFit:
@@ -123,10 +145,10 @@ def _checked(series: ScalarSeries) -> ScalarFit:
     if gap > MAX_HEADING_GAP_DEG:
         raise InputError(f"the headings leave a gap of {gap:.0f} degrees (at most {MAX_HEADING_GAP_DEG:g} for the "
                          "harmonics of one turn): turn the table all the way round")
-    order = np.argsort(series.t_s if series.t_s is not None else np.arange(n))
+    order = np.argsort(np.asarray(series.t_s, dtype=float) if series.t_s is not None else np.arange(n))
     tau = np.empty(n)
     tau[order] = np.linspace(-1, 1, n)
-    s = ScalarFit(r, np.radians(series.heading_deg), order, tau)
+    s = ScalarFit(r, np.radians(np.asarray(series.heading_deg, dtype=float)), order, tau)
     s.base_cv = s.loo([])
     return s
 
@@ -171,6 +193,7 @@ def _harm(series, col):
 
 def diagnose_scalar(series: ScalarSeries, folds: int = 0, seed: int = 0) -> dict:
     """The scalar-series diagnosis (module docstring); ``folds`` and ``seed`` are unused (leave-one-out)."""
+    series = _as_numbers(series)
     s = _checked(series)
     n = len(s.r)
     rms_base = rms(s.base_cv)  # type: ignore[arg-type]
