@@ -28,14 +28,16 @@ from magbench.safeio import InputBytes, as_path, atomic_write, check_output, rea
 
 def real_array(values, what: str, not_numbers: str | None = None) -> np.ndarray:
     """``values`` as a float array, else ``InputError``: ``not_numbers`` (default: ``what`` must be numbers)
-    when they are not numbers, and complex values refused by name (a cast to float drops their imaginary
-    parts with only numpy's warning: a fit of x + iy was answered as if the readings were x)."""
+    when they are not numbers, and complex values and None refused by name (a cast to float drops their imaginary
+    parts with only numpy's warning: a fit of x + iy was answered as if the readings were x; None became NaN)."""
     try:
         arr = np.asarray(values)
     except (TypeError, ValueError):
         raise InputError(not_numbers or f"{what} must be numbers") from None
     if np.iscomplexobj(arr) or (arr.dtype == object and any(isinstance(v, complex) for v in arr.ravel())):
         raise InputError(f"{what} must be real numbers, not complex")
+    if arr.dtype == object and any(v is None for v in arr.ravel()):  # a cast makes None a NaN without a word
+        raise InputError(f"{what} must be numbers: a value is None")
     try:
         return arr.astype(float, copy=False)
     except (TypeError, ValueError):

@@ -106,26 +106,20 @@ def _three_numbers(values, name: str) -> tuple[float, float, float]:
     return a, b, c
 
 
-
 def readings_array(raw_nT) -> np.ndarray:
     """Readings to correct as a float array of shape (n, 3) or (3,) (one reading), else ``InputError``: a (4, 3, 1)
     array had broadcast into (4, 3, 3), ``None`` had become a reading of NaN, a number a 3-vector, and a complex
-    reading lost its imaginary part without a word."""
+    reading lost its imaginary part without a word (``dataset.real_array``, which it calls, refuses complex values and
+    a None among numbers)."""
+    from .dataset import real_array  # the project's one conversion of numbers given by a caller
+
     if raw_nT is None or isinstance(raw_nT, (str, bytes)):
         raise InputError(f"readings to correct must be numbers of shape (n, 3) or (3,), got {type(raw_nT).__name__}")
-    if np.iscomplexobj(raw_nT):
-        raise InputError("readings to correct must be real numbers, got complex ones")
-    if not isinstance(raw_nT, np.ndarray) and np.asarray(raw_nT, dtype=object).dtype == object and any(
-            v is None for v in np.asarray(raw_nT, dtype=object).ravel()):  # [[1, None, 2]] had become NaN
-        raise InputError("readings to correct must be numbers: a value is None")
-    try:
-        raw = np.asarray(raw_nT, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"readings to correct must be numbers of shape (n, 3) or (3,), got {type(raw_nT).__name__}"
-                         ) from None
+    raw = real_array(raw_nT, "readings to correct")
     if raw.shape[-1:] != (3,) or raw.ndim > 2:
         raise InputError(f"readings to correct must have shape (n, 3) or (3,) (bx, by, bz), got shape {raw.shape}")
     return raw
+
 
 @dataclass(frozen=True)
 class ErrorParams:
