@@ -363,13 +363,9 @@ class Calibrator(metaclass=_Sealed):
             raise InputError(f"only {distinct} distinct reading{'s' if distinct != 1 else ''} in {n} rows (every other "
                              f"row repeats the reading before it exactly): too few for {self.name} with the {model} "
                              f"model (it needs at least {need})")
-        bad = known.get("input_problems", lambda: input_problems(dataset))
+        bad = data_problem(dataset, known)
         if bad:
             raise InputError(bad)
-        problem = known.get("reference_problems", lambda: reference_problems(dataset.raw_nT, dataset.f_ref_nT,
-                                                                             dataset.t_s))
-        if problem:
-            raise InputError(problem)
         field_nT = known.get("field_nT", lambda: median(dataset.f_ref_nT))
         report = known.get(("coverage", model), lambda: coverage(
             ScalarObjective(dataset.raw_nT, dataset.f_ref_nT, model), identity_vector(model), field_nT))
@@ -564,6 +560,22 @@ MIN_RESIDUAL_DOF = 10
 """Readings beyond the model's parameters that every fit needs (``validate``): with fewer, the residual holds too
 few degrees of freedom to estimate the noise or to judge the fit (10 readings for the nine-parameter model left a
 residual of 0.026 nT on a 2 nT sensor, and Cramér-Rao deviations 70 times too small: such fits were accepted)."""
+
+
+def data_problem(dataset: Dataset, known: _DatasetCache | None = None) -> str | None:
+    """Why these readings and this reference cannot be calibrated or diagnosed together, or None: ``input_problems``
+    (non-finite or zero readings, a reference not finite and positive), then ``acceptance.reference_problems``
+    (units, a corrupt row, a jumping reference).  None without a reference: each caller says that in its own words.
+    ``known``: the record's cache (``validate``), else computed now.  One check for ``validate``, ``model="auto"``
+    (before any candidate's numbers) and the diagnosis (before any of its paths)."""
+    if not dataset.has_reference:
+        return None
+
+    def get(key, compute):
+        return compute() if known is None else known.get(key, compute)
+
+    return get("input_problems", lambda: input_problems(dataset)) or get(
+        "reference_problems", lambda: reference_problems(dataset.raw_nT, dataset.f_ref_nT, dataset.t_s))
 
 
 def input_problems(dataset: Dataset) -> str | None:

@@ -35,8 +35,7 @@ from magbench.numerics import lm_normal
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
-from .acceptance import reference_problems
-from .base import MODEL_CHOOSER, input_problems
+from .base import MODEL_CHOOSER, data_problem
 from .core.objective import ScalarObjective
 from .core.problem import PHYSICAL_BOX, search_bounds
 from .methods.lsq import LeastSquares
@@ -200,9 +199,7 @@ def fit_auto(calibrator, dataset: Dataset):
     candidates = [m for m in MODELS if m in type(calibrator).supported_models]
     if not candidates:
         raise InputError(f"{calibrator.name} supports no model that auto can choose from")
-    bad = input_problems(dataset) if dataset.has_reference else None  # before any candidate's numbers (a row of
-    bad = bad or (reference_problems(dataset.raw_nT, dataset.f_ref_nT, dataset.t_s)  # 1e154 broke SciPy's tree)
-                  if dataset.has_reference else None)
+    bad = data_problem(dataset)  # before any candidate's numbers (a row of 1e154 had broken SciPy's tree)
     if bad:
         raise InputError(bad)
     model, record, results = choose_model(dataset, candidates, seed=calibrator.seed)

@@ -21,8 +21,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from magbench.calibrators.acceptance import reference_problems
-from magbench.calibrators.base import input_problems
+from magbench.calibrators.base import data_problem, one_blas_thread
 from magbench.calibrators.core.objective import ScalarObjective, identity_vector
 from magbench.calibrators.fisher import coverage
 from magbench.errors import MAX_SEED, InputError, check_int
@@ -38,8 +37,6 @@ from .scoring import candidate_effects
 from .timeonly import time_only
 from .vector import DEFAULT_FOLDS, Diagnosis
 
-BLAS_THREADS = 1
-
 __all__ = ["read_gravity", "Diagnosis", "blind_dataset", "blind_kinds", "candidate_effects", "diagnose", "diagnose_scalar",
            "diagnosed_rows", "diagnosis_figure", "diagnosis_text"]
 
@@ -48,10 +45,9 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
              progress: bool | None = None) -> dict:
     """Diagnose a vector ``Dataset`` or a scalar turntable ``ScalarSeries`` (``gravity``: optional (n, 3)
     accelerometer directions; ``progress``: a bar on stderr, by default for long records)."""
-    from threadpoolctl import threadpool_limits
-
-    # one BLAS thread: every product here is a tall-skinny block (65536 x <= 50); a second thread gains
-    # nothing, and on a loaded machine spin-waiting BLAS threads made the Gram products up to 100x slower
+    # one BLAS thread (calibrators.base.one_blas_thread, as every fit): every product here is a tall-skinny block
+    # (65536 x <= 50); a second thread gains nothing, and on a loaded machine spin-waiting BLAS threads made the
+    # Gram products up to 100x slower
     folds, seed = check_int(folds, "folds", 2), check_int(seed, "seed", 0)
     if seed > MAX_SEED:
         raise InputError(f"seed must be an integer from 0 to 2**64 - 1, got {seed}")
@@ -60,7 +56,7 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
                          f"{type(data).__name__}")
     if gravity is not None and not isinstance(data, ScalarSeries):
         gravity = gravity_problem_free(gravity, len(data))
-    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+    with one_blas_thread():
         out = _diagnose(data, base, folds, seed, gravity, progress)
     note = time_column_note(data.t_s)
     if note:
@@ -71,7 +67,7 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
 def _diagnose(data, base: str, folds: int, seed: int, gravity, progress: bool | None) -> dict:
     if isinstance(data, ScalarSeries):
         return diagnose_scalar(data, folds=folds, seed=seed)
-    problem = reference_mismatch(data)
+    problem = data_problem(data)  # before any path (the rotating one, the level vehicle's, the fixed sensor's)
     if problem:  # wrong units, mixed units, a jumping reference: bad input on every path (as the calibrators say)
         raise InputError(problem)
     refusal = attitude_refusal(data, base)
@@ -240,21 +236,6 @@ def turned(data) -> bool:
     mean /= max(float(np.linalg.norm(mean)), 1e-300)
     angle = np.arccos(np.clip(u @ mean, -1.0, 1.0))
     return bool(np.sqrt(np.mean(angle ** 2)) > TURNED_RAD)
-
-
-def reference_mismatch(data) -> str | None:
-    """Why a vector record cannot be diagnosed (``input_problems``: readings or reference not finite, as the
-    calibrators say it; ``reference_problems``: wrong or mixed units, raw counts, a reference that jumps; a time
-    or temperature not finite is refused by the ``Dataset`` itself), or None; checked before any path (the rotating
-    one, the level vehicle's and the fixed sensor's time-only answer), so that none of them answers on such input.
-    None without a reference: the paths refuse that themselves, with the reference options named."""
-    if not data.has_reference:
-        return None
-    bad = input_problems(data)  # non-finite readings or reference, as the calibrators say it
-    if bad:
-        return bad
-    return reference_problems(np.asarray(data.raw_nT, dtype=float), np.asarray(data.f_ref_nT, dtype=float),
-                              None if data.t_s is None else np.asarray(data.t_s, dtype=float))
 
 
 def attitude_refusal(data, base: str) -> str | None:
