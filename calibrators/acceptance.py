@@ -1515,14 +1515,15 @@ def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray, t_s: np.ndarray
         return (f"{off.sum()} of {len(off)} rows (e.g. rows {', '.join(map(str, rows[:3]))}) have {factor:.3g} "
                 "times the magnitude of the others: the file mixes units")
     peak = np.max(np.abs(raw_nT), axis=1)  # the largest axis: finite where the squares overflow
-    absurd = ~(peak <= GLITCH_FACTOR * float(np.median(mag)))  # against the readings, not the reference (a wrong
-    if absurd.any():  # reference row is the jump below); a few such rows: no sensor's reading (1e200 breaks the numerics)
+    middle = median(mag)  # against the readings, not the reference (a wrong reference row is the jump below)
+    absurd = ~(peak <= GLITCH_FACTOR * middle)  # a few such rows: no sensor's reading (1e200 breaks the numerics)
+    if absurd.any():
         rows = np.flatnonzero(absurd)
         worst = int(rows[np.argmax(peak[rows])])
         size = f"{mag[worst]:.4g}" if np.isfinite(mag[worst]) else f"{peak[worst]:.4g} on one axis"
         return (f"{len(rows)} row(s) (row{'s' if len(rows) > 1 else ''} {', '.join(map(str, rows[:5]))}"
                 f"{', ...' if len(rows) > 5 else ''}) have a magnitude more than {GLITCH_FACTOR:g} times the others' "
-                f"(row {worst}: {size} against a median of {np.median(mag):.4g}): beyond any magnetometer's range in "
+                f"(row {worst}: {size} against a median of {middle:.4g}): beyond any magnetometer's range in "
                 "this field, not a reading (a glitch, a corrupt row); remove those rows")
     if len(f_ref_nT) > 1:
         step = np.abs(np.diff(f_ref_nT)) / f_ref_nT[:-1]

@@ -135,9 +135,10 @@ class Dataset:
             if len(bad):  # a NaN time would sort last and reorder the judge's time neighbours without a word
                 rows = ", ".join(map(str, bad[:5])) + (f" and {len(bad) - 5} more" if len(bad) > 5 else "")
                 raise InputError(f"{name} has NaN or infinite values in row(s) {rows}")
-            if name != "f_ref_nT" and n and float(np.max(np.abs(arr))) > MAX_ABS_OTHER:  # the reader's own limit
-                raise InputError(f"{name} has values beyond {MAX_ABS_OTHER:g} in magnitude (up to "
-                                 f"{float(np.max(np.abs(arr))):.3g}): a broken column, not {name}")
+            largest = float(np.max(np.abs(arr))) if name != "f_ref_nT" and n else 0.0
+            if largest > MAX_ABS_OTHER:  # the reader's own limit
+                raise InputError(f"{name} has values beyond {MAX_ABS_OTHER:g} in magnitude (up to {largest:.3g}): a "
+                                 f"broken column, not {name}")
             object.__setattr__(self, name, arr)
         object.__setattr__(self, "meta", dict(self.meta))
 

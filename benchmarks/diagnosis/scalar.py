@@ -125,13 +125,12 @@ def _as_numbers(series: ScalarSeries) -> ScalarSeries:
 
 
 def _checked(series: ScalarSeries) -> ScalarFit:
+    """The series' fit after ``_as_numbers`` (its columns checked and float): the headings and reference present,
+    enough distinct headings, no gap wider than MAX_HEADING_GAP_DEG."""
     if series.heading_deg is None:
         raise InputError("a scalar-only series needs heading_deg to be diagnosed")
     if series.f_ref_nT is None:
         raise InputError("no reference magnitude: give an f_ref column, --field NT, or a '# field_nT:' line")
-    problem = series_problem(series)
-    if problem:
-        raise InputError(problem)
     r = scalar_residual(series)
     n = len(r)
     if n < MIN_HEADINGS:
@@ -145,10 +144,10 @@ def _checked(series: ScalarSeries) -> ScalarFit:
     if gap > MAX_HEADING_GAP_DEG:
         raise InputError(f"the headings leave a gap of {gap:.0f} degrees (at most {MAX_HEADING_GAP_DEG:g} for the "
                          "harmonics of one turn): turn the table all the way round")
-    order = np.argsort(np.asarray(series.t_s, dtype=float) if series.t_s is not None else np.arange(n))
+    order = np.argsort(series.t_s if series.t_s is not None else np.arange(n))
     tau = np.empty(n)
     tau[order] = np.linspace(-1, 1, n)
-    s = ScalarFit(r, np.radians(np.asarray(series.heading_deg, dtype=float)), order, tau)
+    s = ScalarFit(r, np.radians(series.heading_deg), order, tau)
     s.base_cv = s.loo([])
     return s
 
