@@ -17,6 +17,7 @@ from typing import Literal
 import numpy as np
 
 from magbench.errors import InputError
+from magbench.simulate.dataset import real_array  # the project's one conversion of numbers given by a caller
 
 MODELS = ("offset", "diag", "angles", "nine")
 """Model names, simplest first: ``offset`` (ox, oy, oz; P = I, K = I: MATLAB magcal's ``eye``), ``diag``
@@ -111,8 +112,6 @@ def readings_array(raw_nT) -> np.ndarray:
     array had broadcast into (4, 3, 3), ``None`` had become a reading of NaN, a number a 3-vector, and a complex
     reading lost its imaginary part without a word (``dataset.real_array``, which it calls, refuses complex values and
     a None among numbers)."""
-    from .dataset import real_array  # the project's one conversion of numbers given by a caller
-
     if raw_nT is None or isinstance(raw_nT, (str, bytes)):
         raise InputError(f"readings to correct must be numbers of shape (n, 3) or (3,), got {type(raw_nT).__name__}")
     raw = real_array(raw_nT, "readings to correct")
