@@ -36,14 +36,16 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from magbench.numerics import (
+    Basis,
     at_optimum,
     drift_columns,
     drift_degree,
     lm_normal,
     median,
     median_and_sigma,
+    orthonormal_basis,
     repeated_rows,
-    residual_sum_of_squares,
+    residual_sum_of_squares_beside,
     roughness,
     systematic_rows,
 )
@@ -1053,11 +1055,12 @@ def describe_structure(step: StepFit | None, order: np.ndarray | None, noise_nT:
 
 def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, field_nT: float,
                     rows: np.ndarray, t_s: np.ndarray | None, info: dict, at: PassAt | None = None,
-                    geometry: NoiseGeometry | None = None) -> tuple[list[str], list[str]]:
+                    geometry: NoiseGeometry | None = None, memo=None) -> tuple[list[str], list[str]]:
     """The residual at ``x`` (the judge's optimum) against ``independent_noise``: a rejection naming the
     structure when it is more than ``STRUCTURE_RATIO`` times that noise; a warning when the noise could not
     be estimated independently of the fit.  ``at``: the pass at ``x`` (its residuals and Jacobian are used);
-    ``geometry``: ``noise_geometry`` of the rows judged, when the caller has it."""
+    ``geometry``: ``noise_geometry`` of the rows judged, when the caller has it; ``memo(key, compute)``: the record's
+    cache of what depends on these rows and times alone (the drift check's basis), when the caller keeps one."""
     r = objective.residuals(x) if at is None else at.r
     jacobian, gram = (None, None) if at is None else (at.jacobian, at.gram)
     if len(r) < MIN_NOISE_POINTS:
@@ -1096,7 +1099,7 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
     # (after a single step, which a drift's polynomials would only approximate)
     along = t_in if t_in is not None else (np.arange(len(r), dtype=float) if geometry.how == "rows" else None)  # file order
     drifting = drift_in_time(objective, x, r, along, rms_nT, floor, info, "in time" if t_in is not None else
-                             "along the rows (no t column: file order taken for time order)") if (
+                             "along the rows (no t column: file order taken for time order)", jacobian, memo) if (
         unrelated and along is not None and rms_nT > floor) else None
     if geometry.holds is not None and len(geometry.holds) == len(r):
         info["hold_design_effect"] = hold_design_effect(r, geometry.holds)
@@ -1212,7 +1215,8 @@ DRIFT_P = 1e-6
 
 
 def drift_in_time(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, t_s: np.ndarray, rms_nT: float,
-                  floor: float, info: dict, along: str = "in time") -> str | None:
+                  floor: float, info: dict, along: str = "in time", jacobian: np.ndarray | None = None,
+                  memo=None) -> str | None:
     """At random attitudes, a rejection when the residual drifts in time.  There each reading's time neighbours and
     its nearest attitudes lie far apart in the other variable, so a drift of the offsets (hard iron, a zero drifting
     with warming) or of the field moves both noise estimates with it: sphere9 with its offsets drifting by 300 nT
@@ -1221,25 +1225,40 @@ def drift_in_time(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, t_s:
     degree 1..D (``numerics.drift_degree``, the model's parameters reserved), alone (the field's magnitude) and
     times each axis's direction cosine (the offsets), and rejected when what is left is less than 1 /
     STRUCTURE_RATIO of the residual (less ``floor``) and the drift's columns are significant (F test,
-    ``DRIFT_P``)."""
+    ``DRIFT_P``).
+
+    The drift's columns depend on the record alone: their orthonormal basis (``numerics.orthonormal_basis``) is
+    made once per record (``memo(key, compute)``, the record's cache, when given), and each fit projects its
+    Jacobian (``jacobian``: J at ``x``, (n, p), when the caller has it) and residual off it
+    (``numerics.residual_sum_of_squares_beside``).  A record of at most DRIFT_ROWS rows is regressed in file order:
+    a least-squares residual does not depend on the order of the rows."""
     n = len(r)
-    rows = np.argsort(t_s, kind="stable")
+    rows: np.ndarray | None = None
     if n > DRIFT_ROWS:
-        rows = rows[systematic_rows(n, DRIFT_ROWS)]
-    m, p = len(rows), len(x)
+        rows = np.argsort(t_s, kind="stable")[systematic_rows(n, DRIFT_ROWS)]
+    m, p = (n if rows is None else len(rows)), len(x)
     degree = drift_degree(m, p)
-    t = t_s[rows]
+    t = t_s if rows is None else t_s[rows]
     if degree < 1 or not np.ptp(t) > 0:
         return None
-    raw = objective.raw_nT[rows]
-    sub = ScalarObjective(raw, objective.f_ref_nT[rows], objective.model)
-    u = raw / np.maximum(np.linalg.norm(raw, axis=1), 1e-300)[:, None]
-    drift = drift_columns(t, u, degree, constant=False)  # the model's own columns hold the constant
-    jac = sub.jacobian(x)
-    design = np.hstack([jac / np.maximum(np.linalg.norm(jac, axis=0), 1e-300), drift])  # unit columns: a fair rank cut
-    rr = r[rows]
-    ss0, ss1 = float(rr @ rr), residual_sum_of_squares(design, rr, rcond=1e-10)
-    q, dof = drift.shape[1], m - p - drift.shape[1]
+
+    def basis() -> Basis:
+        raw = objective.raw_nT if rows is None else objective.raw_nT[rows]
+        u = raw / np.maximum(np.linalg.norm(raw, axis=1), 1e-300)[:, None]
+        return orthonormal_basis(drift_columns(t, u, degree, constant=False))  # the model's columns hold the constant
+
+    drift = basis() if memo is None else memo(("drift_basis", degree), basis)
+    if rows is None:
+        jac = objective.jacobian(x) if jacobian is None else jacobian
+        rr = r
+    else:
+        jac = (ScalarObjective(objective.raw_nT[rows], objective.f_ref_nT[rows], objective.model).jacobian(x)
+               if jacobian is None else jacobian[rows])
+        rr = r[rows]
+    unit = jac / np.maximum(np.linalg.norm(jac, axis=0), 1e-300)  # unit columns: a fair rank cut
+    ss0, ss1 = float(rr @ rr), residual_sum_of_squares_beside(drift, unit, rr, rcond=1e-10)
+    q = drift.q.shape[1]
+    dof = m - p - q
     rms_left = math.sqrt(ss1 / m)
     info["drift_check"] = {"degree": int(degree), "rms_left_nT": rms_left, "rows": int(m)}
     if dof < 1 or not rms_nT > STRUCTURE_RATIO * rms_left + floor:
@@ -1406,13 +1425,16 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     if misfit is not None:
         rejections.append(misfit)
     rows = np.arange(n) if not n_out else np.flatnonzero(~mask)
-    geometry = None
+    geometry = record_memo = None
     if memo is not None and not n_out and n <= GEOMETRY_CACHE_ROWS:  # the record's own, kept with its data
         t_key = None if t_s is None else hashlib.sha256(np.ascontiguousarray(t_s, dtype="<f8").data).hexdigest()
         geometry = memo(("noise_geometry", t_key), lambda: noise_geometry(
             objective.raw_nT, None if t_s is None else np.asarray(t_s, dtype=float), field_nT))
+
+        def record_memo(key: tuple, compute):
+            return memo((*key, t_key), compute)
     structure, notes = structure_check(inliers, x_ref, rms_ref, field_nT, rows, t_s, info, at=ref,
-                                       geometry=geometry)
+                                       geometry=geometry, memo=record_memo)
     rejections += structure
     if t_s is not None and not structure:
         t_in = np.asarray(t_s, dtype=float)[rows]

@@ -113,3 +113,77 @@ def test_residual_sum_of_squares_rank_deficient_design_keeps_lstsq_s_cut():
     q = design.shape[1]
     assert residual_sum_of_squares(design, y, 1e-10) == pytest.approx(float(left @ left), rel=1e-9)
     assert float(r[q, q] ** 2) < 0.95 * float(left @ left)  # what the plain QR would have said
+
+
+@pytest.mark.parametrize("shape", [(300, 9, 48), (60, 9, 40), (59, 9, 49), (20, 3, 5), (12, 6, 6)])
+def test_residual_sum_of_squares_beside_a_basis_is_the_whole_design_s(shape):
+    """The drift check's sum of squares with the drift columns' basis made once (``orthonormal_basis``) and the
+    Jacobian and residual projected off it equals what lstsq leaves on the whole design [extra | columns], for tall,
+    barely tall and too short designs (the last: lstsq itself)."""
+    from magbench.numerics import orthonormal_basis, residual_sum_of_squares_beside
+
+    m, p, k = shape
+    rng = np.random.default_rng(m * 1000 + p * 10 + k)
+    extra, columns, y = rng.normal(size=(m, p)), rng.normal(size=(m, k)), rng.normal(size=m)
+    coef, *_ = np.linalg.lstsq(np.column_stack([extra, columns]), y, rcond=1e-10)
+    left = y - np.column_stack([extra, columns]) @ coef
+    basis = orthonormal_basis(columns) if m > k else None
+    got = (residual_sum_of_squares_beside(basis, extra, y, 1e-10) if basis is not None else None)
+    if got is not None:
+        assert got == pytest.approx(float(left @ left), rel=1e-9, abs=1e-20)
+    assert not (basis is not None and basis.q.flags.writeable)  # kept with a record's data: read-only
+
+
+def test_residual_sum_of_squares_beside_a_basis_keeps_lstsq_s_cut():
+    """A Jacobian column that lies in the drift columns' span (a fixed attitude: an offset's column is a multiple of
+    the constant) or drift columns that collapse onto each other make the design rank deficient: lstsq's cut decides,
+    as with the whole design's QR.  Negative control: the projected QR's own last diagonal entry, which the helper
+    must not return there."""
+    from magbench.numerics import drift_columns, orthonormal_basis, residual_sum_of_squares, residual_sum_of_squares_beside
+
+    t = np.linspace(0.0, 100.0, 300)
+    columns = drift_columns(t, np.tile([0.6, 0.0, 0.8], (300, 1)), 12, constant=False)
+    rng = np.random.default_rng(4)
+    extra, y = rng.normal(size=(300, 4)), rng.normal(size=300)
+    basis = orthonormal_basis(columns)
+    whole = np.column_stack([extra, columns])
+    coef, *_ = np.linalg.lstsq(whole, y, rcond=1e-10)
+    left = y - whole @ coef
+    assert residual_sum_of_squares_beside(basis, extra, y, 1e-10) == pytest.approx(float(left @ left), rel=1e-9)
+    assert residual_sum_of_squares(whole, y, 1e-10) == pytest.approx(float(left @ left), rel=1e-9)
+    both = np.column_stack([extra, y]) - basis.q @ (basis.q.T @ np.column_stack([extra, y]))
+    r = np.linalg.qr(both, mode="r")
+    assert float(r[4, 4] ** 2) < 0.95 * float(left @ left)  # what the projected QR alone would have said
+
+
+def test_the_drift_basis_kept_with_a_record_gives_the_numbers_computed_afresh():
+    """``assess`` with the record's cache (``memo``: the drift basis made by the first fit, read by the next) says
+    what it says without one, to the last bit, on a record whose offsets drift (rejected) and on an intact one."""
+    from magbench.calibrators import make
+    from magbench.calibrators.acceptance import assess
+    from magbench.calibrators.core.objective import ScalarObjective
+    from magbench.calibrators.core.problem import PHYSICAL_BOX, search_bounds
+
+    for drifting in (False, True):
+        d = simulate("sphere9", seed=5)
+        raw = d.raw_nT + (np.linspace(0.0, 1.0, len(d))[:, None] * np.array([300.0, -200.0, 100.0]) if drifting else 0)
+        d = Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s)
+        x = make("lsq").fit(d).solver_x
+        objective = ScalarObjective(d.raw_nT, d.f_ref_nT, "nine")
+        box = search_bounds("nine", float(np.median(d.f_ref_nT)), **PHYSICAL_BOX)
+        kept: dict = {}
+
+        def memo(key, compute, kept=kept):
+            if key not in kept:
+                kept[key] = compute()
+            return kept[key]
+
+        said = []
+        for m in (None, memo, memo):
+            info: dict = {}
+            out = assess(objective, x, improved=True, robust=False, closed_form=False, physical_box=box, info=info,
+                         t_s=d.t_s, memo=m)
+            said.append((out, info["drift_check"]))
+        assert any(k[0] == "drift_basis" for k in kept)
+        assert said[0] == said[1] == said[2]
+        assert bool(said[0][0][0]) is drifting, said[0][0][0]
