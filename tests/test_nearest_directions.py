@@ -85,3 +85,23 @@ def test_revisits_are_away_in_time():
     free_rows = np.arange(len(path))[free[0]]
     free_nearest = free[1]
     assert np.abs(free_rows[:, None] - free_rows[free_nearest]).min() < 32
+
+
+@pytest.mark.parametrize("m", [7, 300, 1201])
+def test_leaving_out_itself_alone_is_the_mask_of_the_diagonal(m):
+    """``excluded`` None (each reading's own row set, the attitude neighbours' case) chooses what the mask of the
+    diagonal chooses, across KNN_BLOCK's blocks; negative control: a mask that leaves nothing out chooses the
+    reading itself."""
+    readings = np.random.default_rng(m).normal(size=(m, 3))
+
+    def diagonal(block, n):
+        out = np.zeros((min(block.stop, n) - block.start, n), dtype=bool)
+        out[np.arange(out.shape[0]), np.arange(block.start, block.start + out.shape[0])] = True
+        return out
+
+    mine, enough = _nearest_directions(readings, None)
+    masked, enough_masked = _nearest_directions(readings, diagonal)
+    assert np.array_equal(mine, masked) and np.array_equal(enough, enough_masked)
+    assert enough.all() == (m - 1 >= KNN_NEIGHBOURS)
+    kept, _ = _nearest_directions(readings, lambda block, n: np.zeros((min(block.stop, n) - block.start, n), bool))
+    assert all(i in row for i, row in enumerate(kept.tolist()))
