@@ -38,6 +38,7 @@ import numpy as np
 from magbench.numerics import (
     Basis,
     at_optimum,
+    distinct_points,
     drift_columns,
     drift_degree,
     lm_normal,
@@ -104,6 +105,25 @@ class AcceptanceLimits:
 
 
 DEFAULT_LIMITS = AcceptanceLimits()
+
+
+def too_few_attitudes(raw_nT: np.ndarray, field_nT: float, p: int, memo=None) -> list[str]:
+    """A rejection (a list of at most one) when the readings hold fewer than ``p`` + MIN_RESIDUAL_DOF distinct
+    attitudes (``numerics.distinct_points`` at REPEAT_FRACTION of the field): the fit is determined, but its
+    residual cannot show the noise or a misfit.  ``memo(key, compute)``: the record's cache."""
+    need = p + MIN_RESIDUAL_DOF
+    radius = REPEAT_FRACTION * field_nT
+
+    def count() -> int:
+        return distinct_points(raw_nT, radius, need)
+
+    found = count() if memo is None else memo(("distinct_attitudes", need, radius), count)
+    if found >= need:
+        return []
+    return [f"the readings hold only {found} distinct attitude{'s' if found != 1 else ''} (readings more than "
+            f"{radius:.3g} nT, {100 * REPEAT_FRACTION:g} % of the field, apart) for {p} parameters: the fit needs "
+            f"{need}, or its residual cannot show the noise or a misfit (readings repeated at one attitude add no "
+            "direction); turn the sensor to more attitudes"]
 
 
 def outlier_mask(residuals_nT: np.ndarray, field_nT: float,
@@ -487,6 +507,13 @@ whole record, sphere9 with z's sign flipped halfway was accepted at 194 nT again
 flipped over the middle third at 190 nT)."""
 REPEAT_FRACTION = 1e-3
 """Two readings closer than 0.1 % of the field are one attitude measured twice."""
+MIN_RESIDUAL_DOF = 10
+"""Readings beyond the model's parameters that every fit needs (``base.Calibrator.validate`` refuses fewer): with
+fewer, the residual holds too few degrees of freedom to estimate the noise or to judge the fit (10 readings for the
+nine-parameter model left a residual of 0.026 nT on a 2 nT sensor, and Cramér-Rao deviations 70 times too small:
+such fits were accepted).  ``assess`` asks as many distinct attitudes of the readings (readings more than
+REPEAT_FRACTION of the field apart): a reading repeated at one attitude, or a copy of it, adds no direction, and 10
+readings with 9 near-copies of them (0.5 nT apart) had been accepted 15 deviations from the truth."""
 MIN_REPEATS = 10
 """Pairs of repeated attitudes needed to estimate the noise from them."""
 MIN_NOISE_POINTS = 10
@@ -1409,6 +1436,7 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
         return rejections + [f"only {n} points are left after the outlier screening for {p} parameters"], warnings
     inliers = objective if not n_out else ScalarObjective(objective.raw_nT[~mask], objective.f_ref_nT[~mask],
                                                           objective.model)
+    rejections += too_few_attitudes(inliers.raw_nT, field_nT, p, None if n_out else memo)
     rms_x = float(np.sqrt(np.mean(r[~mask] ** 2))) if n_out else float(np.sqrt(at.ss / n))
     on_inliers = at if not n_out else None
     x_ref, rms_ref = reference_fit(inliers, x, physical_box, rms_start=rms_x, at=on_inliers)

@@ -30,7 +30,14 @@ from magbench.numerics import median, repeated_rows, systematic_rows, time_colum
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
 
-from .acceptance import DEFAULT_LIMITS, SEARCH_STOPPED_SHORT, AcceptanceLimits, assess, reference_problems
+from .acceptance import (  # noqa: F401  (MIN_RESIDUAL_DOF: the fits' minimum, read here by validate)
+    DEFAULT_LIMITS,
+    MIN_RESIDUAL_DOF,
+    SEARCH_STOPPED_SHORT,
+    AcceptanceLimits,
+    assess,
+    reference_problems,
+)
 from .artifacts import Calibration, zero_readings
 from .core.evaluator import Budget, BudgetExhausted, Evaluator
 from .core.loop import Stopped, Termination, drive
@@ -554,12 +561,6 @@ def one_blas_thread():
         _BLAS_CONTROLLER.append(ThreadpoolController())
     with _BLAS_CONTROLLER[0].limit(limits=1, user_api="blas"):
         yield
-
-
-MIN_RESIDUAL_DOF = 10
-"""Readings beyond the model's parameters that every fit needs (``validate``): with fewer, the residual holds too
-few degrees of freedom to estimate the noise or to judge the fit (10 readings for the nine-parameter model left a
-residual of 0.026 nT on a 2 nT sensor, and Cramér-Rao deviations 70 times too small: such fits were accepted)."""
 
 
 def data_problem(dataset: Dataset, known: _DatasetCache | None = None) -> str | None:

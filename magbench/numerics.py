@@ -108,6 +108,32 @@ def systematic_rows(n: int, limit: int) -> slice:
     return slice(None, None, max(1, -(-n // limit)))
 
 
+def distinct_points(points: np.ndarray, radius: float, enough: int) -> int:
+    """How many of ``points`` (n, d) lie farther than ``radius`` from each other, counted greedily (each point in
+    file order farther than ``radius`` from every point counted before it is a new one) and up to ``enough``: the
+    count stops there.  A systematic sample of 4 ``enough`` rows first, then one of 20,000, then every row, each
+    only when the one before found fewer than ``enough`` (a record at many attitudes is settled on its first
+    rows).  Every row is looked at before fewer than ``enough`` is answered."""
+    points = np.asarray(points, dtype=float)
+    n = points.shape[0]
+    limit = radius * radius
+    count = 0
+    for rows in (systematic_rows(n, 4 * enough), systematic_rows(n, 20_000), slice(None)):
+        sample = points[rows]
+        count = 0
+        nearest = np.full(sample.shape[0], np.inf)  # squared distance to the nearest point counted
+        while count < enough:
+            far = np.flatnonzero(nearest > limit)
+            if not far.size:
+                break
+            diff = sample - sample[far[0]]
+            np.minimum(nearest, np.einsum("ij,ij->i", diff, diff), out=nearest)
+            count += 1
+        if count >= enough or sample.shape[0] == n:
+            break
+    return count
+
+
 DRIFT_MAX_DEGREE = 12
 DRIFT_ROWS_PER_COLUMN = 5
 """``drift_degree``: a drift's Legendre polynomials of time go up to this degree, with at least this many rows per

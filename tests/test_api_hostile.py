@@ -35,6 +35,53 @@ def test_ten_readings_for_nine_parameters_are_refused_nineteen_taken(sphere):
     assert max(worst) < 6.0
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_readings_copied_near_their_attitudes_do_not_count_as_attitudes(seed):
+    """10 readings and 9 near-copies of them (0.5 nT apart) pass the 19-reading minimum, and were accepted with a
+    parameter 15 deviations from the truth: the copies hold the residual at their jitter.  The acceptance asks for 19
+    distinct attitudes (readings 0.1 % of the field apart): rejected, saying so, with or without times and for a
+    closed form too.  Control: 19 distinct attitudes of the same record are accepted."""
+    d = magbench.simulate("sphere9", seed=seed)
+    rng = np.random.default_rng(seed)
+    idx = rng.choice(len(d), 10, replace=False)
+    copies = rng.integers(0, 10, 9)
+    raw = np.vstack([d.raw_nT[idx], d.raw_nT[idx][copies] + rng.normal(0.0, 0.5, (9, 3))])
+    f = np.concatenate([d.f_ref_nT[idx], d.f_ref_nT[idx][copies]])
+    for data in (Dataset(raw, f_ref_nT=f), Dataset(raw, f_ref_nT=f, t_s=np.arange(19.0))):
+        res = magbench.calibrate(data)
+        assert not res.accepted
+        assert any(r.startswith(("the readings hold only 10 distinct attitudes",  # 9 once an outlier is screened
+                                 "the readings hold only 9 distinct attitudes")) for r in res.rejections)
+    assert any("distinct attitudes" in r for r in magbench.calibrate(Dataset(raw, f_ref_nT=f),
+                                                                     method="ellipsoid").rejections)
+    idx = rng.choice(len(d), 19, replace=False)
+    control = magbench.calibrate(Dataset(d.raw_nT[idx], f_ref_nT=d.f_ref_nT[idx]))
+    assert control.accepted, control.rejections
+
+
+def test_distinct_points_counts_as_a_greedy_pass_over_every_row_does():
+    """``numerics.distinct_points`` against the greedy pass written out over every row, on records of a few held
+    attitudes (where its samples find too few and it looks at every row) and of many (where it stops at ``enough``)."""
+    from magbench.numerics import distinct_points
+
+    def greedy(points, radius):
+        kept: list[np.ndarray] = []
+        for p in points:
+            if all(np.linalg.norm(p - k) > radius for k in kept):
+                kept.append(p)
+        return len(kept)
+
+    rng = np.random.default_rng(0)
+    for holds, per in ((3, 400), (12, 50), (18, 2), (25, 3), (400, 1)):
+        centres = rng.normal(size=(holds, 3)) * 50_000.0
+        points = np.repeat(centres, per, axis=0) + rng.normal(0.0, 2.0, (holds * per, 3))
+        points = points[rng.permutation(len(points))] if holds != 12 else points  # held in turn, or visited in any order
+        assert distinct_points(points, 50.0, 19) == min(greedy(points, 50.0), 19), (holds, per)
+    one = np.ones((5000, 3)) * 50_000.0
+    one[-1] += 100.0  # the last row alone differs: every row is looked at
+    assert distinct_points(one, 50.0, 19) == 2
+
+
 @pytest.mark.parametrize("method, settings", [("nlopt", {"algorithm": "GN_ORIG_DIRECT", "max_evaluations": 3000}),
                                               ("cmaes", {"budget": 800, "seed": 1})])
 def test_a_search_cut_short_is_rejected_though_within_twice_the_optimum(sphere, method, settings):
