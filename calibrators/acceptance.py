@@ -1456,7 +1456,7 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     rows = np.arange(n) if not n_out else np.flatnonzero(~mask)
     geometry = record_memo = None
     if memo is not None and not n_out and n <= GEOMETRY_CACHE_ROWS:  # the record's own, kept with its data
-        t_key = None if t_s is None else hashlib.sha256(np.ascontiguousarray(t_s, dtype="<f8").data).hexdigest()
+        t_key = time_key(t_s)
         geometry = memo(("noise_geometry", t_key), lambda: noise_geometry(
             objective.raw_nT, None if t_s is None else np.asarray(t_s, dtype=float), field_nT))
 
@@ -1539,6 +1539,13 @@ def _smooth_steps(f_ref_nT: np.ndarray, t_s: np.ndarray, big: np.ndarray) -> np.
         # between two values is not smooth), at a rate in line with theirs
         out[k] = enough & (typical * rate[k] > 0) & (np.abs(rate[k]) <= SMOOTH_STEP_RATE * np.abs(typical))
     return out
+
+
+def time_key(t_s: np.ndarray | None) -> str | None:
+    """A digest of the sample times (None without them): the key under which a record's cache, keyed by its readings
+    and reference alone, keeps what depends on the times too (the noise geometry, the drift basis, the reference's
+    jump check)."""
+    return None if t_s is None else hashlib.sha256(np.ascontiguousarray(t_s, dtype="<f8").data).hexdigest()
 
 
 def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray, t_s: np.ndarray | None = None) -> str | None:

@@ -37,6 +37,7 @@ from .acceptance import (  # noqa: F401  (MIN_RESIDUAL_DOF: the fits' minimum, r
     AcceptanceLimits,
     assess,
     reference_problems,
+    time_key,
 )
 from .artifacts import Calibration, zero_readings
 from .core.evaluator import Budget, BudgetExhausted, Evaluator
@@ -575,8 +576,9 @@ def data_problem(dataset: Dataset, known: _DatasetCache | None = None) -> str | 
     def get(key, compute):
         return compute() if known is None else known.get(key, compute)
 
-    return get("input_problems", lambda: input_problems(dataset)) or get(
-        "reference_problems", lambda: reference_problems(dataset.raw_nT, dataset.f_ref_nT, dataset.t_s))
+    return get("input_problems", lambda: input_problems(dataset)) or get(  # the jump check reads the times too
+        ("reference_problems", time_key(dataset.t_s)), lambda: reference_problems(dataset.raw_nT, dataset.f_ref_nT,
+                                                                                  dataset.t_s))
 
 
 def input_problems(dataset: Dataset) -> str | None:

@@ -45,3 +45,21 @@ def test_jumps_are_still_jumps_with_time_stamps(kind):
     assert "jumps" in reference_problems(raw, g, t)
     with pytest.raises(InputError, match="jumps"):
         make("lsq").fit(Dataset(raw, f_ref_nT=g, t_s=t))
+
+
+def test_the_record_s_cache_keeps_the_jump_check_per_time_column():
+    """The checks of a record are kept with its readings and reference, and the jump check reads the time stamps too:
+    the same orbit's readings and reference fitted with its times (no jump) and then without them (a jump: refused),
+    and in the other order, each get their own answer (the cache had answered the second as the first)."""
+    from magbench.calibrators.base import _DatasetCache
+
+    raw, f, t = orbit(seed=3)
+    for first, second in ((t, None), (None, t)):
+        _DatasetCache._entries.clear()
+        for times in (first, second):
+            data = Dataset(raw, f_ref_nT=f, t_s=times)
+            if times is None:
+                with pytest.raises(InputError, match="jumps"):
+                    make("lsq").fit(data)
+            else:
+                assert make("lsq").fit(data).rms_after_nT < 2.0
