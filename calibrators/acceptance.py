@@ -20,8 +20,13 @@ off-diagonal limits, offset limit, fitness), but each check names its cause:
   that noise is the scatter about the nearest attitudes (over the record, its halves and thirds in time), and a
   drift in time is fitted (``drift_in_time``); on a continuous path a direction that jumps between two samples is
   a sensor that changed (``path_jump``);
+- **attitudes**: at least SPARE_ATTITUDES more distinct attitudes than parameters (``too_few_attitudes``), and on
+  fewer than MIN_RESIDUAL_DOF more, the stated deviations at the noise the attitudes' mean residuals show
+  (``few_attitudes_effect``): copies of a reading pass for noise;
 - **scale**: a mean scale factor more than 5 % from unity is a warning (a fluxgate's scales are within a
   few per cent of 1: the reference or the units are likely wrong).
+
+The stated deviations of an answer away from the judge's optimum add its distance from it (``base._uncertainty``).
 
 The reference against the readings (units, ADC counts, a wrong or jumping reference, mixed units) is
 checked before the fit (``reference_problems``): it is bad input, refused with exit status 2.
@@ -38,7 +43,6 @@ import numpy as np
 from magbench.numerics import (
     Basis,
     at_optimum,
-    distinct_points,
     drift_columns,
     drift_degree,
     lm_normal,
@@ -46,6 +50,7 @@ from magbench.numerics import (
     median_and_sigma,
     orthonormal_basis,
     repeated_rows,
+    representatives,
     residual_sum_of_squares_beside,
     roughness,
     systematic_rows,
@@ -107,23 +112,60 @@ class AcceptanceLimits:
 DEFAULT_LIMITS = AcceptanceLimits()
 
 
-def too_few_attitudes(raw_nT: np.ndarray, field_nT: float, p: int, memo=None) -> list[str]:
-    """A rejection (a list of at most one) when the readings hold fewer than ``p`` + MIN_RESIDUAL_DOF distinct
-    attitudes (``numerics.distinct_points`` at REPEAT_FRACTION of the field): the fit is determined, but its
-    residual cannot show the noise or a misfit.  ``memo(key, compute)``: the record's cache."""
+def attitude_representatives(raw_nT: np.ndarray, field_nT: float, p: int, memo=None) -> np.ndarray:
+    """Distinct attitudes of the readings, up to ``p`` + MIN_RESIDUAL_DOF of them: ``numerics.representatives`` at
+    REPEAT_FRACTION of the field (rows that far from each other; fewer only when every row lies that close to one of
+    them).  ``memo(key, compute)``: the record's cache."""
     need = p + MIN_RESIDUAL_DOF
     radius = REPEAT_FRACTION * field_nT
 
-    def count() -> int:
-        return distinct_points(raw_nT, radius, need)
+    def compute() -> np.ndarray:
+        found = representatives(raw_nT, radius, need)
+        found.setflags(write=False)
+        return found
 
-    found = count() if memo is None else memo(("distinct_attitudes", need, radius), count)
+    return compute() if memo is None else memo(("attitude_representatives", need, radius), compute)
+
+
+def too_few_attitudes(found: int, field_nT: float, p: int) -> list[str]:
+    """A rejection (a list of at most one) when the readings hold ``found`` < ``p`` + SPARE_ATTITUDES distinct
+    attitudes (``attitude_representatives``): the fit may be determined, but its residual cannot show a misfit, and
+    copies of a reading pass for noise."""
+    need = p + SPARE_ATTITUDES
     if found >= need:
         return []
     return [f"the readings hold only {found} distinct attitude{'s' if found != 1 else ''} (readings more than "
-            f"{radius:.3g} nT, {100 * REPEAT_FRACTION:g} % of the field, apart) for {p} parameters: the fit needs "
-            f"{need}, or its residual cannot show the noise or a misfit (readings repeated at one attitude add no "
-            "direction); turn the sensor to more attitudes"]
+            f"{REPEAT_FRACTION * field_nT:.3g} nT, {100 * REPEAT_FRACTION:g} % of the field, apart) for {p} "
+            f"parameters: the fit needs {need}, or its residual cannot show a misfit (readings repeated at one attitude "
+            "add no direction, and copies of a reading pass for noise); turn the sensor to more attitudes"]
+
+
+LABEL_ROWS = 65_536
+"""``few_attitudes_effect`` gives the rows their nearest attitude this many at a time (bounded memory)."""
+
+
+def few_attitudes_effect(r: np.ndarray, raw_nT: np.ndarray, chosen: np.ndarray, p: int, noise_nT: float) -> float:
+    """On readings at few distinct attitudes (the rows ``chosen`` by ``attitude_representatives``, each row given to
+    the nearest of them): the residual's mean square between the attitudes, ``sum_k m_k mean_k(r)² / (K - p)``,
+    over the noise variance ``noise_nT²``, when above 1.  Readings at one attitude share whatever the attitude's
+    reading carries (a copy of a reading repeats its noise), so each attitude's mean residual, not each reading,
+    holds the noise the fit is judged by: its mean square estimates the variance per reading that the Cramér-Rao
+    bound then needs (``widening`` takes its square root).  Held samples with white noise give about 1; 12 readings
+    with 7 near-copies of them gave deviations 13 times too small."""
+    k = len(chosen)
+    if k <= p or not noise_nT > 0:
+        return 1.0
+    centres = raw_nT[chosen]
+    labels = np.empty(len(r), dtype=np.int64)
+    c2 = np.einsum("ij,ij->i", centres, centres)
+    for start in range(0, len(r), LABEL_ROWS):
+        block = raw_nT[start:start + LABEL_ROWS]
+        labels[start:start + LABEL_ROWS] = np.argmin(c2[None, :] - 2.0 * block @ centres.T, axis=1)
+    counts = np.bincount(labels, minlength=k)
+    sums = np.bincount(labels, weights=r, minlength=k)
+    used = counts > 0
+    between = float(np.sum(sums[used] ** 2 / counts[used])) / (k - p)
+    return max(1.0, between / noise_nT ** 2)
 
 
 def outlier_mask(residuals_nT: np.ndarray, field_nT: float,
@@ -511,14 +553,19 @@ MIN_RESIDUAL_DOF = 10
 """Readings beyond the model's parameters that every fit needs (``base.Calibrator.validate`` refuses fewer): with
 fewer, the residual holds too few degrees of freedom to estimate the noise or to judge the fit (10 readings for the
 nine-parameter model left a residual of 0.026 nT on a 2 nT sensor, and Cramér-Rao deviations 70 times too small:
-such fits were accepted).  ``assess`` asks as many distinct attitudes of the readings (readings more than
-REPEAT_FRACTION of the field apart): a reading repeated at one attitude, or a copy of it, adds no direction, and 10
-readings with 9 near-copies of them (0.5 nT apart) had been accepted 15 deviations from the truth."""
+such fits were accepted)."""
+SPARE_ATTITUDES = 3
+"""Distinct attitudes beyond the model's parameters that ``assess`` asks of the readings (readings more than
+REPEAT_FRACTION of the field apart), as ``model="auto"`` asks of a candidate: a reading repeated at one attitude, or a
+copy of it, adds no direction (10 readings with 9 near-copies of them, 0.5 nT apart, had been accepted 15 deviations
+from the truth).  Not MIN_RESIDUAL_DOF of them: a turntable's 12 positions held 60 samples each determine the nine
+parameters, the holds give the noise, and those records were accepted within 2.5 deviations of the truth."""
 MIN_REPEATS = 10
 """Pairs of repeated attitudes needed to estimate the noise from them."""
 MIN_NOISE_POINTS = 10
 GEOMETRY_CACHE_ROWS = 100_000
-"""``assess`` keeps a record's ``noise_geometry`` with its data (``memo``) up to this many rows (2.4 MB)."""
+"""``assess`` keeps a record's ``noise_geometry`` and the drift check's basis with its data (``memo``) up to this many
+rows (at most 2.4 MB and 7.7 MB: the basis is of at most DRIFT_ROWS rows and 48 columns)."""
 STEP_CANDIDATES = 2000
 """Split points tried when locating a step (evenly spaced in time order)."""
 STEP_ROWS = 200_000
@@ -1338,9 +1385,11 @@ def widening(info: dict) -> float:
     (``structure_check``'s findings in ``info``): noise correlated over k samples holds about n / k independent
     ones, sqrt(k) (the attitude turns by less than DECORRELATION_MAX_TURN_DEG within k samples, so every
     parameter's regressor is nearly constant there); a record of held attitudes about n / deff
-    (``hold_design_effect``); one whose readings repeat exactly n / n_distinct.  The largest of them."""
+    (``hold_design_effect``); one whose readings repeat exactly n / n_distinct; readings at fewer than p +
+    MIN_RESIDUAL_DOF distinct attitudes, their mean residuals' mean square over the noise (``few_attitudes_effect``).
+    The largest of them."""
     return float(np.sqrt(max(info.get("noise_correlated_samples", 1), info.get("hold_design_effect", 1.0),
-                             info.get("repeat_design_effect", 1.0))))
+                             info.get("repeat_design_effect", 1.0), info.get("attitude_design_effect", 1.0))))
 
 
 def scale_warning(x: np.ndarray, model: str) -> list[str]:
@@ -1407,8 +1456,8 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     Jacobian, which every check reads, and again when the judge's optimum is ``x`` itself (an answer at the
     optimum); a second pass only when outliers are screened or the judge moves the answer.  ``memo``:
     ``memo(key, compute)``, the dataset's cache of quantities that do not depend on the answer (the readings'
-    least-covered direction, the noise estimate's time order and weights on records of at most
-    ``GEOMETRY_CACHE_ROWS`` rows), used when no point is screened out."""
+    least-covered direction and distinct attitudes, the noise estimate's time order and weights and the drift check's
+    basis on records of at most ``GEOMETRY_CACHE_ROWS`` rows), used when no point is screened out."""
     info = {} if info is None else info
     rejections: list[str] = []
     warnings: list[str] = []
@@ -1436,7 +1485,8 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
         return rejections + [f"only {n} points are left after the outlier screening for {p} parameters"], warnings
     inliers = objective if not n_out else ScalarObjective(objective.raw_nT[~mask], objective.f_ref_nT[~mask],
                                                           objective.model)
-    rejections += too_few_attitudes(inliers.raw_nT, field_nT, p, None if n_out else memo)
+    chosen = attitude_representatives(inliers.raw_nT, field_nT, p, None if n_out else memo)
+    rejections += too_few_attitudes(len(chosen), field_nT, p)
     rms_x = float(np.sqrt(np.mean(r[~mask] ** 2))) if n_out else float(np.sqrt(at.ss / n))
     on_inliers = at if not n_out else None
     x_ref, rms_ref = reference_fit(inliers, x, physical_box, rms_start=rms_x, at=on_inliers)
@@ -1477,6 +1527,8 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     distinct = n / info.get("repeat_design_effect", 1.0)  # the residual's degrees of freedom: the distinct readings'
     noise = rms_ref * np.sqrt(distinct / (distinct - p)) if distinct > p else np.inf
     info["noise_nT"], info["inliers"] = float(noise), inliers
+    if len(chosen) < p + MIN_RESIDUAL_DOF:  # few attitudes: their mean residuals give the noise per reading
+        info["attitude_design_effect"] = few_attitudes_effect(ref.r, inliers.raw_nT, chosen, p, float(noise))
     inflation = widening(info)
     info["uncertainty_inflation"] = inflation
     noise_for_bounds = noise * inflation

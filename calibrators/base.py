@@ -798,10 +798,9 @@ def _uncertainty(objective: ScalarObjective, x: np.ndarray, noise_nT: float | No
     gap = None
     if known is not None and noise_nT is not None and np.isfinite(noise_nT):
         at, std = known
-        if np.isfinite(std).all():
-            gap = np.asarray(x, dtype=float) - at
-            if (np.abs(gap) <= 1e-3 * std).all():
-                return dict(zip(names, std.tolist())), float(noise_nT)
+        gap = np.asarray(x, dtype=float) - at
+        if np.isfinite(std).all() and (np.abs(gap) <= 1e-3 * std).all():
+            return dict(zip(names, std.tolist())), float(noise_nT)
     if noise_nT is None or not np.isfinite(noise_nT):
         n, p = objective.raw_nT.shape[0], len(names)
         r = objective.residuals(x)

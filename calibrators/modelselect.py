@@ -35,6 +35,7 @@ from magbench.numerics import lm_normal
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
+from .acceptance import REPEAT_FRACTION, SPARE_ATTITUDES  # a candidate's distinct attitudes, as every answer's
 from .base import MODEL_CHOOSER, data_problem
 from .core.objective import ScalarObjective
 from .core.problem import PHYSICAL_BOX, search_bounds
@@ -48,10 +49,7 @@ REL_WITHIN_NOISE = 1e-3
 """... or by less than this fraction of the best's held-out mean square."""
 IDENTIFIABILITY_WORDS = ("not determined", "outside the physical range", "ended on the search bound",
                          "times the noise estimated independently")
-SPARE_ATTITUDES = 3
-"""A candidate needs at least this many distinct attitudes beyond its number of parameters."""
-REPEAT_FRACTION = 1e-3
-"""Readings closer than 0.1 % of the field belong to one attitude (as in the acceptance checks)."""
+
 
 
 def distinct_attitudes(raw_nT: np.ndarray, field_nT: float) -> int:

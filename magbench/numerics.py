@@ -108,30 +108,37 @@ def systematic_rows(n: int, limit: int) -> slice:
     return slice(None, None, max(1, -(-n // limit)))
 
 
-def distinct_points(points: np.ndarray, radius: float, enough: int) -> int:
-    """How many of ``points`` (n, d) lie farther than ``radius`` from each other, counted greedily (each point in
-    file order farther than ``radius`` from every point counted before it is a new one) and up to ``enough``: the
-    count stops there.  A systematic sample of 4 ``enough`` rows first, then one of 20,000, then every row, each
-    only when the one before found fewer than ``enough`` (a record at many attitudes is settled on its first
-    rows).  Every row is looked at before fewer than ``enough`` is answered."""
+def representatives(points: np.ndarray, radius: float, enough: int) -> np.ndarray:
+    """Rows of ``points`` (n, d) farther than ``radius`` from each other, chosen greedily (a row in file order farther
+    than ``radius`` from every row chosen before it is chosen) until ``enough`` are: their indices, in the order
+    chosen.  A systematic sample of 4 ``enough`` rows first, then one of 20,000, then every row, each only when the
+    one before gave fewer than ``enough``: a record at many attitudes is settled on a few rows, and fewer than
+    ``enough`` is answered only after every row was looked at (then every row lies within ``radius`` of one chosen).
+    ``enough`` found in a sample are ``enough`` separated rows, not the greedy pass's count over every row."""
     points = np.asarray(points, dtype=float)
     n = points.shape[0]
     limit = radius * radius
-    count = 0
+    chosen: list[int] = []
     for rows in (systematic_rows(n, 4 * enough), systematic_rows(n, 20_000), slice(None)):
         sample = points[rows]
-        count = 0
-        nearest = np.full(sample.shape[0], np.inf)  # squared distance to the nearest point counted
-        while count < enough:
+        place = np.arange(n)[rows]
+        chosen = []
+        nearest = np.full(sample.shape[0], np.inf)  # squared distance to the nearest row chosen
+        while len(chosen) < enough:
             far = np.flatnonzero(nearest > limit)
             if not far.size:
                 break
+            chosen.append(int(place[far[0]]))
             diff = sample - sample[far[0]]
             np.minimum(nearest, np.einsum("ij,ij->i", diff, diff), out=nearest)
-            count += 1
-        if count >= enough or sample.shape[0] == n:
+        if len(chosen) >= enough or sample.shape[0] == n:
             break
-    return count
+    return np.asarray(chosen, dtype=np.int64)
+
+
+def distinct_points(points: np.ndarray, radius: float, enough: int) -> int:
+    """How many ``representatives`` of ``points`` there are, up to ``enough``."""
+    return len(representatives(points, radius, enough))
 
 
 DRIFT_MAX_DEGREE = 12
@@ -167,9 +174,10 @@ the design is taken as of full rank (the QR's residual); at or below it, ``np.li
 def residual_sum_of_squares(design: np.ndarray, y: np.ndarray, rcond: float) -> float:
     """``|y - design coef|²`` of the least-squares ``coef``, as ``np.linalg.lstsq(design, y, rcond)`` leaves it,
     from the triangular factor of one QR of ``[design | y]``: its last diagonal entry is the length of what the
-    columns leave of ``y``.  A third to a quarter of lstsq's singular value decomposition (the acceptance checks'
-    and the floor's drifts, on every fit).  A design whose factor's diagonal spans more than 1 / LSTSQ_FULL_RANK,
-    nearly rank deficient, goes to lstsq itself, whose cut at ``rcond`` then decides what is fitted."""
+    columns leave of ``y``.  A third to a quarter of lstsq's singular value decomposition (the diagnosis floor's
+    drift, and ``residual_sum_of_squares_beside``'s rank-deficient case).  A design whose factor's diagonal spans more
+    than 1 / LSTSQ_FULL_RANK, nearly rank deficient, goes to lstsq itself, whose cut at ``rcond`` then decides what is
+    fitted."""
     m, q = design.shape
     if m > q:
         r = np.asarray(np.linalg.qr(np.column_stack([design, y]), mode="r"))  # mode "r": R alone
@@ -182,26 +190,31 @@ def residual_sum_of_squares(design: np.ndarray, y: np.ndarray, rcond: float) -> 
 
 
 class Basis(NamedTuple):
-    """An orthonormal basis ``q`` (m, k) of the columns ``columns`` (m, k) from their thin QR, with the absolute
-    diagonal of its triangular factor (``orthonormal_basis``): the part of a least-squares design that a
-    record's checks share between fits (``residual_sum_of_squares_beside``)."""
+    """An orthonormal basis ``q`` (m, k) of some columns (m, k) and the triangular factor ``r`` (k, k) of their thin
+    QR, ``columns = q r`` (``orthonormal_basis``): the part of a least-squares design that a record's checks share
+    between fits (``residual_sum_of_squares_beside``).  The columns themselves are not kept (a record's cache would
+    hold them twice): ``q @ r`` gives them again to rounding where the rare rank-deficient case needs them."""
 
     q: np.ndarray
-    diag: np.ndarray
-    columns: np.ndarray
+    r: np.ndarray
+
+    @property
+    def diag(self) -> np.ndarray:
+        """The triangular factor's absolute diagonal."""
+        return np.abs(np.diagonal(self.r))
 
 
 def orthonormal_basis(columns: np.ndarray) -> Basis:
     """``Basis`` of ``columns`` (m, k), m > k: one thin QR, its arrays read-only (kept with a record's data)."""
     q, r = np.linalg.qr(columns)
-    basis = Basis(np.ascontiguousarray(q), np.abs(np.diagonal(r)).copy(), columns)
+    basis = Basis(np.ascontiguousarray(q), np.ascontiguousarray(r))
     for part in basis:
         part.setflags(write=False)
     return basis
 
 
 def residual_sum_of_squares_beside(basis: Basis, extra: np.ndarray, y: np.ndarray, rcond: float) -> float:
-    """``residual_sum_of_squares`` of the design ``[extra | basis.columns]``, with the basis's QR made once: ``extra``
+    """``residual_sum_of_squares`` of the design ``[extra | columns]``, with the columns' QR made once (``basis``): ``extra``
     and ``y`` are projected off ``basis.q`` (twice, so that they are orthogonal to it to rounding: classical
     Gram-Schmidt with one reorthogonalization) and the rest is one QR of (m, p + 1).  The same number as the whole
     design's QR to rounding (the residual of a least-squares fit does not depend on the order of the columns); the
@@ -220,7 +233,7 @@ def residual_sum_of_squares_beside(basis: Basis, extra: np.ndarray, y: np.ndarra
         diag = np.concatenate([basis.diag, np.abs(np.diagonal(r)[:p])])
         if diag.size == 0 or diag.min() > LSTSQ_FULL_RANK * diag.max():
             return float(r[p, p] ** 2)
-    return residual_sum_of_squares(np.column_stack([extra, basis.columns]), y, rcond)
+    return residual_sum_of_squares(np.column_stack([extra, basis.q @ basis.r]), y, rcond)
 
 
 def median(x: np.ndarray) -> float:

@@ -82,27 +82,78 @@ def test_a_robust_answer_s_deviations_cover_its_distance_from_the_optimum():
         assert np.allclose([lsq.uncertainty[k] for k in names], bound, rtol=1e-3)
 
 
-def test_distinct_points_counts_as_a_greedy_pass_over_every_row_does():
-    """``numerics.distinct_points`` against the greedy pass written out over every row, on records of a few held
-    attitudes (where its samples find too few and it looks at every row) and of many (where it stops at ``enough``)."""
-    from magbench.numerics import distinct_points
+def test_representatives_are_the_greedy_pass_over_every_row_when_fewer_than_enough():
+    """``numerics.representatives`` against the greedy pass written out over every row, on records of a few held
+    attitudes (its samples find too few, and it looks at every row: the same rows); on many attitudes it stops at
+    ``enough`` rows, each farther than the radius from the others."""
+    from magbench.numerics import distinct_points, representatives
 
     def greedy(points, radius):
-        kept: list[np.ndarray] = []
-        for p in points:
-            if all(np.linalg.norm(p - k) > radius for k in kept):
-                kept.append(p)
-        return len(kept)
+        kept: list[int] = []
+        for i, p in enumerate(points):
+            if all(np.linalg.norm(p - points[k]) > radius for k in kept):
+                kept.append(i)
+        return kept
 
     rng = np.random.default_rng(0)
     for holds, per in ((3, 400), (12, 50), (18, 2), (25, 3), (400, 1)):
         centres = rng.normal(size=(holds, 3)) * 50_000.0
         points = np.repeat(centres, per, axis=0) + rng.normal(0.0, 2.0, (holds * per, 3))
         points = points[rng.permutation(len(points))] if holds != 12 else points  # held in turn, or visited in any order
-        assert distinct_points(points, 50.0, 19) == min(greedy(points, 50.0), 19), (holds, per)
+        chosen = representatives(points, 50.0, 19)
+        assert distinct_points(points, 50.0, 19) == len(chosen)
+        if len(chosen) < 19:
+            assert chosen.tolist() == greedy(points, 50.0), (holds, per)
+        else:
+            gaps = np.linalg.norm(points[chosen][:, None] - points[chosen][None], axis=2)
+            assert (gaps[~np.eye(19, dtype=bool)] > 50.0).all()
     one = np.ones((5000, 3)) * 50_000.0
     one[-1] += 100.0  # the last row alone differs: every row is looked at
-    assert distinct_points(one, 50.0, 19) == 2
+    assert representatives(one, 50.0, 19).tolist() == [0, 4999]
+
+
+def _copies(seed: int, distinct: int, copies: int):
+    d = magbench.simulate("sphere9", seed=seed)
+    rng = np.random.default_rng(seed)
+    idx = rng.choice(len(d), distinct, replace=False)
+    which = rng.integers(0, distinct, copies)
+    raw = np.vstack([d.raw_nT[idx], d.raw_nT[idx][which] + rng.normal(0.0, 0.5, (copies, 3))])
+    return d, Dataset(raw, f_ref_nT=np.concatenate([d.f_ref_nT[idx], d.f_ref_nT[idx][which]]))
+
+
+def test_copies_of_readings_widen_the_deviations_to_the_attitudes_noise(monkeypatch):
+    """12 distinct readings and 20 near-copies (0.5 nT apart) of them: enough attitudes to be fitted (9 + 3), too few
+    to judge by (under 9 + 10), so the deviations take the noise the attitudes' mean residuals show.  Over 20 records
+    at most 1 accepted answer lies beyond 5 deviations; negative control: without the widening, 8 did.  Control:
+    12 positions held for 60 samples each (white noise) are all accepted, within 3 deviations (the widening is about
+    1 there; a rule of 19 distinct attitudes had rejected them all)."""
+    from magbench.calibrators import acceptance
+    from magbench.simulate.scenarios import SPHERE9_ERRORS
+    from magbench.simulate.sensor import SensorModel
+
+    def wrong() -> int:
+        count = 0
+        for seed in range(20):
+            d, data = _copies(seed, 12, 20)
+            res = magbench.calibrate(data)
+            count += bool(res.accepted and _truth_z(res, d) > 5.0)
+        return count
+
+    assert wrong() <= 1
+    sensor = SensorModel(SPHERE9_ERRORS, noise_nT=2.0)
+    truth = np.asarray(sensor.true_correction().to_vector("nine"))
+    names = ["alpha_rad", "beta_rad", "gamma_rad", "kx", "ky", "kz", "ox_nT", "oy_nT", "oz_nT"]
+    for seed in range(5):
+        rng = np.random.default_rng(seed)
+        turns = rng.normal(size=(12, 3))
+        turns /= np.linalg.norm(turns, axis=1)[:, None]
+        body = np.repeat(turns * 50_000.0, 60, axis=0)
+        raw = sensor.add_noise(sensor.linear(body), rng)
+        res = magbench.calibrate(Dataset(raw, f_ref_nT=np.full(len(raw), 50_000.0), t_s=np.arange(len(raw), dtype=float)))
+        assert res.accepted, res.rejections
+        assert np.max(np.abs(res.x - truth) / np.array([res.uncertainty[k] for k in names])) < 3.0
+    monkeypatch.setattr(acceptance, "few_attitudes_effect", lambda *args: 1.0)
+    assert wrong() >= 5
 
 
 @pytest.mark.parametrize("method, settings", [("nlopt", {"algorithm": "GN_ORIG_DIRECT", "max_evaluations": 3000}),

@@ -115,11 +115,12 @@ def test_residual_sum_of_squares_rank_deficient_design_keeps_lstsq_s_cut():
     assert float(r[q, q] ** 2) < 0.95 * float(left @ left)  # what the plain QR would have said
 
 
-@pytest.mark.parametrize("shape", [(300, 9, 48), (60, 9, 40), (59, 9, 49), (20, 3, 5), (12, 6, 6)])
+@pytest.mark.parametrize("shape", [(300, 9, 48), (60, 9, 40), (59, 9, 49), (20, 3, 5), (13, 6, 6), (12, 6, 5)])
 def test_residual_sum_of_squares_beside_a_basis_is_the_whole_design_s(shape):
     """The drift check's sum of squares with the drift columns' basis made once (``orthonormal_basis``) and the
     Jacobian and residual projected off it equals what lstsq leaves on the whole design [extra | columns], for tall,
-    barely tall and too short designs (the last: lstsq itself)."""
+    barely tall (one row beyond the columns) and square designs (the last: lstsq itself, on the columns given again by
+    the basis).  The basis keeps q and r, read-only, not the columns."""
     from magbench.numerics import orthonormal_basis, residual_sum_of_squares_beside
 
     m, p, k = shape
@@ -127,11 +128,11 @@ def test_residual_sum_of_squares_beside_a_basis_is_the_whole_design_s(shape):
     extra, columns, y = rng.normal(size=(m, p)), rng.normal(size=(m, k)), rng.normal(size=m)
     coef, *_ = np.linalg.lstsq(np.column_stack([extra, columns]), y, rcond=1e-10)
     left = y - np.column_stack([extra, columns]) @ coef
-    basis = orthonormal_basis(columns) if m > k else None
-    got = (residual_sum_of_squares_beside(basis, extra, y, 1e-10) if basis is not None else None)
-    if got is not None:
-        assert got == pytest.approx(float(left @ left), rel=1e-9, abs=1e-20)
-    assert not (basis is not None and basis.q.flags.writeable)  # kept with a record's data: read-only
+    basis = orthonormal_basis(columns)
+    got = residual_sum_of_squares_beside(basis, extra, y, 1e-10)
+    assert got == pytest.approx(float(left @ left), rel=1e-9, abs=1e-20)
+    assert basis._fields == ("q", "r") and not basis.q.flags.writeable and not basis.r.flags.writeable
+    assert np.allclose(basis.q @ basis.r, columns, rtol=0, atol=1e-12)
 
 
 def test_residual_sum_of_squares_beside_a_basis_keeps_lstsq_s_cut():
@@ -187,3 +188,24 @@ def test_the_drift_basis_kept_with_a_record_gives_the_numbers_computed_afresh():
         assert any(k[0] == "drift_basis" for k in kept)
         assert said[0] == said[1] == said[2]
         assert bool(said[0][0][0]) is drifting, said[0][0][0]
+
+
+def test_one_record_s_two_time_columns_keep_two_drift_bases():
+    """The record cache is keyed by the readings and reference: the drift basis (and the noise geometry) must be kept
+    per time column.  The same drifting readings with their times in order and with the times shuffled: the second's
+    answer after the first's is what it is alone."""
+    from magbench.calibrators import make
+    from magbench.calibrators.base import _DatasetCache
+
+    d = simulate("sphere9", seed=6)
+    raw = d.raw_nT + np.linspace(0.0, 1.0, len(d))[:, None] * np.array([300.0, -200.0, 100.0])
+    shuffled = np.random.default_rng(0).permutation(np.asarray(d.t_s))
+    first, second = Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s), Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=shuffled)
+    _DatasetCache._entries.clear()
+    alone = make("lsq").fit(second)
+    _DatasetCache._entries.clear()
+    before = make("lsq").fit(first)
+    after = make("lsq").fit(second)
+    assert any("drifts in time" in r for r in before.rejections)
+    assert after.rejections == alone.rejections and after.accepted == alone.accepted
+    assert not any("drifts in time" in r for r in alone.rejections)

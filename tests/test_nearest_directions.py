@@ -87,12 +87,12 @@ def test_revisits_are_away_in_time():
     assert np.abs(free_rows[:, None] - free_rows[free_nearest]).min() < 32
 
 
-@pytest.mark.parametrize("m", [7, 300, 1201])
+@pytest.mark.parametrize("m", [4, 5, 6, 7, 300, 1201])
 def test_leaving_out_itself_alone_is_the_mask_of_the_diagonal(m):
     """``excluded`` None (each reading's own row set, the attitude neighbours' case) chooses what the mask of the
     diagonal chooses, across KNN_BLOCK's blocks; negative control: a mask that leaves nothing out chooses the
     reading itself."""
-    readings = np.random.default_rng(m).normal(size=(m, 3))
+    readings = np.random.default_rng(m).normal(size=(m, 3))  # 4 or 5 readings: too few left (``enough`` False)
 
     def diagonal(block, n):
         out = np.zeros((min(block.stop, n) - block.start, n), dtype=bool)
