@@ -882,14 +882,16 @@ STRUCTURE_RATIO, or the floor, would have accepted a wrong calibration)."""
 
 
 def noise_correlation(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray, order: np.ndarray
-                      ) -> tuple[float, int] | None:
+                      ) -> tuple[float, int, bool] | None:
     """Over how many samples the noise of a residual is correlated, and its level once decorrelated, as
-    ``(sigma, k)``: the robust scatter of the errors of linear interpolation between the samples k before and k
-    after (in time order, scaled to white noise as ``independent_noise`` does at k = 1) at the first spacing k
-    (1, 2, 4, ...) where doubling k raises it by at most ``DECORRELATION_PLATEAU`` (the larger of the two
-    scatters).  ``(sigma, 1)`` for white noise; None when there is no such level (a structure in time grows with
-    the spacing: a smooth one 4 times per doubling, a random walk 1.4 times), or when the direction turns by
-    ``DECORRELATION_MAX_TURN_DEG`` or more over the doubled spacing of a level at k > 1."""
+    ``(sigma, k, turned)``: the robust scatter of the errors of linear interpolation between the samples k before
+    and k after (in time order, scaled to white noise as ``independent_noise`` does at k = 1) at the first spacing
+    k (1, 2, 4, ...) where doubling k raises it by at most ``DECORRELATION_PLATEAU`` (the larger of the two
+    scatters).  ``(sigma, 1, False)`` for white noise; None when there is no such level (a structure in time grows
+    with the spacing: a smooth one 4 times per doubling, a random walk 1.4 times).  ``turned``: the direction turns
+    by ``DECORRELATION_MAX_TURN_DEG`` or more over the doubled spacing of a level at k > 1, where a structure that
+    follows the attitude no longer cancels in the interpolation: the level may be that structure's as well as
+    correlated noise's, and is no bound of the noise."""
     n = len(order)
     if n > DECORRELATION_ROWS:
         order = order[(n - DECORRELATION_ROWS) // 2:][:DECORRELATION_ROWS]
@@ -902,14 +904,12 @@ def noise_correlation(r: np.ndarray, raw_nT: np.ndarray, t_s: np.ndarray, order:
         j = len(sig) - 2  # spacing 2**j, doubled: 2**(j + 1)
         if j >= 0 and sig[j + 1] <= DECORRELATION_PLATEAU * sig[j]:
             if j == 0:
-                return max(sig[0], sig[1]), 1
+                return max(sig[0], sig[1]), 1, False
             span = 2 ** (j + 1)
             raw = raw_nT[order]
             u = raw / np.maximum(np.linalg.norm(raw, axis=1), 1e-300)[:, None]
             turn = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", u[span:], u[:-span]), -1.0, 1.0)))
-            if median(turn) >= DECORRELATION_MAX_TURN_DEG:
-                return None
-            return max(sig[j], sig[j + 1]), 2 ** j
+            return max(sig[j], sig[j + 1]), 2 ** j, bool(median(turn) >= DECORRELATION_MAX_TURN_DEG)
         k *= 2
     return None
 
@@ -1190,9 +1190,21 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
         level = noise_correlation(r, objective.raw_nT, t_in, order)
         if level is not None and (level[1] == 1 or level[0] < DECORRELATION_RISE * sigma):
             level = None  # white: the scatter at k = 1 is the noise
+        if level is not None and level[2]:
+            # correlated over a turn too wide to tell noise from a structure that follows the attitude: the residual
+            # is judged as before (against the neighbours' scatter), but its samples are not independent either
+            # way (AR(1) noise of rho 0.8 on a path turning 1 deg a sample was accepted with its parameters' errors
+            # 3 times the white-noise deviations, 14 of 20 records beyond 5)
+            info["noise_correlated_samples"] = level[1]
+            warnings.append(f"the residual is correlated over about {level[1]} samples, across more than "
+                            f"{DECORRELATION_MAX_TURN_DEG:g} deg of turn (its scatter {level[1]} samples apart is "
+                            f"{level[0]:.3g} nT, {level[0] / max(sigma, 1e-300):.2g} times that of neighbours): noise "
+                            "correlated in time, or a structure that follows the attitude, which these data cannot "
+                            f"tell apart; the stated deviations are widened {np.sqrt(level[1]):.3g} times for it")
+            level = None
     if level is not None:
         assert order is not None
-        decorrelated, k = level
+        decorrelated, k, _ = level
         info["noise_correlated_samples"] = k
         if rms_nT > STRUCTURE_RATIO * sigma + floor and rms_nT > DECORRELATED_RATIO * decorrelated:
             info["noise_independent_nT"], info["noise_independent_from"] = float(decorrelated), "decorrelated"
