@@ -1570,6 +1570,9 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
 NONLINEARITY_P = 1e-6
 """``nonlinearity_shift``: a quadratic response of the axes is taken as there when its three columns lower the residual's
 sum of squares at this level (F test)."""
+NONLINEARITY_F_FLOOR = 10.2
+"""... the F statistic's critical value at NONLINEARITY_P falls with the denominator's degrees of freedom towards the
+chi-square's, 30.66 / 3 = 10.22 for 3 columns: below this no record is significant."""
 NONLINEARITY_ROWS = 20_000
 """... on a systematic sample of at most this many rows of a longer record."""
 
@@ -1619,10 +1622,13 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     dof = m - p - 3
     if not (ss1 > 0 and ss0 > ss1):
         return None, None
-    from scipy.special import fdtrc  # only here
-
     effect = max(float(inflation) ** 2, 1.0)  # samples per independent one
-    p_value = float(fdtrc(3, max(dof / effect, 1.0), (ss0 - ss1) / 3 / (ss1 / dof) / effect))
+    stat = (ss0 - ss1) / 3 / (ss1 / dof) / effect
+    if stat < NONLINEARITY_F_FLOOR:  # not significant whatever the degrees of freedom: no SciPy import (80 ms)
+        return None, None
+    from scipy.special import fdtrc  # only on the rare way to a finding
+
+    p_value = float(fdtrc(3, max(dof / effect, 1.0), stat))
     info["nonlinearity_p"] = p_value
     if p_value >= NONLINEARITY_P:
         return None, None
