@@ -795,12 +795,12 @@ def _uncertainty(objective: ScalarObjective, x: np.ndarray, noise_nT: float | No
     within 2.6 of these.  ``inflation``: the factor the checks widened the deviations by for samples that are not
     independent (``acceptance.widening``), applied here too."""
     names = PARAM_NAMES[objective.model]
-    gap = None
+    gap = judged = None
     if known is not None and noise_nT is not None and np.isfinite(noise_nT):
-        at, std = known
+        at, judged = known
         gap = np.asarray(x, dtype=float) - at
-        if np.isfinite(std).all() and (np.abs(gap) <= 1e-3 * std).all():
-            return dict(zip(names, std.tolist())), float(noise_nT)
+        if np.isfinite(judged).all() and (np.abs(gap) <= 1e-3 * judged).all():
+            return dict(zip(names, judged.tolist())), float(noise_nT)
     if noise_nT is None or not np.isfinite(noise_nT):
         n, p = objective.raw_nT.shape[0], len(names)
         r = objective.residuals(x)
@@ -811,8 +811,8 @@ def _uncertainty(objective: ScalarObjective, x: np.ndarray, noise_nT: float | No
             std = crb_std(objective, x, max(noise_nT * inflation, 1e-9 * field))
     except (np.linalg.LinAlgError, ValueError):
         std = np.full(len(names), np.nan)
-    if gap is not None:
-        std = np.hypot(std, gap)
+    if gap is not None and judged is not None:  # the judge's deviations hold what it added (a nonlinearity's shift)
+        std = np.hypot(np.fmax(std, judged), gap)
     return {name: float(v) for name, v in zip(names, std)}, float(noise_nT)
 
 
