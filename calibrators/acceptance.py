@@ -1302,6 +1302,14 @@ DRIFT_P = 1e-6
 """... and the drifts' columns must lower the sum of squares significantly at this level (F test) besides."""
 
 
+def _jacobian_on(objective: ScalarObjective, x: np.ndarray, jacobian: np.ndarray | None, rows) -> np.ndarray:
+    """J at ``x`` on ``rows`` (a slice or indices): the pass's ``jacobian`` there when it holds every row, else
+    computed on those rows alone (a long record's pass keeps no Jacobian)."""
+    if jacobian is not None and jacobian.shape[0] == objective.raw_nT.shape[0]:
+        return jacobian[rows]
+    return ScalarObjective(objective.raw_nT[rows], objective.f_ref_nT[rows], objective.model).jacobian(x)
+
+
 def drift_in_time(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, t_s: np.ndarray, rms_nT: float,
                   floor: float, info: dict, along: str = "in time", jacobian: np.ndarray | None = None,
                   memo=None) -> str | None:
@@ -1336,13 +1344,8 @@ def drift_in_time(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, t_s:
         return orthonormal_basis(drift_columns(t, u, degree, constant=False))  # the model's columns hold the constant
 
     drift = basis() if memo is None else memo(("drift_basis", degree), basis)
-    if rows is None:
-        jac = objective.jacobian(x) if jacobian is None else jacobian
-        rr = r
-    else:
-        jac = (ScalarObjective(objective.raw_nT[rows], objective.f_ref_nT[rows], objective.model).jacobian(x)
-               if jacobian is None else jacobian[rows])
-        rr = r[rows]
+    jac = _jacobian_on(objective, x, jacobian, slice(None) if rows is None else rows)
+    rr = r if rows is None else r[rows]
     unit = jac / np.maximum(np.linalg.norm(jac, axis=0), 1e-300)  # unit columns: a fair rank cut
     ss0, ss1 = float(rr @ rr), residual_sum_of_squares_beside(drift, unit, rr, rcond=1e-10)
     q = drift.q.shape[1]
@@ -1603,10 +1606,7 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     c = d @ mat.T
     u = c / np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), 1e-300)[:, None]
     q = (u @ mat) * d * d  # dr/dc_k, one column per axis
-    if jacobian is not None and jacobian.shape[0] == n:
-        jac = jacobian[rows]
-    else:  # a long record's pass keeps no Jacobian: the sample's own
-        jac = ScalarObjective(raw, objective.f_ref_nT[rows], objective.model).jacobian(x)
+    jac = _jacobian_on(objective, x, jacobian, rows)
     scale = np.maximum(np.sqrt(np.einsum("ij,ij->j", jac, jac)), 1e-300)
     qscale = np.maximum(np.sqrt(np.einsum("ij,ij->j", q, q)), 1e-300)
     rr = r[rows]

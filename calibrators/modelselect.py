@@ -51,7 +51,6 @@ IDENTIFIABILITY_WORDS = ("not determined", "outside the physical range", "ended 
                          "times the noise estimated independently")
 
 
-
 def distinct_attitudes(raw_nT: np.ndarray, field_nT: float) -> int:
     """The number of distinct attitudes: groups of readings linked by distances below ``REPEAT_FRACTION`` of
     the field (connected components)."""

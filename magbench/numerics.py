@@ -136,11 +136,6 @@ def representatives(points: np.ndarray, radius: float, enough: int) -> np.ndarra
     return np.asarray(chosen, dtype=np.int64)
 
 
-def distinct_points(points: np.ndarray, radius: float, enough: int) -> int:
-    """How many ``representatives`` of ``points`` there are, up to ``enough``."""
-    return len(representatives(points, radius, enough))
-
-
 DRIFT_MAX_DEGREE = 12
 DRIFT_ROWS_PER_COLUMN = 5
 """``drift_degree``: a drift's Legendre polynomials of time go up to this degree, with at least this many rows per
