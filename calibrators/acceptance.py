@@ -1571,76 +1571,125 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
 
 
 NONLINEARITY_P = 1e-6
-"""``nonlinearity_shift``: a quadratic response of the axes is taken as there when its three columns lower the residual's
-sum of squares at this level (F test)."""
-NONLINEARITY_F_FLOOR = 10.2
-"""... the F statistic's critical value at NONLINEARITY_P falls with the denominator's degrees of freedom towards the
-chi-square's, 30.66 / 3 = 10.22 for 3 columns: below this no record is significant."""
+"""``nonlinearity_shift``: a polynomial response of the axes is taken as there when its columns lower the residual's
+sum of squares at this level (F tests of the quadratic and the cubic columns, each at half of it)."""
+NONLINEARITY_OUTSIDE = 0.02
+"""... a column of the response is tested only when at least this fraction of it (unit length) lies outside the
+model's span: a sphere's leave 10-40 %, the vertical axis of a car's record with 2 degrees of tilt 0.03-0.12 %."""
 NONLINEARITY_ROWS = 20_000
 """... on a systematic sample of at most this many rows of a longer record."""
+_CHI2_AT_HALF_P = (0.0, 25.263, 29.017, 32.094)
+"""The chi-square distribution's upper NONLINEARITY_P / 2 point for 1 to 3 degrees of freedom
+(``scipy.stats.chi2.isf(5e-7, k)``, rounded down): the F statistic's critical value falls with the denominator's
+degrees of freedom towards it over k, so that below it no record is significant and SciPy is not imported (80 ms of a
+one-off fit)."""
+
+
+def _columns_test(tri_all: np.ndarray, p: int, kept: np.ndarray, m: int, effect: float) -> float | None:
+    """The F test at NONLINEARITY_P / 2 of the response's columns ``kept`` (a mask of six) beside the model's ``p``,
+    on the residual: ``tri_all`` is the triangular factor of the one QR of [J | six columns | -r] (unit columns, ``m``
+    rows).  Its block after the model's columns is the factor of the seven columns with J projected out, so a
+    subset's sums of squares come from the Cholesky factor of that block's (k + 1)-square Gram matrix.  The p-value
+    when significant, else None (also when the columns nearly repeat the model's or each other's).  ``effect``:
+    samples per independent one."""
+    k = int(np.count_nonzero(kept))
+    after = tri_all[p:p + 7, p:p + 7][:, np.append(np.flatnonzero(kept), 6)]
+    try:
+        factor = np.linalg.cholesky(after.T @ after)
+    except np.linalg.LinAlgError:
+        return None
+    diag = np.concatenate([np.abs(np.diagonal(tri_all)[:p]), np.diagonal(factor)[:k]])
+    if not diag.min() > LSTSQ_FULL_RANK * diag.max():
+        return None
+    ss0, ss1 = float(after[:, k] @ after[:, k]), float(factor[k, k] ** 2)
+    dof = m - p - k
+    if not (ss1 > 0 and ss0 > ss1):
+        return None
+    stat = (ss0 - ss1) / k / (ss1 / dof) / effect
+    if stat < _CHI2_AT_HALF_P[k] / k:
+        return None
+    from scipy.special import fdtrc  # only on the rare way to a finding
+
+    p_value = float(fdtrc(k, max(dof / effect, 1.0), stat))
+    return p_value if p_value < NONLINEARITY_P / 2 else None
 
 
 def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, jacobian: np.ndarray | None,
                        info: dict, inflation: float = 1.0) -> tuple[np.ndarray | None, str | None]:
-    """Whether the axes respond quadratically beyond the model (each reading ``raw_k + c_k (raw_k - o_k)²``), and
-    what that does to the answer: the residual ``r`` at the optimum ``x`` regressed on the model's Jacobian and the
-    three columns ``dr/dc_k = (M^T u)_k (raw_k - o_k)²`` (u the corrected direction).  When those columns lower the
-    sum of squares at ``NONLINEARITY_P`` (F test), returns the shift of every parameter that fitting them makes (an
-    estimate of the bias the nonlinearity leaves in the answer, which ``assess`` adds to the stated deviations) and a
-    warning with its size at full field, which does not name the cause (on a residual with other structure, 3 more
-    columns of any kind lower the sum of squares: the real ck_acc_mag record, whose diagnosis names no effect, shows
-    329 nT on x, and its x offset's deviation goes from 6 to 210 nT); else (None, None).  A smooth misfit of this
-    kind passes the structure test (3 nT at full field on 1 nT of noise left a residual of 1.25 nT): the offsets
-    absorb most of it, and the answer had been accepted 27 deviations from the truth.  ``inflation``: ``widening``'s
-    factor for samples that are not independent (repeated readings, correlated noise, holds): the F statistic and its
-    denominator's degrees of freedom are divided by its square (a clean record whose every reading a logger wrote 10
-    times had p 6e-8)."""
+    """Whether the axes respond quadratically or cubically beyond the model (each reading ``raw_k + c_k (raw_k - o_k)²
+    + e_k (raw_k - o_k)³``), and what that does to the answer: the residual ``r`` at the optimum ``x`` regressed on
+    the model's Jacobian and the columns ``dr/dc_k = (M^T u)_k (raw_k - o_k)²``, then ``dr/de_k = (M^T u)_k (raw_k -
+    o_k)³`` (u the corrected direction), each three in an F test at half of ``NONLINEARITY_P`` (a fluxgate's own
+    nonlinearity is mostly of odd order, a cubic term; a magnetized core or an amplifier's offset makes it even).  A
+    column almost inside the model's span (``NONLINEARITY_OUTSIDE``: a z axis that a near-planar path barely moves) is
+    not tested: its coefficient would be a guess (807 nT on z had been claimed on a clean buoy's record, its offset's
+    deviation 75 times its bound).  When a test is significant, returns the shift of every parameter that fitting the
+    significant columns makes (an estimate of the bias the nonlinearity leaves in the answer, which ``assess`` adds to
+    the stated deviations) and a warning with its size at full field, which does not name the cause (on a residual
+    with other structure, more columns of any kind lower the sum of squares: the real ck_acc_mag record, whose
+    diagnosis names no effect, shows 329 nT on x, and its x offset's deviation goes from 6 to 210 nT); else (None,
+    None).  A smooth misfit of this kind passes the structure test (3 nT at full field on 1 nT of noise left a
+    residual of 1.25 nT): the offsets absorb most of a quadratic one, the scales most of a cubic one, and the answers
+    had been accepted 27 (quadratic, 3 nT) and 40-110 (cubic, 10 nT) deviations from the truth.  ``inflation``:
+    ``widening``'s factor for samples that are not independent (repeated readings, correlated noise, holds): the F
+    statistic and its denominator's degrees of freedom are divided by its square (a clean record whose every reading a
+    logger wrote 10 times had p 6e-8)."""
     n, p = len(r), len(x)
     rows = systematic_rows(n, NONLINEARITY_ROWS)
     raw = objective.raw_nT[rows]
     m = raw.shape[0]
-    if m <= p + 3 + MIN_RESIDUAL_DOF:
+    if m <= p + 6 + MIN_RESIDUAL_DOF:
         return None, None
     mat, o = correction_matrix_one(x, objective.model)
     d = raw - o
     c = d @ mat.T
     u = c / np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), 1e-300)[:, None]
-    q = (u @ mat) * d * d  # dr/dc_k, one column per axis
+    q2 = (u @ mat) * d * d  # dr/dc_k, one column per axis
+    both = np.column_stack([q2, q2 * d])  # and dr/de_k
+    norms = np.maximum(np.sqrt(np.einsum("ij,ij->j", both, both)), 1e-300)
+    both /= norms
     jac = _jacobian_on(objective, x, jacobian, rows)
     scale = np.maximum(np.sqrt(np.einsum("ij,ij->j", jac, jac)), 1e-300)
-    qscale = np.maximum(np.sqrt(np.einsum("ij,ij->j", q, q)), 1e-300)
-    rr = r[rows]
-    # one QR of [J | q | -r], unit columns: what the model's own columns leave of r (at an optimum on the box's bound,
-    # or on a sample of the rows, r is not orthogonal to them, and what they still take is not the nonlinearity's),
-    # what all twelve leave, and both fits' coefficients from the triangular factor; columns that nearly repeat each
-    # other (a nonlinearity the model's directions can mimic) make no claim
-    tri = np.asarray(np.linalg.qr(np.column_stack([jac / scale, q / qscale, -rr]), mode="r"))
-    diag = np.abs(np.diagonal(tri)[:p + 3])
-    if not diag.min() > LSTSQ_FULL_RANK * diag.max():
-        return None, None
-    ss0, ss1 = float(tri[p:p + 4, p + 3] @ tri[p:p + 4, p + 3]), float(tri[p + 3, p + 3] ** 2)
-    dof = m - p - 3
-    if not (ss1 > 0 and ss0 > ss1):
-        return None, None
+    jac_unit = jac / scale
+    # (at an optimum on the box's bound, or on a sample of the rows, r is not orthogonal to the model's columns, and
+    # what they still take is not the nonlinearity's: each test fits them beside its own)
+    tri_all = np.asarray(np.linalg.qr(np.column_stack([jac_unit, both, -r[rows]]), mode="r"))
+    within = tri_all[:p, p:p + 6]  # Q_J^T of the six columns
+    testable = np.sqrt(np.maximum(1.0 - np.einsum("ij,ij->j", within, within), 0.0)) >= NONLINEARITY_OUTSIDE
     effect = max(float(inflation) ** 2, 1.0)  # samples per independent one
-    stat = (ss0 - ss1) / 3 / (ss1 / dof) / effect
-    if stat < NONLINEARITY_F_FLOOR:  # not significant whatever the degrees of freedom: no SciPy import (80 ms)
+    found = []
+    for part in (np.arange(6) < 3, np.arange(6) >= 3):
+        kept = testable & part
+        if kept.any():
+            p_value = _columns_test(tri_all, p, kept, m, effect)
+            if p_value is not None:
+                found.append((p_value, kept))
+    if not found:
         return None, None
-    from scipy.special import fdtrc  # only on the rare way to a finding
-
-    p_value = float(fdtrc(3, max(dof / effect, 1.0), stat))
+    p_value, best = min(found, key=lambda f: f[0])
     info["nonlinearity_p"] = p_value
-    if p_value >= NONLINEARITY_P:
-        return None, None
-    coef = np.linalg.solve(np.triu(tri[:p + 3, :p + 3]), tri[:p + 3, p + 3])
-    base = np.linalg.solve(np.triu(tri[:p, :p]), tri[:p, p + 3])
+    # the significant columns fitted beside the model's (both kinds together unless they nearly repeat each other)
+    for kept in ([found[0][1] | found[-1][1]] if len(found) == 2 else []) + [best]:
+        cols = np.concatenate([np.arange(p), p + np.flatnonzero(kept), [p + 6]])
+        tri = np.asarray(np.linalg.qr(tri_all[:, cols], mode="r"))  # A[:, S] = Q R[:, S]: the subset's own factor
+        diag = np.abs(np.diagonal(tri)[:len(cols) - 1])
+        if diag.min() > LSTSQ_FULL_RANK * diag.max():
+            break
+    k = int(np.count_nonzero(kept))
+    coef = np.linalg.solve(np.triu(tri[:p + k, :p + k]), tri[:p + k, p + k])
+    base = np.linalg.solve(np.triu(tri[:p, :p]), tri[:p, p + k])
     shift = (coef[:p] - base) / scale
-    size = np.abs(coef[p:] / qscale) * float(np.median(objective.f_ref_nT)) ** 2  # nT at full field, per axis
+    full = float(np.median(objective.f_ref_nT))
+    size = np.full(6, np.nan)
+    size[kept] = np.abs(coef[p:]) / norms[kept] * full ** np.where(np.arange(6) < 3, 2.0, 3.0)[kept]
+    words = [word for word, part in (("quadratic", kept[:3]), ("cubic", kept[3:])) if part.any()]
+    said = "; ".join(f"{word} " + ", ".join("not tested" if np.isnan(v) else f"{v:.3g}" for v in size[3 * j:3 * j + 3])
+                     for j, word in enumerate(["quadratic", "cubic"]) if word in words)
     shown = f"p {p_value:.1g}" if p_value > 0 else "p < 1e-300"
-    return shift, (f"a quadratic response of the axes fits part of the residual ({', '.join(f'{v:.3g}' for v in size)} "
-                   f"nT at full field on x, y, z; F test {shown}): a nonlinearity the answer partly absorbs, or another "
-                   "structure that it resembles (magbench diagnose tells which); the stated deviations include each "
-                   "parameter's shift when it is fitted")
+    return shift, (f"a {' and '.join(words)} response of the axes fits part of the residual ({said} nT at full field on "
+                   f"x, y, z; F test {shown}): a nonlinearity the answer partly absorbs, or another structure that it "
+                   "resembles (magbench diagnose tells which); the stated deviations include each parameter's shift "
+                   "when it is fitted")
 
 
 MAGNITUDE_RATIO_RANGE = (0.45, 5.0)

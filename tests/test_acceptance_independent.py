@@ -104,8 +104,10 @@ def test_few_accepted_calibrations_are_wrong_and_clean_records_are_accepted(bloc
 
 def test_negative_control_the_former_limit_accepts_wrong_answers(monkeypatch):
     """With the former limit (a residual up to 10 times the independent noise accepted), the same judge accepts
-    calibrations whose parameters are tens of stated deviations off: the count above can fail."""
+    calibrations whose parameters are tens of stated deviations off: the count above can fail.  (The polynomial
+    response's test, added later, widens some of those answers' deviations as well: it is left out here, as then.)"""
     monkeypatch.setattr(acceptance, "STRUCTURE_RATIO", 10.0)
+    monkeypatch.setattr(acceptance, "nonlinearity_shift", lambda *args: (None, None))
     generator, indices = BLOCKS["generator2"]
     assert tally(generator, indices)["wrong"] > MOST_WRONG["generator2"] + 3
 
