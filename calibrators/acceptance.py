@@ -1627,13 +1627,13 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     significant columns makes (an estimate of the bias the nonlinearity leaves in the answer, which ``assess`` adds to
     the stated deviations) and a warning with its size at full field, which does not name the cause (on a residual
     with other structure, more columns of any kind lower the sum of squares: the real ck_acc_mag record, whose
-    diagnosis names no effect, shows 329 nT on x, and its x offset's deviation goes from 6 to 210 nT); else (None,
-    None).  A smooth misfit of this kind passes the structure test (3 nT at full field on 1 nT of noise left a
-    residual of 1.25 nT): the offsets absorb most of a quadratic one, the scales most of a cubic one, and the answers
-    had been accepted 27 (quadratic, 3 nT) and 40-110 (cubic, 10 nT) deviations from the truth.  ``inflation``:
-    ``widening``'s factor for samples that are not independent (repeated readings, correlated noise, holds): the F
-    statistic and its denominator's degrees of freedom are divided by its square (a clean record whose every reading a
-    logger wrote 10 times had p 6e-8)."""
+    diagnosis names no effect, shows 284 nT quadratic on x and 947 nT cubic on y, and its x offset's deviation goes
+    from 6 to 200 nT); else (None, None).  A smooth misfit of this kind passes the structure test (3 nT at full
+    field on 1 nT of noise left a residual of 1.25 nT): the offsets absorb most of a quadratic one, the scales most of
+    a cubic one, and the answers had been accepted 27 (quadratic, 3 nT) and 40-110 (cubic, 10 nT) deviations from the
+    truth.  ``inflation``: ``widening``'s factor for samples that are not independent (repeated readings, correlated
+    noise, holds): the F statistic and its denominator's degrees of freedom are divided by its square (a clean record
+    whose every reading a logger wrote 10 times had p 6e-8)."""
     n, p = len(r), len(x)
     rows = systematic_rows(n, NONLINEARITY_ROWS)
     raw = objective.raw_nT[rows]

@@ -91,8 +91,9 @@ def block(request):
     return request.param, generator, indices
 
 
-# what the block gave when this limit was set (STRUCTURE_RATIO 3): a change that accepts more wrong answers fails
-MOST_WRONG = {"generator2": 3, "generator3": 0}
+# what the block gives (3 and 0 when STRUCTURE_RATIO 3 was set, 2 with the quadratic response's test, 0 with the
+# cubic's): a change that accepts more wrong answers fails
+MOST_WRONG = {"generator2": 0, "generator3": 0}
 
 
 def test_few_accepted_calibrations_are_wrong_and_clean_records_are_accepted(block):
@@ -109,7 +110,7 @@ def test_negative_control_the_former_limit_accepts_wrong_answers(monkeypatch):
     monkeypatch.setattr(acceptance, "STRUCTURE_RATIO", 10.0)
     monkeypatch.setattr(acceptance, "nonlinearity_shift", lambda *args: (None, None))
     generator, indices = BLOCKS["generator2"]
-    assert tally(generator, indices)["wrong"] > MOST_WRONG["generator2"] + 3
+    assert tally(generator, indices)["wrong"] > MOST_WRONG["generator2"] + 3  # 5 (the limit: 3 when it was set)
 
 
 def test_the_stated_deviation_covers_the_truth_on_a_near_planar_clean_record(monkeypatch):
