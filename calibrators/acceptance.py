@@ -33,6 +33,7 @@ checked before the fit (``reference_problems``): it is bad input, refused with e
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import math
@@ -1572,107 +1573,128 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
 
 NONLINEARITY_P = 1e-6
 """``nonlinearity_shift``: a polynomial response of the axes is taken as there when its columns lower the residual's
-sum of squares at this level (F tests of the quadratic and the cubic columns, each at half of it)."""
+sum of squares at this level (F tests of the quadratic, the cubic and the cross-axis columns, each at a third of
+it)."""
 NONLINEARITY_OUTSIDE = 0.02
 """... a column of the response is tested only when at least this fraction of it (unit length) lies outside the
 model's span: a sphere's leave 10-40 %, the vertical axis of a car's record with 2 degrees of tilt 0.03-0.12 %."""
 NONLINEARITY_ROWS = 20_000
 """... on a systematic sample of at most this many rows of a longer record."""
-_CHI2_AT_HALF_P = (0.0, 25.263, 29.017, 32.094)
-"""The chi-square distribution's upper NONLINEARITY_P / 2 point for 1 to 3 degrees of freedom
-(``scipy.stats.chi2.isf(5e-7, k)``, rounded down): the F statistic's critical value falls with the denominator's
+RESPONSES = ("quadratic", "cubic", "cross-axis")
+"""The response's kinds, three columns each: axis k reads ``raw_k + c_k d_k²``, ``+ e_k d_k³``, ``+ h_k d_i d_j``
+(d = raw - o; i, j the other two axes)."""
+_CHI2_AT_THIRD_P = (0.0, 26.046, 29.828, 32.929)
+"""The chi-square distribution's upper NONLINEARITY_P / 3 point for 1 to 3 degrees of freedom
+(``scipy.stats.chi2.isf(1e-6 / 3, k)``, rounded down): the F statistic's critical value falls with the denominator's
 degrees of freedom towards it over k, so that below it no record is significant and SciPy is not imported (80 ms of a
 one-off fit)."""
 
 
-def _columns_test(tri_all: np.ndarray, p: int, kept: np.ndarray, m: int, effect: float) -> float | None:
-    """The F test at NONLINEARITY_P / 2 of the response's columns ``kept`` (a mask of six) beside the model's ``p``,
-    on the residual: ``tri_all`` is the triangular factor of the one QR of [J | six columns | -r] (unit columns, ``m``
-    rows).  Its block after the model's columns is the factor of the seven columns with J projected out, so a
-    subset's sums of squares come from the Cholesky factor of that block's (k + 1)-square Gram matrix.  The p-value
-    when significant, else None (also when the columns nearly repeat the model's or each other's).  ``effect``:
-    samples per independent one."""
-    k = int(np.count_nonzero(kept))
-    after = tri_all[p:p + 7, p:p + 7][:, np.append(np.flatnonzero(kept), 6)]
-    try:
-        factor = np.linalg.cholesky(after.T @ after)
-    except np.linalg.LinAlgError:
-        return None
-    diag = np.concatenate([np.abs(np.diagonal(tri_all)[:p]), np.diagonal(factor)[:k]])
-    if not diag.min() > LSTSQ_FULL_RANK * diag.max():
-        return None
-    ss0, ss1 = float(after[:, k] @ after[:, k]), float(factor[k, k] ** 2)
-    dof = m - p - k
-    if not (ss1 > 0 and ss0 > ss1):
-        return None
-    stat = (ss0 - ss1) / k / (ss1 / dof) / effect
-    if stat < _CHI2_AT_HALF_P[k] / k:
-        return None
-    from scipy.special import fdtrc  # only on the rare way to a finding
+def _columns_tests(tri_all: np.ndarray, p: int, masks: np.ndarray, m: int, effect: float) -> list[float | None]:
+    """The F tests at NONLINEARITY_P / 3 of the response's column subsets ``masks`` (rows of nine) beside the model's
+    ``p`` columns, on the residual: ``tri_all`` is the triangular factor of the one QR of [J | nine columns | -r]
+    (unit columns, ``m`` rows).  Its block after the model's columns is the factor of the ten columns with J
+    projected out, so a subset's sums of squares come from the Cholesky factor of that block's Gram matrix's
+    (k + 1)-square part (the subsets of one size in one batched call).  Per subset, the p-value when significant,
+    else None (also when the columns nearly repeat the model's or each other's).  ``effect``: samples per independent
+    one."""
+    width = masks.shape[1]
+    after = tri_all[p:p + width + 1, p:p + width + 1]
+    gram = after.T @ after
+    ss0 = float(gram[width, width])  # what the model's columns leave of r
+    j_diag = np.abs(np.diagonal(tri_all)[:p])
+    sizes = masks.sum(axis=1)
+    out: list[float | None] = [None] * len(masks)
+    for k in sorted({int(v) for v in sizes if v}):
+        which = np.flatnonzero(sizes == k)
+        idx = np.column_stack([np.nonzero(masks[which])[1].reshape(len(which), k), np.full(len(which), width)])
+        sub = gram[idx[:, :, None], idx[:, None, :]]
+        try:
+            factor = np.linalg.cholesky(sub)
+        except np.linalg.LinAlgError:  # one of them not positive definite: each on its own
+            factor = np.full_like(sub, np.nan)
+            for i in range(len(which)):
+                with contextlib.suppress(np.linalg.LinAlgError):
+                    factor[i] = np.linalg.cholesky(sub[i])
+        diag = np.diagonal(factor, axis1=1, axis2=2)
+        top = np.maximum(j_diag.max(), np.nanmax(np.abs(diag[:, :k]), axis=1, initial=0.0))
+        low = np.minimum(j_diag.min(), np.abs(diag[:, :k]).min(axis=1))
+        ss1 = diag[:, k] ** 2
+        dof = m - p - k
+        with np.errstate(all="ignore"):
+            stat = (ss0 - ss1) / k / (ss1 / dof) / effect
+        ok = (low > LSTSQ_FULL_RANK * top) & (ss1 > 0) & (ss0 > ss1) & (stat >= _CHI2_AT_THIRD_P[k] / k)
+        if not ok.any():
+            continue
+        from scipy.special import fdtrc  # only on the rare way to a finding
 
-    p_value = float(fdtrc(k, max(dof / effect, 1.0), stat))
-    return p_value if p_value < NONLINEARITY_P / 2 else None
+        for i in np.flatnonzero(ok).tolist():
+            p_value = float(fdtrc(k, max(dof / effect, 1.0), stat[i]))
+            out[which[i]] = p_value if p_value < NONLINEARITY_P / len(RESPONSES) else None
+    return out
 
 
 def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, jacobian: np.ndarray | None,
                        info: dict, inflation: float = 1.0) -> tuple[np.ndarray | None, str | None]:
-    """Whether the axes respond quadratically or cubically beyond the model (each reading ``raw_k + c_k (raw_k - o_k)²
-    + e_k (raw_k - o_k)³``), and what that does to the answer: the residual ``r`` at the optimum ``x`` regressed on
-    the model's Jacobian and the columns ``dr/dc_k = (M^T u)_k (raw_k - o_k)²``, then ``dr/de_k = (M^T u)_k (raw_k -
-    o_k)³`` (u the corrected direction), each three in an F test at half of ``NONLINEARITY_P`` (a fluxgate's own
-    nonlinearity is mostly of odd order, a cubic term; a magnetized core or an amplifier's offset makes it even).  A
-    column almost inside the model's span (``NONLINEARITY_OUTSIDE``: a z axis that a near-planar path barely moves) is
-    not tested: its coefficient would be a guess (807 nT on z had been claimed on a clean buoy's record, its offset's
-    deviation 75 times its bound).  When a test is significant, returns the shift of every parameter that fitting the
-    significant columns makes (an estimate of the bias the nonlinearity leaves in the answer, which ``assess`` adds to
-    the stated deviations) and a warning with its size at full field, which does not name the cause (on a residual
-    with other structure, more columns of any kind lower the sum of squares: the real ck_acc_mag record, whose
-    diagnosis names no effect, shows 284 nT quadratic on x and 947 nT cubic on y, and its x offset's deviation goes
-    from 6 to 200 nT); else (None, None).  A smooth misfit of this kind passes the structure test (3 nT at full
-    field on 1 nT of noise left a residual of 1.25 nT): the offsets absorb most of a quadratic one, the scales most of
-    a cubic one, and the answers had been accepted 27 (quadratic, 3 nT) and 40-110 (cubic, 10 nT) deviations from the
-    truth.  ``inflation``: ``widening``'s factor for samples that are not independent (repeated readings, correlated
-    noise, holds): the F statistic and its denominator's degrees of freedom are divided by its square (a clean record
-    whose every reading a logger wrote 10 times had p 6e-8)."""
+    """Whether the axes respond beyond the model to second and third order (``RESPONSES``: each reading ``raw_k + c_k
+    d_k² + e_k d_k³ + h_k d_i d_j``, d = raw - o), and what that does to the answer: the residual ``r`` at the optimum
+    ``x`` regressed on the model's Jacobian and, three by three, the columns ``dr/dc_k = g_k d_k²``, ``dr/de_k = g_k
+    d_k³`` and ``dr/dh_k = g_k d_i d_j`` (g = M^T u, u the corrected direction), each three in an F test at a third of
+    ``NONLINEARITY_P``.  A fluxgate's own nonlinearity is mostly of odd order (a cubic term), a magnetized core or an
+    amplifier's offset makes it even, and the field across an axis changes its reading (the cross-axis term): on a
+    70-degree cap the cross-axis term of 10 nT at full field had been accepted 22-44 deviations from the truth.  A
+    column almost inside the model's span (``NONLINEARITY_OUTSIDE``: a z axis that a near-planar path barely moves)
+    is not tested: its coefficient would be a guess (807 nT on z had been claimed on a clean buoy's record, its
+    offset's deviation 75 times its bound).  When a test is significant, returns the shift of every parameter that
+    fitting the significant columns makes (an estimate of the bias the nonlinearity leaves in the answer, which
+    ``assess`` adds to the stated deviations) and a warning with its size at full field, which does not name the
+    cause (on a residual with other structure, more columns of any kind lower the sum of squares: the real ck_acc_mag
+    record, whose diagnosis names no effect, shows 284 nT quadratic on x and 947 nT cubic on y, and its x offset's
+    deviation goes from 6 to 200 nT); else (None, None).  A smooth misfit of this kind passes the structure test (3 nT
+    at full field on 1 nT of noise left a residual of 1.25 nT): the offsets absorb most of a quadratic one, the
+    scales most of a cubic one, and the answers had been accepted 27 (quadratic, 3 nT) and 40-110 (cubic, 10 nT)
+    deviations from the truth.  ``inflation``: ``widening``'s factor for samples that are not independent (repeated
+    readings, correlated noise, holds): the F statistic and its denominator's degrees of freedom are divided by its
+    square (a clean record whose every reading a logger wrote 10 times had p 6e-8)."""
     n, p = len(r), len(x)
+    width = 3 * len(RESPONSES)
     rows = systematic_rows(n, NONLINEARITY_ROWS)
     raw = objective.raw_nT[rows]
     m = raw.shape[0]
-    if m <= p + 6 + MIN_RESIDUAL_DOF:
+    if m <= p + width + MIN_RESIDUAL_DOF:
         return None, None
     mat, o = correction_matrix_one(x, objective.model)
     d = raw - o
     c = d @ mat.T
     u = c / np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), 1e-300)[:, None]
-    q2 = (u @ mat) * d * d  # dr/dc_k, one column per axis
-    both = np.column_stack([q2, q2 * d])  # and dr/de_k
-    norms = np.maximum(np.sqrt(np.einsum("ij,ij->j", both, both)), 1e-300)
-    both /= norms
+    g = u @ mat  # dr/d(raw_k)
+    q2 = g * d * d
+    built = {"quadratic": q2, "cubic": q2 * d, "cross-axis": g * d[:, [1, 0, 0]] * d[:, [2, 2, 1]]}
+    cols = np.column_stack([built[kind] for kind in RESPONSES])
+    norms = np.maximum(np.sqrt(np.einsum("ij,ij->j", cols, cols)), 1e-300)
+    cols /= norms
     jac = _jacobian_on(objective, x, jacobian, rows)
     scale = np.maximum(np.sqrt(np.einsum("ij,ij->j", jac, jac)), 1e-300)
-    jac_unit = jac / scale
     # (at an optimum on the box's bound, or on a sample of the rows, r is not orthogonal to the model's columns, and
     # what they still take is not the nonlinearity's: each test fits them beside its own)
-    tri_all = np.asarray(np.linalg.qr(np.column_stack([jac_unit, both, -r[rows]]), mode="r"))
-    within = tri_all[:p, p:p + 6]  # Q_J^T of the six columns
+    tri_all = np.asarray(np.linalg.qr(np.column_stack([jac / scale, cols, -r[rows]]), mode="r"))
+    within = tri_all[:p, p:p + width]  # Q_J^T of the response's columns
     testable = np.sqrt(np.maximum(1.0 - np.einsum("ij,ij->j", within, within), 0.0)) >= NONLINEARITY_OUTSIDE
     effect = max(float(inflation) ** 2, 1.0)  # samples per independent one
-    found = []
-    for part in (np.arange(6) < 3, np.arange(6) >= 3):
-        kept = testable & part
-        if kept.any():
-            p_value = _columns_test(tri_all, p, kept, m, effect)
-            if p_value is not None:
-                found.append((p_value, kept))
+    kinds = np.arange(width) // 3
+    masks = testable & (kinds == np.arange(len(RESPONSES))[:, None])
+    found = [(p_value, kept) for p_value, kept in zip(_columns_tests(tri_all, p, masks, m, effect), masks)
+             if p_value is not None]
     if not found:
         return None, None
     p_value, best = min(found, key=lambda f: f[0])
     info["nonlinearity_p"] = p_value
-    # the significant columns fitted beside the model's (both kinds together unless they nearly repeat each other)
-    for kept in ([found[0][1] | found[-1][1]] if len(found) == 2 else []) + [best]:
-        cols = np.concatenate([np.arange(p), p + np.flatnonzero(kept), [p + 6]])
-        tri = np.asarray(np.linalg.qr(tri_all[:, cols], mode="r"))  # A[:, S] = Q R[:, S]: the subset's own factor
-        diag = np.abs(np.diagonal(tri)[:len(cols) - 1])
+    # the significant columns fitted beside the model's (every significant kind together unless they nearly repeat
+    # each other: then the most significant alone)
+    for kept in ([np.logical_or.reduce([f[1] for f in found])] if len(found) > 1 else []) + [best]:
+        chosen = np.concatenate([np.arange(p), p + np.flatnonzero(kept), [p + width]])
+        tri = np.asarray(np.linalg.qr(tri_all[:, chosen], mode="r"))  # A[:, S] = Q R[:, S]: the subset's own factor
+        diag = np.abs(np.diagonal(tri)[:len(chosen) - 1])
         if diag.min() > LSTSQ_FULL_RANK * diag.max():
             break
     k = int(np.count_nonzero(kept))
@@ -1680,14 +1702,17 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     base = np.linalg.solve(np.triu(tri[:p, :p]), tri[:p, p + k])
     shift = (coef[:p] - base) / scale
     full = float(np.median(objective.f_ref_nT))
-    size = np.full(6, np.nan)
-    size[kept] = np.abs(coef[p:]) / norms[kept] * full ** np.where(np.arange(6) < 3, 2.0, 3.0)[kept]
-    words = [word for word, part in (("quadratic", kept[:3]), ("cubic", kept[3:])) if part.any()]
-    said = "; ".join(f"{word} " + ", ".join("not tested" if np.isnan(v) else f"{v:.3g}" for v in size[3 * j:3 * j + 3])
-                     for j, word in enumerate(["quadratic", "cubic"]) if word in words)
+    size = np.full(width, np.nan)
+    order = np.array([3.0 if kind == "cubic" else 2.0 for kind in RESPONSES])  # of the response in the field
+    size[kept] = np.abs(coef[p:]) / norms[kept] * full ** order[kinds[kept]]
+    words = [RESPONSES[j] for j in range(len(RESPONSES)) if kept[3 * j:3 * j + 3].any()]
+    said = "; ".join(f"{RESPONSES[j]} " + ", ".join("not tested" if np.isnan(v) else f"{v:.3g}"
+                                                   for v in size[3 * j:3 * j + 3])
+                     for j in range(len(RESPONSES)) if RESPONSES[j] in words)
     shown = f"p {p_value:.1g}" if p_value > 0 else "p < 1e-300"
-    return shift, (f"a {' and '.join(words)} response of the axes fits part of the residual ({said} nT at full field on "
-                   f"x, y, z; F test {shown}): a nonlinearity the answer partly absorbs, or another structure that it "
+    kind_text = ", ".join(words[:-1]) + (" and " if len(words) > 1 else "") + words[-1]
+    return shift, (f"a {kind_text} response of the axes fits part of the residual ({said} nT at full field on x, y, "
+                   f"z; F test {shown}): a nonlinearity the answer partly absorbs, or another structure that it "
                    "resembles (magbench diagnose tells which); the stated deviations include each parameter's shift "
                    "when it is fitted")
 
