@@ -1153,6 +1153,7 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
                         "attitudes): it was estimated from neighbouring rows taken in file order")
     rough = geometry.roughness
     unrelated = rough is not None and rough > UNRELATED_ROUGHNESS
+    info["consecutive_unrelated"] = bool(unrelated)
     if unrelated:
         # the time neighbours' differences hold whatever the model misses that follows the attitude: the
         # scatter about the nearest attitudes is the better bound of the noise (both are upper bounds)
@@ -1555,7 +1556,12 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     rejections += undetermined
     if not undetermined:  # where the model is determined, its linearization at the optimum is the model's
         with np.errstate(all="ignore"):
-            shift, said = nonlinearity_shift(inliers, x_ref, ref.r, ref.jacobian, info, inflation)
+            # the previous reading only where consecutive samples are at unrelated attitudes: on a path, a lag is
+            # structure in time that the structure test sees, and the reading before carries noise correlated with
+            # this one's wherever the noise is (a clean tumble's had claimed 4e3 nT, p 2e-30)
+            previous = previous_rows(None if t_s is None else np.asarray(t_s)[rows], n) \
+                if info.get("consecutive_unrelated") else None
+            shift, said = nonlinearity_shift(inliers, x_ref, ref.r, ref.jacobian, info, inflation, previous=previous)
         if shift is not None and said is not None:
             std = np.hypot(std, shift)  # the answer's possible bias beside its noise
             warnings.append(said)
@@ -1580,20 +1586,40 @@ NONLINEARITY_OUTSIDE = 0.02
 model's span: a sphere's leave 10-40 %, the vertical axis of a car's record with 2 degrees of tilt 0.03-0.12 %."""
 NONLINEARITY_ROWS = 20_000
 """... on a systematic sample of at most this many rows of a longer record."""
-RESPONSES = ("quadratic", "cubic", "cross-axis")
+RESPONSES = ("quadratic", "cubic", "cross-axis", "previous-reading")
 """The response's kinds, three columns each: axis k reads ``raw_k + c_k d_k²``, ``+ e_k d_k³``, ``+ h_k d_i d_j``
-(d = raw - o; i, j the other two axes)."""
-_CHI2_AT_THIRD_P = (0.0, 26.046, 29.828, 32.929)
-"""The chi-square distribution's upper NONLINEARITY_P / 3 point for 1 to 3 degrees of freedom
-(``scipy.stats.chi2.isf(1e-6 / 3, k)``, rounded down): the F statistic's critical value falls with the denominator's
+(d = raw - o; i, j the other two axes), ``+ a_k (d_k' - d_k)`` (d' the reading before it in time order: a filter
+not settled when the reading was taken, a reading that keeps part of the previous attitude's)."""
+_CHI2_AT_PART_P = (0.0, 26.601, 30.403, 33.521)
+"""The chi-square distribution's upper NONLINEARITY_P / len(RESPONSES) point for 1 to 3 degrees of freedom
+(``scipy.stats.chi2.isf(1e-6 / 4, k)``, rounded down): the F statistic's critical value falls with the denominator's
 degrees of freedom towards it over k, so that below it no record is significant and SciPy is not imported (80 ms of a
 one-off fit)."""
 
 
+def previous_rows(t_s: np.ndarray | None, n: int) -> np.ndarray:
+    """For each of ``n`` rows, the row before it in time order (``t_s``; file order without times), -1 for the
+    first."""
+    if t_s is None:
+        return np.arange(-1, n - 1)
+    order = np.argsort(np.asarray(t_s, dtype=float), kind="stable")
+    out = np.empty(len(order), dtype=np.int64)
+    out[order[1:]] = order[:-1]
+    if len(order):
+        out[order[0]] = -1
+    return out
+
+
+ORDER_IN_FIELD = {"quadratic": 2.0, "cubic": 3.0, "cross-axis": 2.0, "previous-reading": 1.0}
+"""The power of the field each response's coefficient multiplies: its size at full field is the coefficient times
+the field to it."""
+
+
 def _columns_tests(tri_all: np.ndarray, p: int, masks: np.ndarray, m: int, effect: float) -> list[float | None]:
-    """The F tests at NONLINEARITY_P / 3 of the response's column subsets ``masks`` (rows of nine) beside the model's
-    ``p`` columns, on the residual: ``tri_all`` is the triangular factor of the one QR of [J | nine columns | -r]
-    (unit columns, ``m`` rows).  Its block after the model's columns is the factor of the ten columns with J
+    """The F tests at NONLINEARITY_P / len(RESPONSES) of the response's column subsets ``masks`` (rows of 3
+    len(RESPONSES)) beside the model's ``p`` columns, on the residual: ``tri_all`` is the triangular factor of the one
+    QR of [J | the response's columns | -r] (unit columns, ``m`` rows).  Its block after the model's columns is the
+    factor of those columns and r with J
     projected out, so a subset's sums of squares come from the Cholesky factor of that block's Gram matrix's
     (k + 1)-square part (the subsets of one size in one batched call).  Per subset, the p-value when significant,
     else None (also when the columns nearly repeat the model's or each other's).  ``effect``: samples per independent
@@ -1623,7 +1649,7 @@ def _columns_tests(tri_all: np.ndarray, p: int, masks: np.ndarray, m: int, effec
         dof = m - p - k
         with np.errstate(all="ignore"):
             stat = (ss0 - ss1) / k / (ss1 / dof) / effect
-        ok = (low > LSTSQ_FULL_RANK * top) & (ss1 > 0) & (ss0 > ss1) & (stat >= _CHI2_AT_THIRD_P[k] / k)
+        ok = (low > LSTSQ_FULL_RANK * top) & (ss1 > 0) & (ss0 > ss1) & (stat >= _CHI2_AT_PART_P[k] / k)
         if not ok.any():
             continue
         from scipy.special import fdtrc  # only on the rare way to a finding
@@ -1635,14 +1661,19 @@ def _columns_tests(tri_all: np.ndarray, p: int, masks: np.ndarray, m: int, effec
 
 
 def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, jacobian: np.ndarray | None,
-                       info: dict, inflation: float = 1.0) -> tuple[np.ndarray | None, str | None]:
-    """Whether the axes respond beyond the model to second and third order (``RESPONSES``: each reading ``raw_k + c_k
-    d_k² + e_k d_k³ + h_k d_i d_j``, d = raw - o), and what that does to the answer: the residual ``r`` at the optimum
-    ``x`` regressed on the model's Jacobian and, three by three, the columns ``dr/dc_k = g_k d_k²``, ``dr/de_k = g_k
-    d_k³`` and ``dr/dh_k = g_k d_i d_j`` (g = M^T u, u the corrected direction), each three in an F test at a third of
-    ``NONLINEARITY_P``.  A fluxgate's own nonlinearity is mostly of odd order (a cubic term), a magnetized core or an
-    amplifier's offset makes it even, and the field across an axis changes its reading (the cross-axis term): on a
-    70-degree cap the cross-axis term of 10 nT at full field had been accepted 22-44 deviations from the truth.  A
+                       info: dict, inflation: float = 1.0, previous: np.ndarray | None = None
+                       ) -> tuple[np.ndarray | None, str | None]:
+    """Whether the axes respond beyond the model to second and third order or to the reading before (``RESPONSES``:
+    each reading ``raw_k + c_k d_k² + e_k d_k³ + h_k d_i d_j + a_k (d_k' - d_k)``, d = raw - o, d' the reading before in
+    time order: ``previous``, from ``previous_rows``, else file order), and what that does to the answer: the residual
+    ``r`` at the optimum ``x`` regressed on the model's Jacobian and, three by three, the columns ``dr/dc_k = g_k
+    d_k²``, ``dr/de_k = g_k d_k³``, ``dr/dh_k = g_k d_i d_j`` and ``dr/da_k = g_k (d_k' - d_k)`` (g = M^T u, u the
+    corrected direction), each three in an F test at ``NONLINEARITY_P / len(RESPONSES)``.  At random attitudes a
+    reading taken before the filter settled keeps part of an unrelated one: a shrunk scale and noise-like scatter,
+    which the structure test passes; 3 nT had been accepted 9-24 deviations off.  A fluxgate's own nonlinearity is
+    mostly of odd order (a cubic term), a magnetized core or an amplifier's offset makes it even, and the field across
+    an axis changes its reading (the cross-axis term): on a 70-degree cap the cross-axis term of 10 nT at full field
+    had been accepted 22-44 deviations from the truth.  A
     column almost inside the model's span (``NONLINEARITY_OUTSIDE``: a z axis that a near-planar path barely moves)
     is not tested: its coefficient would be a guess (807 nT on z had been claimed on a clean buoy's record, its
     offset's deviation 75 times its bound).  When a test is significant, returns the shift of every parameter that
@@ -1669,7 +1700,16 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     u = c / np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), 1e-300)[:, None]
     g = u @ mat  # dr/d(raw_k)
     q2 = g * d * d
-    built = {"quadratic": q2, "cubic": q2 * d, "cross-axis": g * d[:, [1, 0, 0]] * d[:, [2, 2, 1]]}
+    # the reading before each, less this one's noise-free part: d - (M^-1 u) r is the reading the model gives for the
+    # reference's magnitude along this direction (d itself would put the residual's own noise into the column: on a
+    # smooth path, where consecutive readings differ by little more than the noise, that made it significant on clean
+    # records); the first row's column is 0
+    settled = d - np.linalg.solve(mat, u.T).T * r[rows][:, None]
+    before = np.full(m, -1) if previous is None else previous[rows]
+    moved = objective.raw_nT[np.maximum(before, 0)] - o - settled
+    moved[before < 0] = 0.0
+    built = {"quadratic": q2, "cubic": q2 * d, "cross-axis": g * d[:, [1, 0, 0]] * d[:, [2, 2, 1]],
+             "previous-reading": g * moved}
     cols = np.column_stack([built[kind] for kind in RESPONSES])
     norms = np.maximum(np.sqrt(np.einsum("ij,ij->j", cols, cols)), 1e-300)
     cols /= norms
@@ -1680,6 +1720,8 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     tri_all = np.asarray(np.linalg.qr(np.column_stack([jac / scale, cols, -r[rows]]), mode="r"))
     within = tri_all[:p, p:p + width]  # Q_J^T of the response's columns
     testable = np.sqrt(np.maximum(1.0 - np.einsum("ij,ij->j", within, within), 0.0)) >= NONLINEARITY_OUTSIDE
+    if previous is None and "previous-reading" in RESPONSES:  # not asked for: its columns are 0
+        testable[3 * RESPONSES.index("previous-reading"):3 * RESPONSES.index("previous-reading") + 3] = False
     effect = max(float(inflation) ** 2, 1.0)  # samples per independent one
     kinds = np.arange(width) // 3
     masks = testable & (kinds == np.arange(len(RESPONSES))[:, None])
@@ -1703,7 +1745,7 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     shift = (coef[:p] - base) / scale
     full = float(np.median(objective.f_ref_nT))
     size = np.full(width, np.nan)
-    order = np.array([3.0 if kind == "cubic" else 2.0 for kind in RESPONSES])  # of the response in the field
+    order = np.array([ORDER_IN_FIELD[kind] for kind in RESPONSES])
     size[kept] = np.abs(coef[p:]) / norms[kept] * full ** order[kinds[kept]]
     words = [RESPONSES[j] for j in range(len(RESPONSES)) if kept[3 * j:3 * j + 3].any()]
     said = "; ".join(f"{RESPONSES[j]} " + ", ".join("not tested" if np.isnan(v) else f"{v:.3g}"

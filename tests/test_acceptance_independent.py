@@ -108,7 +108,7 @@ def test_negative_control_the_former_limit_accepts_wrong_answers(monkeypatch):
     calibrations whose parameters are tens of stated deviations off: the count above can fail.  (The polynomial
     response's test, added later, widens some of those answers' deviations as well: it is left out here, as then.)"""
     monkeypatch.setattr(acceptance, "STRUCTURE_RATIO", 10.0)
-    monkeypatch.setattr(acceptance, "nonlinearity_shift", lambda *args: (None, None))
+    monkeypatch.setattr(acceptance, "nonlinearity_shift", lambda *args, **kwargs: (None, None))
     generator, indices = BLOCKS["generator2"]
     assert tally(generator, indices)["wrong"] > MOST_WRONG["generator2"] + 3  # 5 (the limit: 3 when it was set)
 

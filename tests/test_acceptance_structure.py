@@ -139,7 +139,7 @@ def test_band_limited_noise_is_judged_once_decorrelated_and_widens_the_deviation
     assert not make("lsq").fit(_band_limited(8, 5.0, seed)).accepted
     monkeypatch.setattr(acceptance, "STRUCTURE_FLOOR_FRACTION", 2e-5)  # the former floor, 1 nT
     # (the quadratic-response test, uncorrected for a correlation not found, widens some of them: left out too)
-    monkeypatch.setattr(acceptance, "nonlinearity_shift", lambda *args: (None, None))
+    monkeypatch.setattr(acceptance, "nonlinearity_shift", lambda *args, **kwargs: (None, None))
     former = make("lsq").fit(_band_limited(8, 5.0, seed))
     assert former.accepted and _worst_z(former, truth) > 5.0
 

@@ -152,7 +152,7 @@ def test_copies_of_readings_widen_the_deviations_to_the_attitudes_noise(monkeypa
         assert res.accepted, res.rejections
         assert np.max(np.abs(res.x - truth) / np.array([res.uncertainty[k] for k in names])) < 3.0
     monkeypatch.setattr(acceptance, "few_attitudes_effect", lambda *args: 1.0)
-    monkeypatch.setattr(acceptance, "nonlinearity_shift", lambda *args: (None, None))  # which widens some of them too
+    monkeypatch.setattr(acceptance, "nonlinearity_shift", lambda *args, **kwargs: (None, None))  # which widens some of them too
     assert wrong() >= 5
 
 
@@ -375,6 +375,6 @@ def test_noise_correlated_over_a_wide_turn_widens_the_deviations(monkeypatch):
         return None if level is not None and level[2] else level
 
     monkeypatch.setattr(acceptance, "noise_correlation", as_before)
-    monkeypatch.setattr(acceptance, "nonlinearity_shift", lambda *args: (None, None))  # which widens some of them too
+    monkeypatch.setattr(acceptance, "nonlinearity_shift", lambda *args, **kwargs: (None, None))  # which widens some of them too
     count, warned = wrong()
     assert count >= 7 and warned == 0
