@@ -1602,7 +1602,10 @@ def previous_rows(t_s: np.ndarray | None, n: int) -> np.ndarray:
     first."""
     if t_s is None:
         return np.arange(-1, n - 1)
-    order = np.argsort(np.asarray(t_s, dtype=float), kind="stable")
+    t = np.asarray(t_s, dtype=float)
+    if not (np.diff(t) < 0).any():  # in time order already (most files): no sort (0.2 s on 2e6 rows)
+        return np.arange(-1, n - 1)
+    order = np.argsort(t, kind="stable")
     out = np.empty(len(order), dtype=np.int64)
     out[order[1:]] = order[:-1]
     if len(order):

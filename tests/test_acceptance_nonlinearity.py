@@ -155,3 +155,13 @@ def test_a_reading_that_keeps_part_of_the_previous_attitude_is_stated_in_the_dev
     monkeypatch.setattr(acceptance, "RESPONSES", acceptance.RESPONSES[:3])
     for accepted, z, said in _unsettled(3.0):
         assert accepted and not said and z > 5.0, (accepted, z, said)
+
+
+def test_the_reading_before_follows_the_time_column():
+    """Rows out of time order take the row before in time (a logger restarted, files joined); rows in order, or no
+    time column, the row before in the file; the first has none (-1)."""
+    from magbench.calibrators.acceptance import previous_rows
+
+    assert previous_rows(np.array([0.0, 2.0, 1.0, 3.0]), 4).tolist() == [-1, 2, 0, 1]
+    assert previous_rows(np.array([0.0, 1.0, 1.0, 2.0]), 4).tolist() == [-1, 0, 1, 2]
+    assert previous_rows(None, 3).tolist() == [-1, 0, 1]
