@@ -1556,12 +1556,16 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
     rejections += undetermined
     if not undetermined:  # where the model is determined, its linearization at the optimum is the model's
         with np.errstate(all="ignore"):
-            # the previous reading only where consecutive samples are at unrelated attitudes: on a path, a lag is
-            # structure in time that the structure test sees, and the reading before carries noise correlated with
-            # this one's wherever the noise is (a clean tumble's had claimed 4e3 nT, p 2e-30)
-            previous = previous_rows(None if t_s is None else np.asarray(t_s)[rows], n) \
-                if info.get("consecutive_unrelated") else None
-            shift, said = nonlinearity_shift(inliers, x_ref, ref.r, ref.jacobian, info, inflation, previous=previous)
+            # where consecutive samples are at unrelated attitudes, the reading before; along a path, the rate of
+            # change from the readings either side (the reading before alone carries noise correlated with this
+            # one's wherever the noise is: a clean tumble's had claimed 4e3 nT, p 2e-30; the two either side carry
+            # none of it whatever the noise's correlation, which is symmetric in time)
+            t_rows = None if t_s is None else np.asarray(t_s, dtype=float)[rows]
+            previous, nxt = neighbour_rows(t_rows, n)
+            unrelated_rows = bool(info.get("consecutive_unrelated"))
+            shift, said = nonlinearity_shift(inliers, x_ref, ref.r, ref.jacobian, info, inflation,
+                                             previous=previous if unrelated_rows else None,
+                                             around=None if unrelated_rows else (previous, nxt, t_rows))
         if shift is not None and said is not None:
             std = np.hypot(std, shift)  # the answer's possible bias beside its noise
             warnings.append(said)
@@ -1597,20 +1601,22 @@ degrees of freedom towards it over k, so that below it no record is significant 
 one-off fit)."""
 
 
+def neighbour_rows(t_s: np.ndarray | None, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """For each of ``n`` rows, the row before it and the row after it in time order (``t_s``; file order without
+    times), -1 where there is none."""
+    if t_s is None or not (np.diff(np.asarray(t_s, dtype=float)) < 0).any():  # in order already: no sort (0.2 s on
+        return np.arange(-1, n - 1), np.where(np.arange(1, n + 1) < n, np.arange(1, n + 1), -1)  # 2e6 rows)
+    order = np.argsort(np.asarray(t_s, dtype=float), kind="stable")
+    before, after = np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64)
+    before[order[1:]] = order[:-1]
+    after[order[:-1]] = order[1:]
+    return before, after
+
+
 def previous_rows(t_s: np.ndarray | None, n: int) -> np.ndarray:
     """For each of ``n`` rows, the row before it in time order (``t_s``; file order without times), -1 for the
     first."""
-    if t_s is None:
-        return np.arange(-1, n - 1)
-    t = np.asarray(t_s, dtype=float)
-    if not (np.diff(t) < 0).any():  # in time order already (most files): no sort (0.2 s on 2e6 rows)
-        return np.arange(-1, n - 1)
-    order = np.argsort(t, kind="stable")
-    out = np.empty(len(order), dtype=np.int64)
-    out[order[1:]] = order[:-1]
-    if len(order):
-        out[order[0]] = -1
-    return out
+    return neighbour_rows(t_s, n)[0]
 
 
 ORDER_IN_FIELD = {"quadratic": 2.0, "cubic": 3.0, "cross-axis": 2.0, "previous-reading": 1.0}
@@ -1664,7 +1670,8 @@ def _columns_tests(tri_all: np.ndarray, p: int, masks: np.ndarray, m: int, effec
 
 
 def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, jacobian: np.ndarray | None,
-                       info: dict, inflation: float = 1.0, previous: np.ndarray | None = None
+                       info: dict, inflation: float = 1.0, previous: np.ndarray | None = None,
+                       around: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None
                        ) -> tuple[np.ndarray | None, str | None]:
     """Whether the axes respond beyond the model to second and third order or to the reading before (``RESPONSES``:
     each reading ``raw_k + c_k d_k² + e_k d_k³ + h_k d_i d_j + a_k (d_k' - d_k)``, d = raw - o, d' the reading before in
@@ -1708,9 +1715,19 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     # smooth path, where consecutive readings differ by little more than the noise, that made it significant on clean
     # records); the first row's column is 0
     settled = d - np.linalg.solve(mat, u.T).T * r[rows][:, None]
-    before = np.full(m, -1) if previous is None else previous[rows]
-    moved = objective.raw_nT[np.maximum(before, 0)] - o - settled
-    moved[before < 0] = 0.0
+    if around is not None:  # along a path: the rate of change, (d_next - d_prev) / (t_next - t_prev), for a lag
+        before, after = around[0][rows], around[1][rows]
+        has = (before >= 0) & (after >= 0)
+        span = (np.where(has, after, 0) - np.where(has, before, 0)).astype(float) if around[2] is None else \
+            around[2][np.maximum(after, 0)] - around[2][np.maximum(before, 0)]
+        has &= span > 0
+        moved = (objective.raw_nT[np.maximum(after, 0)] - objective.raw_nT[np.maximum(before, 0)]) \
+            / np.where(has, span, 1.0)[:, None]
+        moved[~has] = 0.0
+    else:
+        before = np.full(m, -1) if previous is None else previous[rows]
+        moved = objective.raw_nT[np.maximum(before, 0)] - o - settled
+        moved[before < 0] = 0.0
     built = {"quadratic": q2, "cubic": q2 * d, "cross-axis": g * d[:, [1, 0, 0]] * d[:, [2, 2, 1]],
              "previous-reading": g * moved}
     cols = np.column_stack([built[kind] for kind in RESPONSES])
@@ -1723,7 +1740,7 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     tri_all = np.asarray(np.linalg.qr(np.column_stack([jac / scale, cols, -r[rows]]), mode="r"))
     within = tri_all[:p, p:p + width]  # Q_J^T of the response's columns
     testable = np.sqrt(np.maximum(1.0 - np.einsum("ij,ij->j", within, within), 0.0)) >= NONLINEARITY_OUTSIDE
-    if previous is None and "previous-reading" in RESPONSES:  # not asked for: its columns are 0
+    if previous is None and around is None and "previous-reading" in RESPONSES:  # not asked for: its columns are 0
         testable[3 * RESPONSES.index("previous-reading"):3 * RESPONSES.index("previous-reading") + 3] = False
     effect = max(float(inflation) ** 2, 1.0)  # samples per independent one
     kinds = np.arange(width) // 3
@@ -1750,14 +1767,20 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     size = np.full(width, np.nan)
     order = np.array([ORDER_IN_FIELD[kind] for kind in RESPONSES])
     size[kept] = np.abs(coef[p:]) / norms[kept] * full ** order[kinds[kept]]
-    words = [RESPONSES[j] for j in range(len(RESPONSES)) if kept[3 * j:3 * j + 3].any()]
-    said = "; ".join(f"{RESPONSES[j]} " + ", ".join("not tested" if np.isnan(v) else f"{v:.3g}"
-                                                   for v in size[3 * j:3 * j + 3])
-                     for j in range(len(RESPONSES)) if RESPONSES[j] in words)
+    names = [("lag" if kind == "previous-reading" and around is not None else kind) for kind in RESPONSES]
+    words = [names[j] for j in range(len(RESPONSES)) if kept[3 * j:3 * j + 3].any()]
+    if around is not None and "previous-reading" in RESPONSES:  # a lag: its coefficient in seconds (rows without t)
+        j = RESPONSES.index("previous-reading")
+        size[3 * j:3 * j + 3] = size[3 * j:3 * j + 3] / full
+    units = [("s" if around[2] is not None else "samples") if around is not None and kind == "previous-reading"
+             else "nT at full field" for kind in RESPONSES]
+    said = "; ".join(f"{names[j]} " + ", ".join("not tested" if np.isnan(v) else f"{v:.3g}"
+                                               for v in size[3 * j:3 * j + 3]) + f" {units[j]}"
+                     for j in range(len(RESPONSES)) if names[j] in words)
     shown = f"p {p_value:.1g}" if p_value > 0 else "p < 1e-300"
     kind_text = ", ".join(words[:-1]) + (" and " if len(words) > 1 else "") + words[-1]
-    return shift, (f"a {kind_text} response of the axes fits part of the residual ({said} nT at full field on x, y, "
-                   f"z; F test {shown}): a nonlinearity the answer partly absorbs, or another structure that it "
+    return shift, (f"a {kind_text} response of the axes fits part of the residual ({said}, on x, y, z; F test "
+                   f"{shown}): a nonlinearity or lag the answer partly absorbs, or another structure that it "
                    "resembles (magbench diagnose tells which); the stated deviations include each parameter's shift "
                    "when it is fitted")
 
