@@ -1582,9 +1582,9 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
 
 
 NONLINEARITY_P = 1e-6
-"""``nonlinearity_shift``: a polynomial response of the axes is taken as there when its columns lower the residual's
-sum of squares at this level (F tests of the quadratic, the cubic and the cross-axis columns, each at a third of
-it)."""
+"""``nonlinearity_shift``: a response of the axes beyond the model is taken as there when its columns lower the
+residual's sum of squares at this level (an F test for each kind of ``RESPONSES``, each at NONLINEARITY_P /
+len(RESPONSES))."""
 NONLINEARITY_OUTSIDE = 0.02
 """... a column of the response is tested only when at least this fraction of it (unit length) lies outside the
 model's span: a sphere's leave 10-40 %, the vertical axis of a car's record with 2 degrees of tilt 0.03-0.12 %."""
@@ -1593,7 +1593,8 @@ NONLINEARITY_ROWS = 20_000
 RESPONSES = ("quadratic", "cubic", "cross-axis", "previous-reading")
 """The response's kinds, three columns each: axis k reads ``raw_k + c_k d_k²``, ``+ e_k d_k³``, ``+ h_k d_i d_j``
 (d = raw - o; i, j the other two axes), ``+ a_k (d_k' - d_k)`` (d' the reading before it in time order: a filter
-not settled when the reading was taken, a reading that keeps part of the previous attitude's)."""
+not settled when the reading was taken, a reading that keeps part of the previous attitude's; along a path, where
+consecutive readings are at related attitudes, a lag of each axis instead, ``- tau_k dd_k/dt``)."""
 _CHI2_AT_PART_P = (0.0, 26.601, 30.403, 33.521)
 """The chi-square distribution's upper NONLINEARITY_P / len(RESPONSES) point for 1 to 3 degrees of freedom
 (``scipy.stats.chi2.isf(1e-6 / 4, k)``, rounded down): the F statistic's critical value falls with the denominator's
@@ -1604,8 +1605,9 @@ one-off fit)."""
 def neighbour_rows(t_s: np.ndarray | None, n: int) -> tuple[np.ndarray, np.ndarray]:
     """For each of ``n`` rows, the row before it and the row after it in time order (``t_s``; file order without
     times), -1 where there is none."""
-    if t_s is None or not (np.diff(np.asarray(t_s, dtype=float)) < 0).any():  # in order already: no sort (0.2 s on
-        return np.arange(-1, n - 1), np.where(np.arange(1, n + 1) < n, np.arange(1, n + 1), -1)  # 2e6 rows)
+    # in order already (most files): no sort, 0.2 s on 2e6 rows
+    if t_s is None or not (np.diff(np.asarray(t_s, dtype=float)) < 0).any():
+        return np.arange(-1, n - 1), np.where(np.arange(1, n + 1) < n, np.arange(1, n + 1), -1)
     order = np.argsort(np.asarray(t_s, dtype=float), kind="stable")
     before, after = np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64)
     before[order[1:]] = order[:-1]
@@ -1628,11 +1630,10 @@ def _columns_tests(tri_all: np.ndarray, p: int, masks: np.ndarray, m: int, effec
     """The F tests at NONLINEARITY_P / len(RESPONSES) of the response's column subsets ``masks`` (rows of 3
     len(RESPONSES)) beside the model's ``p`` columns, on the residual: ``tri_all`` is the triangular factor of the one
     QR of [J | the response's columns | -r] (unit columns, ``m`` rows).  Its block after the model's columns is the
-    factor of those columns and r with J
-    projected out, so a subset's sums of squares come from the Cholesky factor of that block's Gram matrix's
-    (k + 1)-square part (the subsets of one size in one batched call).  Per subset, the p-value when significant,
-    else None (also when the columns nearly repeat the model's or each other's).  ``effect``: samples per independent
-    one."""
+    factor of those columns and r with J projected out, so a subset's sums of squares come from the Cholesky factor of
+    that block's Gram matrix's (k + 1)-square part (the subsets of one size in one batched call).  Per subset, the
+    p-value when significant, else None (also when the columns nearly repeat the model's or each other's).
+    ``effect``: samples per independent one."""
     width = masks.shape[1]
     after = tri_all[p:p + width + 1, p:p + width + 1]
     gram = after.T @ after
