@@ -1560,12 +1560,9 @@ def assess(objective: ScalarObjective, x: np.ndarray, *, improved: bool, robust:
             # change from the readings either side (the reading before alone carries noise correlated with this
             # one's wherever the noise is: a clean tumble's had claimed 4e3 nT, p 2e-30; the two either side carry
             # none of it whatever the noise's correlation, which is symmetric in time)
-            t_rows = None if t_s is None else np.asarray(t_s, dtype=float)[rows]
-            previous, nxt = neighbour_rows(t_rows, n)
-            unrelated_rows = bool(info.get("consecutive_unrelated"))
             shift, said = nonlinearity_shift(inliers, x_ref, ref.r, ref.jacobian, info, inflation,
-                                             previous=previous if unrelated_rows else None,
-                                             around=None if unrelated_rows else (previous, nxt, t_rows))
+                                             t_s=None if t_s is None else np.asarray(t_s, dtype=float)[rows],
+                                             unrelated=bool(info.get("consecutive_unrelated")))
         if shift is not None and said is not None:
             std = np.hypot(std, shift)  # the answer's possible bias beside its noise
             warnings.append(said)
@@ -1602,23 +1599,19 @@ degrees of freedom towards it over k, so that below it no record is significant 
 one-off fit)."""
 
 
-def neighbour_rows(t_s: np.ndarray | None, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """For each of ``n`` rows, the row before it and the row after it in time order (``t_s``; file order without
-    times), -1 where there is none."""
-    # in order already (most files): no sort, 0.2 s on 2e6 rows
+def neighbour_rows(t_s: np.ndarray | None, n: int, rows: slice | np.ndarray = slice(None)
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """For ``rows`` of ``n`` (all of them by default), the row before each and the row after it in time order
+    (``t_s``; file order without times), -1 where there is none."""
+    at = np.arange(n)[rows]
+    # in order already (most files): no sort (0.2 s on 2e6 rows), and only the rows asked for
     if t_s is None or not (np.diff(np.asarray(t_s, dtype=float)) < 0).any():
-        return np.arange(-1, n - 1), np.where(np.arange(1, n + 1) < n, np.arange(1, n + 1), -1)
+        return at - 1, np.where(at + 1 < n, at + 1, -1)
     order = np.argsort(np.asarray(t_s, dtype=float), kind="stable")
     before, after = np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64)
     before[order[1:]] = order[:-1]
     after[order[:-1]] = order[1:]
-    return before, after
-
-
-def previous_rows(t_s: np.ndarray | None, n: int) -> np.ndarray:
-    """For each of ``n`` rows, the row before it in time order (``t_s``; file order without times), -1 for the
-    first."""
-    return neighbour_rows(t_s, n)[0]
+    return before[rows], after[rows]
 
 
 ORDER_IN_FIELD = {"quadratic": 2.0, "cubic": 3.0, "cross-axis": 2.0, "previous-reading": 1.0}
@@ -1671,12 +1664,12 @@ def _columns_tests(tri_all: np.ndarray, p: int, masks: np.ndarray, m: int, effec
 
 
 def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray, jacobian: np.ndarray | None,
-                       info: dict, inflation: float = 1.0, previous: np.ndarray | None = None,
-                       around: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None
-                       ) -> tuple[np.ndarray | None, str | None]:
+                       info: dict, inflation: float = 1.0, t_s: np.ndarray | None = None,
+                       unrelated: bool | None = None) -> tuple[np.ndarray | None, str | None]:
     """Whether the axes respond beyond the model to second and third order or to the reading before (``RESPONSES``:
     each reading ``raw_k + c_k d_k² + e_k d_k³ + h_k d_i d_j + a_k (d_k' - d_k)``, d = raw - o, d' the reading before in
-    time order: ``previous``, from ``previous_rows``, else file order), and what that does to the answer: the residual
+    time order of ``t_s``, else file order; where ``unrelated``, consecutive readings at unrelated attitudes; False: a
+    path, where a lag's column is used instead; None: not looked for), and what that does to the answer: the residual
     ``r`` at the optimum ``x`` regressed on the model's Jacobian and, three by three, the columns ``dr/dc_k = g_k
     d_k²``, ``dr/de_k = g_k d_k³``, ``dr/dh_k = g_k d_i d_j`` and ``dr/da_k = g_k (d_k' - d_k)`` (g = M^T u, u the
     corrected direction), each three in an F test at ``NONLINEARITY_P / len(RESPONSES)``.  At random attitudes a
@@ -1711,22 +1704,21 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     u = c / np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), 1e-300)[:, None]
     g = u @ mat  # dr/d(raw_k)
     q2 = g * d * d
-    # the reading before each, less this one's noise-free part: d - (M^-1 u) r is the reading the model gives for the
-    # reference's magnitude along this direction (d itself would put the residual's own noise into the column: on a
-    # smooth path, where consecutive readings differ by little more than the noise, that made it significant on clean
-    # records); the first row's column is 0
-    settled = d - np.linalg.solve(mat, u.T).T * r[rows][:, None]
-    if around is not None:  # along a path: the rate of change, (d_next - d_prev) / (t_next - t_prev), for a lag
-        before, after = around[0][rows], around[1][rows]
+    before, after = neighbour_rows(t_s, n, rows) if unrelated is not None else (np.full(m, -1), np.full(m, -1))
+    if unrelated is False:  # along a path: the rate of change, (d_next - d_prev) / (t_next - t_prev), for a lag
         has = (before >= 0) & (after >= 0)
-        span = (np.where(has, after, 0) - np.where(has, before, 0)).astype(float) if around[2] is None else \
-            around[2][np.maximum(after, 0)] - around[2][np.maximum(before, 0)]
+        span = (np.where(has, after, 0) - np.where(has, before, 0)).astype(float) if t_s is None else \
+            t_s[np.maximum(after, 0)] - t_s[np.maximum(before, 0)]
         has &= span > 0
         moved = (objective.raw_nT[np.maximum(after, 0)] - objective.raw_nT[np.maximum(before, 0)]) \
             / np.where(has, span, 1.0)[:, None]
         moved[~has] = 0.0
     else:
-        before = np.full(m, -1) if previous is None else previous[rows]
+        # the reading before each, less this one's noise-free part: d - (M^-1 u) r is the reading the model gives for
+        # the reference's magnitude along this direction (d itself would put the residual's own noise into the
+        # column: on a smooth path, where consecutive readings differ by little more than the noise, that made it
+        # significant on clean records); the first row's column is 0
+        settled = d - np.linalg.solve(mat, u.T).T * r[rows][:, None]
         moved = objective.raw_nT[np.maximum(before, 0)] - o - settled
         moved[before < 0] = 0.0
     built = {"quadratic": q2, "cubic": q2 * d, "cross-axis": g * d[:, [1, 0, 0]] * d[:, [2, 2, 1]],
@@ -1741,7 +1733,7 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     tri_all = np.asarray(np.linalg.qr(np.column_stack([jac / scale, cols, -r[rows]]), mode="r"))
     within = tri_all[:p, p:p + width]  # Q_J^T of the response's columns
     testable = np.sqrt(np.maximum(1.0 - np.einsum("ij,ij->j", within, within), 0.0)) >= NONLINEARITY_OUTSIDE
-    if previous is None and around is None and "previous-reading" in RESPONSES:  # not asked for: its columns are 0
+    if unrelated is None and "previous-reading" in RESPONSES:  # not asked for: its columns are 0
         testable[3 * RESPONSES.index("previous-reading"):3 * RESPONSES.index("previous-reading") + 3] = False
     effect = max(float(inflation) ** 2, 1.0)  # samples per independent one
     kinds = np.arange(width) // 3
@@ -1768,13 +1760,14 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     size = np.full(width, np.nan)
     order = np.array([ORDER_IN_FIELD[kind] for kind in RESPONSES])
     size[kept] = np.abs(coef[p:]) / norms[kept] * full ** order[kinds[kept]]
-    names = [("lag" if kind == "previous-reading" and around is not None else kind) for kind in RESPONSES]
+    lag = unrelated is False  # the previous reading's kind is a lag, its coefficient in seconds (samples without t)
+    names = [("lag" if kind == "previous-reading" and lag else kind) for kind in RESPONSES]
     words = [names[j] for j in range(len(RESPONSES)) if kept[3 * j:3 * j + 3].any()]
-    if around is not None and "previous-reading" in RESPONSES:  # a lag: its coefficient in seconds (rows without t)
+    if lag and "previous-reading" in RESPONSES:
         j = RESPONSES.index("previous-reading")
         size[3 * j:3 * j + 3] = size[3 * j:3 * j + 3] / full
-    units = [("s" if around[2] is not None else "samples") if around is not None and kind == "previous-reading"
-             else "nT at full field" for kind in RESPONSES]
+    units = [("s" if t_s is not None else "samples") if lag and kind == "previous-reading" else "nT at full field"
+             for kind in RESPONSES]
     said = "; ".join(f"{names[j]} " + ", ".join("not tested" if np.isnan(v) else f"{v:.3g}"
                                                for v in size[3 * j:3 * j + 3]) + f" {units[j]}"
                      for j in range(len(RESPONSES)) if names[j] in words)

@@ -160,7 +160,10 @@ def test_a_reading_that_keeps_part_of_the_previous_attitude_is_stated_in_the_dev
 def test_the_reading_before_follows_the_time_column():
     """Rows out of time order take the row before in time (a logger restarted, files joined); rows in order, or no
     time column, the row before in the file; the first has none (-1)."""
-    from magbench.calibrators.acceptance import previous_rows
+    from magbench.calibrators.acceptance import neighbour_rows
+
+    def previous_rows(t_s, n):
+        return neighbour_rows(t_s, n)[0]
 
     assert previous_rows(np.array([0.0, 2.0, 1.0, 3.0]), 4).tolist() == [-1, 2, 0, 1]
     assert previous_rows(np.array([0.0, 1.0, 1.0, 2.0]), 4).tolist() == [-1, 0, 1, 2]
