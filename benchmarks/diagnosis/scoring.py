@@ -17,7 +17,12 @@ ATTITUDE_SHAPED = ("nonlinearity",)
 MIN_SPREAD_FOR_ATTITUDE_SHAPED = 0.35
 """An attitude-shaped effect needs readings that span three dimensions: along their least-covered direction
 at least this share of the largest spread (a vehicle's band, a level turntable fall short; there the base
-model's poorly determined directions and the effect's columns trade places)."""
+model's poorly determined directions and the effect's columns trade places).  Lowered to 0.15 on the four independent
+generators (round 22, every record whose spread lies between; 0.35 kept): mean score +0.00, +0.96, +0.64 and +0.02
+points on generators 1-4, wrong names +1, +3, +1 and +2, and a clean buoy (generator 3, case 1248, spread 0.16) went
+from ``none`` to ``unexplained``: there the nonlinearity's columns and the base model's loosely held direction took
+59 % of a clean residual on random folds (z 29.7), the naming rule refused it on the attitude-blocked folds, but the
+model floor it lowered made the base residual significant.  The held-out tests do not replace this guard."""
 DISTINCT_PER_PARAMETER = 3
 """... and at least this many distinct directions per parameter of base + effect (a record of a dozen held
 attitudes fits any smooth function of direction through them)."""
