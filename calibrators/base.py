@@ -473,7 +473,7 @@ class Calibrator(metaclass=_Sealed):
         info: dict = {}
         rejections, notes = assess(objective, x, improved=status != "worse_than_start", robust=self.robust,
                                    closed_form=self.closed_form, physical_box=physical, limits=self.acceptance,
-                                   info=info, t_s=dataset.t_s, at=at, memo=known.get,
+                                   info=info, t_s=dataset.t_s, at=at, memo=known.get, temp_C=dataset.temp_C,
                                    reference_estimated="reference_estimated" in dataset.meta)
         uncertainty, noise = _uncertainty(info.get("inliers", objective), x, info.get("noise_nT"),
                                           info.get("crb_std_at"), info.get("uncertainty_inflation", 1.0))
