@@ -57,7 +57,7 @@ from magbench.numerics import (
     roughness,
     systematic_rows,
 )
-from magbench.simulate.effects import HOLD_ANGLE_RAD, HOLD_MIN_SAMPLES, HOLD_SHARE, MIN_TEMPERATURE_SPAN_C
+from magbench.simulate.effects import COLUMNS, HOLD_ANGLE_RAD, HOLD_MIN_SAMPLES, HOLD_SHARE, Columns
 from magbench.simulate.sensor import PARAM_NAMES, embed
 
 from .core.objective import ScalarObjective, correction_matrix_one
@@ -1599,8 +1599,8 @@ following the temperature: T̄ its mean over the rows tested, so that the model'
 mean temperature)."""
 THERMAL = ("temperature gain", "temperature offset")
 """The kinds of ``RESPONSES`` that need a logged temperature: without one, or with one whose range over the rows
-tested is below MIN_TEMPERATURE_SPAN_C (the diagnosis's own least identifiable range: a thermostat's record), they
-are not asked, and the other kinds' level stays NONLINEARITY_P / 4."""
+tested is below the diagnosis's own least identifiable range (``COLUMNS["temp"].informative``: a thermostat's
+record), they are not asked, and the other kinds' level stays NONLINEARITY_P / 4."""
 _CHI2_AT_PART_P = {4: (0.0, 26.601, 30.403, 33.521), 6: (0.0, 27.385, 31.214, 34.355)}
 """By the number of kinds asked, the chi-square distribution's upper NONLINEARITY_P / that number point for 1 to 3
 degrees of freedom (``scipy.stats.chi2.isf(1e-6 / 4, k)`` and ``1e-6 / 6``, rounded down): the F statistic's critical
@@ -1704,8 +1704,8 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     d_k²``, ``dr/de_k = g_k d_k³``, ``dr/dh_k = g_k d_i d_j`` and ``dr/da_k = g_k (d_k' - d_k)`` (g = M^T u, u the
     corrected direction), each three in an F test at ``NONLINEARITY_P`` over the number of kinds asked; with a
     logged temperature ``temp_C`` that changes, also ``g_k (T - T̄) d_k`` and ``g_k (T - T̄)`` (each axis's gain and
-    zero following the temperature: on a turning path, 3 nT at full field of a warm-up's gain change had been accepted
-    6-9 deviations from the mean temperature's truth with the temperature in the file).  At random attitudes a
+    zero following the temperature: along a tumbling path, 3 nT at full field of a warm-up's gain change had been
+    accepted up to 16 deviations from the mean temperature's truth with the temperature in the file).  At random attitudes a
     reading taken before the filter settled keeps part of an unrelated one: a shrunk scale and noise-like scatter,
     which the structure test passes; 3 nT had been accepted 9-24 deviations off.  A fluxgate's own nonlinearity is
     mostly of odd order (a cubic term), a magnetized core or an amplifier's offset makes it even, and the field across
@@ -1728,8 +1728,8 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     rows = systematic_rows(n, NONLINEARITY_ROWS)
     raw = objective.raw_nT[rows]
     m = raw.shape[0]
-    warm = None if temp_C is None else np.asarray(temp_C, dtype=float)[rows]
-    thermal = warm is not None and bool(np.isfinite(warm).all()) and float(np.ptp(warm)) >= MIN_TEMPERATURE_SPAN_C
+    warm = Columns(raw, objective.f_ref_nT[rows], temp_C=None if temp_C is None else np.asarray(temp_C, dtype=float)[rows])
+    thermal = COLUMNS["temp"].informative(warm)
     kinds_here = tuple(kind for kind in RESPONSES if thermal or kind not in THERMAL)  # no columns for kinds not asked
     width = 3 * len(kinds_here)
     if m <= p + width + MIN_RESIDUAL_DOF:
@@ -1759,8 +1759,8 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
         moved[before < 0] = 0.0
     built = {"quadratic": q2, "cubic": q2 * d, "cross-axis": g * d[:, [1, 0, 0]] * d[:, [2, 2, 1]],
              "previous-reading": g * moved}
-    if thermal and warm is not None:
-        dt_c = (warm - warm.mean())[:, None]
+    if thermal and warm.temp_C is not None:
+        dt_c = (warm.temp_C - warm.temp_C.mean())[:, None]
         built["temperature gain"], built["temperature offset"] = g * d * dt_c, g * dt_c
     cols = np.column_stack([built[kind] for kind in kinds_here])
     norms = np.maximum(np.sqrt(np.einsum("ij,ij->j", cols, cols)), 1e-300)
@@ -1778,7 +1778,8 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     effect = max(float(inflation) ** 2, 1.0)  # samples per independent one
     kinds = np.arange(width) // 3
     masks = testable & (kinds == np.arange(len(kinds_here))[:, None])
-    found = [(p_value, kept) for p_value, kept in zip(_columns_tests(tri_all, p, masks, m, effect, asked), masks)
+    found = [(p_value, kept, kinds_here[j] in THERMAL)
+             for j, (p_value, kept) in enumerate(zip(_columns_tests(tri_all, p, masks, m, effect, asked), masks))
              if p_value is not None]
     if not found:
         return None, None
@@ -1796,14 +1797,13 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
         return chosen, fitted[0], fitted[1] / scale
 
     kept, coef, shift = fit_kinds(found)
-    is_thermal = [kinds_here[int(kinds[np.flatnonzero(f[1])[0]])] in THERMAL for f in found]
-    if any(is_thermal) and not all(is_thermal):
+    if len({f[2] for f in found}) == 2:
         # beside other kinds, the temperature's kinds and the others are also fitted apart, and each parameter keeps
         # its largest shift: along a path the quadratic and cubic columns trade with the temperature's, and the joint
         # fit had moved a gain 10 deviations less than the temperature's own fit (a warm-up's gain change, 3 nT at full
         # field), or an answer 5.8 deviations less than the other kinds' fit without them
         for side in (True, False):
-            some = [f for f, thermal_kind in zip(found, is_thermal) if thermal_kind is side]
+            some = [f for f in found if f[2] is side]
             other = fit_kinds(some)[2]
             shift = np.where(np.abs(other) > np.abs(shift), other, shift)
     full = float(np.median(objective.f_ref_nT))

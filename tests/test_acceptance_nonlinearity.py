@@ -16,11 +16,16 @@ from magbench.simulate.dataset import Dataset
 NAMES = ["alpha_rad", "beta_rad", "gamma_rad", "kx", "ky", "kz", "ox_nT", "oy_nT", "oz_nT"]
 
 
-def _sensor(body):
-    truth = np.array([0.004, -0.003, 0.005, 1.01, 0.99, 1.02, 120.0, -80.0, 60.0])
+def _unscaled(body, truth):
+    """The body field through the paper's non-orthogonality P^-1 (CONTRACT section 1), before the axes' gains."""
     a, b, g = truth[:3]
     p = np.array([[np.cos(a) * np.cos(g), 0, 0], [np.sin(g), np.cos(b), 0], [np.sin(a) * np.cos(g), np.sin(b), 1.0]])
-    return truth, body @ (np.diag(truth[3:6]) @ np.linalg.inv(p)).T + truth[6:]
+    return body @ np.linalg.inv(p).T
+
+
+def _sensor(body):
+    truth = np.array([0.004, -0.003, 0.005, 1.01, 0.99, 1.02, 120.0, -80.0, 60.0])
+    return truth, truth[3:6] * _unscaled(body, truth) + truth[6:]
 
 
 def _worst(amplitude_nT: float, order: int = 2, seeds=range(5)) -> list[tuple[bool, float, bool]]:
@@ -257,10 +262,7 @@ def _warming_gains(amplitude_nT: float, seeds=range(6), with_temperature: bool =
         gains = truth[3:6] * (1.0 + sign * amplitude_nT / 50_000.0 * rise[:, None])
         truth = truth.copy()
         truth[3:6] = gains.mean(axis=0)
-        a, b, g = truth[:3]
-        p = np.array([[np.cos(a) * np.cos(g), 0, 0], [np.sin(g), np.cos(b), 0],
-                      [np.sin(a) * np.cos(g), np.sin(b), 1.0]])
-        raw = gains * (body @ np.linalg.inv(p).T) + truth[6:] + rng.normal(0.0, 1.0, body.shape)
+        raw = gains * _unscaled(body, truth) + truth[6:] + rng.normal(0.0, 1.0, body.shape)
         temp = 20.0 + 15.0 * rise + rng.normal(0.0, 0.05, len(t))
         res = magbench.calibrate(Dataset(raw, f_ref_nT=np.full(len(t), 50_000.0), t_s=t,
                                          temp_C=temp if with_temperature else None))
