@@ -394,6 +394,12 @@ def cmd_calibrate(args) -> int:
         threadpool_limits(limits=1)
     with slow_phase(f"calibrating {len(data):,} readings ({args.method}, then the acceptance checks)", talk):
         result = cal.fit(data, field="auto") if field_auto else cal.fit(data)
+    if target is not None and not result.accepted and args.accept_any and fmt != "json":
+        # magbench's JSON keeps "accepted": false (apply then refuses it unless --accept-any); the other formats have
+        # no field for it, so a rejected answer would reach MATLAB, a flight controller or apply as a good one
+        raise InputError(f"calibration rejected ({cli_words(result.rejections[0])}); not saved to {target}: a {fmt} "
+                         "file cannot say it was rejected, and whatever reads it would take it for a good one; save it "
+                         "as magbench JSON (--export json), which keeps the rejection")
     obj = result.as_dict()
     obj["input_sha256"] = data.meta.get("file_sha256")  # the bytes the readings were parsed from
     ref = result.reference
@@ -408,7 +414,6 @@ def cmd_calibrate(args) -> int:
     lines = _calibration_lines(result, len(data))
     saved = None
     if target is not None and (result.accepted or args.accept_any):
-
         saved = export(result.calibration(), target, fmt, force=args.force, inputs=[args.file])
         lines.append(f"  saved {fmt} calibration to {saved}")
     obj["saved"] = str(saved) if saved else None
@@ -437,9 +442,9 @@ def cmd_apply(args) -> int:
     if problems and not args.accept_any:
         raise InputError(f"{args.calibration}: {problems[0]}: refusing to apply it (--accept-any applies it anyway)")
     info = apply_to_csv(cal, args.file, args.out, units=args.units, force=args.force,
-                        cal_name=Path(args.calibration).name, inputs=[args.calibration])
+                        cal_name=Path(args.calibration).name, inputs=[args.calibration], accept_any=args.accept_any)
     info.update(calibration=str(args.calibration), method=cal.method, model=cal.model, data_digest=cal.data_digest,
-                warnings=[f"applied by --accept-any: {p}" for p in problems])
+                warnings=[f"applied by --accept-any: {p}" for p in problems] + info["warnings"])
     text = (f"wrote {info['n_rows']} rows to {info['out']}: {', '.join(info['columns_added'])} added ({info['units']}; "
             f"{cal.method or cal.origin} {cal.model} calibration from {args.calibration})")
     if "rms_f_cal_minus_f_ref_nT" in info:
@@ -555,6 +560,8 @@ def _campaign_from_args(args):
         specs = _at_budgets(specs, args.budgets, available())
     campaign = Campaign(scenarios, specs, trials=args.trials, seed=args.seed)
     campaign.tasks()  # bad methods are refused before anything in --out is touched
+    for spec in specs:  # and bad hyper-parameters (ga:pc=2 had failed in the first run, leaving a partial campaign)
+        make(spec.name, **dict(spec.params))
     return campaign, out
 
 
@@ -1013,9 +1020,9 @@ def main(argv=None) -> int:
             args._argv = list(argv) if argv is not None else sys.argv[1:]
             if isinstance(getattr(args, "file", None), str):
                 args.file = resolve_example(args.file)
-            if not getattr(args, "command", None):
-                parser.print_help(sys.stderr)
-                return EXIT_USAGE
+            if not getattr(args, "command", None):  # a usage error: one line, as every other (CONTRACT section 3)
+                choices = next(a.choices for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+                raise InputError(f"a command is needed: {', '.join(choices)} (magbench --help says what each does)")
             status = args.func(args)
         _show_warnings(caught)
         return status

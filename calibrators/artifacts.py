@@ -333,8 +333,21 @@ def _bounded_number(kind):
     def parse(text: str):
         if len(text.lstrip("-")) > MAX_JSON_DIGITS:
             raise InputError(f"a number of {len(text):,} characters (the limit is {MAX_JSON_DIGITS})")
-        return kind(text)
+        value = kind(text)
+        if kind is float and not math.isfinite(value):  # 1e999: JSON's grammar, beyond any double (read as inf)
+            raise InputError(f"the number {text} is beyond the range of a double")
+        return value
     return parse
+
+
+def _unique_keys(pairs: list) -> dict:
+    """A JSON object, refused when a key repeats (``{"accepted": false, "accepted": true}`` had kept the last)."""
+    out: dict = {}
+    for key, value in pairs:
+        if key in out:
+            raise InputError(f"the key {key!r} appears twice in one object")
+        out[key] = value
+    return out
 
 
 def _no_constant(name: str):
@@ -348,7 +361,7 @@ def parse_json(text: str, where: str = "calibration"):
         raise InputError(f"{where}: JSON nested {depth:,} deep, more than the limit of {MAX_JSON_DEPTH}")
     try:
         return json.loads(text, parse_int=_bounded_number(int), parse_float=_bounded_number(float),
-                          parse_constant=_no_constant)
+                          parse_constant=_no_constant, object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as exc:
         raise InputError(f"{where} is not JSON ({exc.msg} at line {exc.lineno})") from None
     except InputError as exc:
@@ -380,8 +393,9 @@ def validate_schema(d, where: str = "calibration") -> None:
         if key not in d:
             raise InputError(f"{where}: missing entry {key!r}")
     median_nT = (d.get("reference") or {}).get("median_nT")
-    if median_nT is not None and (isinstance(median_nT, bool) or not isinstance(median_nT, (int, float))):
-        raise InputError(f"{where}: entry reference.median_nT must be a number of nT, got {median_nT!r}")
+    if median_nT is not None and (isinstance(median_nT, bool) or not isinstance(median_nT, (int, float))
+                                  or not median_nT > 0):
+        raise InputError(f"{where}: entry reference.median_nT must be a positive number of nT, got {median_nT!r}")
     for key in ("rejections", "warnings"):
         if not all(isinstance(v, str) for v in d.get(key) or ()):
             raise InputError(f"{where}: entry {key!r} must be a list of strings")
@@ -420,8 +434,23 @@ def _mat_inflated_size(data: bytes, where: str) -> int:
     return total
 
 
+def _all_numbers(value) -> bool:
+    """Whether ``value`` (JSON lists, or a .mat file's array) holds numbers only: no true/false, no text."""
+    if isinstance(value, np.ndarray):
+        return value.dtype.kind in "iuf"
+    if isinstance(value, (list, tuple)):
+        return all(_all_numbers(v) for v in value)
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
 def _from_magcal(d: dict, where: str, field_nT=None) -> Calibration:
-    """A calibration from MATLAB magcal's ``A``, ``b`` (and ``expmfs``): M = A^T, o = b."""
+    """A calibration from MATLAB magcal's ``A``, ``b`` (and ``expmfs``): M = A^T, o = b.  ``expmfs`` NaN (what a
+    .mat export of a calibration without a reference holds) is none; another non-number, or one not positive, is
+    refused (a string had been ignored)."""
+    for key in ("A", "b"):
+        if key in d and not _all_numbers(d[key]):
+            raise InputError(f"{where}: a magcal calibration needs A (3x3) and b (3) numbers ({key} holds "
+                             "true/false or text)")
     try:
         a = np.array(d["A"], dtype=float).reshape(3, 3)
         b = np.array(d["b"], dtype=float).reshape(3)
@@ -432,10 +461,18 @@ def _from_magcal(d: dict, where: str, field_nT=None) -> Calibration:
     if not np.linalg.det(a) > 0 and not np.linalg.det(a) < 0:
         raise InputError(f"{where}: A is singular")
     expmfs = d.get("expmfs", field_nT)
-    try:
-        expmfs = float(np.asarray(expmfs, dtype=float).reshape(-1)[0]) if expmfs is not None else None
-    except (TypeError, ValueError, IndexError):
-        expmfs = None
+    if expmfs is not None:
+        try:
+            if not _all_numbers(expmfs):
+                raise ValueError
+            expmfs = float(np.asarray(expmfs, dtype=float).reshape(-1)[0])
+        except (TypeError, ValueError, IndexError):
+            raise InputError(f"{where}: expmfs must be the reference magnitude in nT (a number), got "
+                             f"{str(expmfs)[:40]!r}") from None
+        if math.isnan(expmfs):
+            expmfs = None
+        elif not 0 < expmfs < math.inf:
+            raise InputError(f"{where}: expmfs must be a positive magnitude in nT, got {expmfs:g}")
     m = a.T
     try:
         params = ErrorParams.from_correction(m, b)
@@ -588,8 +625,29 @@ def mixed_units(raw_nT: np.ndarray) -> str | None:
     return reference_problems(raw_nT, np.full(len(raw_nT), typical if typical > 0 else 1.0))
 
 
+CORRECTED_RATIO_RANGE = (0.5, 2.0)
+"""``apply``: the corrected magnitudes' median over the file's reference (else over the raw readings' median
+magnitude) within which a calibration can belong to the readings: a fluxgate's or a vehicle's correction changes the
+magnitude by per cent, not by a factor (a matrix four times too large had written 200,000 nT against a reference of
+50,000 nT, exit 0)."""
+
+
+def correction_misfit(f_cal_nT: np.ndarray, raw_nT: np.ndarray, f_ref_nT: np.ndarray | None) -> str | None:
+    """Why corrected magnitudes cannot be the field these readings measured, or None (``CORRECTED_RATIO_RANGE``)."""
+    if f_ref_nT is not None:
+        against, what = float(np.median(f_ref_nT)), "the file's reference f_ref"
+    else:
+        against, what = float(np.median(np.sqrt(np.einsum("ij,ij->i", raw_nT, raw_nT)))), "the raw readings'"
+    ratio = float(np.median(f_cal_nT)) / against if against > 0 else math.inf
+    if CORRECTED_RATIO_RANGE[0] <= ratio <= CORRECTED_RATIO_RANGE[1]:
+        return None
+    return (f"the corrected magnitudes (median {np.median(f_cal_nT):.6g} nT) are {ratio:.3g} times {what} (median "
+            f"{against:.6g} nT): the calibration is not for these readings (another sensor or unit, or a changed "
+            "matrix)")
+
+
 def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = False, cal_name: str = "",
-                 inputs=()) -> dict:
+                 inputs=(), accept_any: bool = False) -> dict:
     """Write ``out``: the data file ``src`` with the corrected field ``bx_cal, by_cal, bz_cal`` and its
     magnitude ``f_cal`` added as the last columns (in ``units``, the unit of the file's field columns);
     every other line and column of ``src`` is copied byte for byte, its ``#`` metadata lines too, with
@@ -598,13 +656,17 @@ def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = Fa
     ``src`` or one of ``inputs`` (by inode, hard links included) or exists (unless ``force``), a file that
     already has those columns, readings whose magnitude does not fit the calibration's reference
     (wrong ``units``), rows in mixed units (``mixed_units``) and readings of exactly 0 on every axis
-    (``zero_readings``).  ``out`` is written atomically."""
+    (``zero_readings``), a reference that does not belong to the readings (``acceptance.reference_problems``: f_ref in
+    uT beside readings in nT), and, unless ``accept_any`` (then ``info["warnings"]`` says it), corrected magnitudes
+    that cannot be the measured field (``correction_misfit``).  ``out`` is written atomically."""
     src, out = Path(src), Path(out)
     check_output(out, [src, *inputs], force)
     source = read_input(src, "data file")
     field = cal.field_nT if math.isfinite(cal.field_nT) and cal.field_nT > 0 else None
     data = read_csv(src, units=units, require_vector=True, expected_field_nT=field, source=source)
     mixed = mixed_units(data.raw_nT) or zero_readings(data.raw_nT)
+    if not mixed and data.f_ref_nT is not None:
+        mixed = reference_problems(data.raw_nT, data.f_ref_nT, data.t_s)
     if mixed:
         raise InputError(f"{src}: {with_file_lines(mixed, data.meta.get('first_data_line'))}")
     head = _parse_head(newline_lines(source.data), str(src))
@@ -615,6 +677,9 @@ def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = Fa
                          "(apply the calibration to the raw file)")
     factor = UNIT_FACTORS_NT[units]
     corrected = cal.correct(data.raw_nT)
+    misfit = correction_misfit(np.linalg.norm(corrected, axis=1), data.raw_nT, data.f_ref_nT)
+    if misfit and not accept_any:
+        raise InputError(f"{src}: {misfit}; nothing written (--accept-any writes it anyway)")
     values = np.column_stack([corrected, np.linalg.norm(corrected, axis=1)]) / factor
     lines = source.data.decode("utf-8-sig").splitlines(keepends=True)
     skipped = head.skipped
@@ -644,7 +709,7 @@ def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = Fa
     atomic_write(out, text, [source, *inputs], force)
     f_cal_nT = values[:, 3] * factor
     info = {"out": str(out), "n_rows": int(len(values)), "columns_added": list(CAL_COLUMNS), "units": units,
-            "input_sha256": source.sha256}
+            "input_sha256": source.sha256, "warnings": [f"written by --accept-any: {misfit}"] if misfit else []}
     if data.f_ref_nT is not None:
         info["rms_f_cal_minus_f_ref_nT"] = float(np.sqrt(np.mean((f_cal_nT - data.f_ref_nT) ** 2)))
     return info

@@ -151,12 +151,21 @@ def drift_degree(m: int, reserved: int = 0) -> int:
 def drift_columns(t_s: np.ndarray, unit: np.ndarray, degree: int, constant: bool = True) -> np.ndarray:
     """Columns of a drift in time, each scaled to unit length: Legendre polynomials of the time mapped onto [-1, 1]
     of degree 0 (``constant``) or 1 to ``degree``, alone (a drift of the field's magnitude) and times each axis's
-    direction cosine ``unit`` (n, 3) (a drift of the body's offsets, seen in the magnitude along the field).
+    direction cosine ``unit`` (n, 3) (a drift of the body's offsets, seen in the magnitude along the field);
+    without the constant, every column centred (the constant outside their span, whatever the times).
     The acceptance checks' and the diagnosis's floor's fit of a drift at random attitudes."""
     t = np.asarray(t_s, dtype=float)
     tau = 2.0 * (t - t.min()) / max(float(np.ptp(t)), 1e-300) - 1.0
     legendre = np.polynomial.legendre.legvander(tau, degree)[:, (0 if constant else 1):]
     design = np.hstack([legendre] + [legendre * unit[:, [a]] for a in range(3)])
+    if not constant:
+        # every column centred: a nine-parameter model's Jacobian holds |M (raw - o)| = r + F (its scales are
+        # homogeneous), so columns that can make the constant make the residual itself.  On few distinct times (stamps
+        # rounded to the minute, all equal but one) or clustered ones they could, and a clean record's drift left
+        # 1e-10 nT of it and was rejected.  A column that was the constant there is dropped (set to zero).
+        before = np.linalg.norm(design, axis=0)
+        design -= design.mean(axis=0)
+        design[:, np.linalg.norm(design, axis=0) <= 1e-9 * before] = 0.0
     design /= np.maximum(np.linalg.norm(design, axis=0), 1e-300)
     return design
 

@@ -139,6 +139,9 @@ class Dataset:
             if largest > MAX_ABS_OTHER:  # the reader's own limit
                 raise InputError(f"{name} has values beyond {MAX_ABS_OTHER:g} in magnitude (up to {largest:.3g}): a "
                                  f"broken column, not {name}")
+            hot = temperature_problem(arr) if name == "temp_C" else None
+            if hot is not None:
+                raise InputError(f"temp_C in row {hot[0]} is {hot[1]}")
             object.__setattr__(self, name, arr)
         object.__setattr__(self, "meta", dict(self.meta))
 
@@ -204,6 +207,24 @@ NUMERIC_COLUMNS = FIELD_COLUMNS + ("t", "temp", "heading_deg", "ax", "ay", "az")
 """Columns read as numbers (CONTRACT section 2); any other column is kept as text and ignored."""
 MAX_ABS_OTHER = 1.0e12
 """The largest magnitude accepted in the other numeric columns (time in s, temperature, heading)."""
+TEMP_RANGE_C = (-273.15, 1000.0)
+"""A logged temperature in deg C lies within these: below absolute zero is a missing-value code (-9999) or another
+unit, above 1000 C no magnetometer works (a broken cell).  One such cell had wrecked a diagnosis without a word (a
+temperature held-out RMS of 677 nT, 'beyond time' -1e15 %); a file in kelvin or Fahrenheit stays within them and is
+read (only the temperature's changes are used)."""
+
+
+def temperature_problem(values: np.ndarray) -> tuple[int, str] | None:
+    """(the first row outside ``TEMP_RANGE_C``, why), or None."""
+    low, high = TEMP_RANGE_C
+    with np.errstate(invalid="ignore"):
+        bad = np.flatnonzero(~((values >= low) & (values <= high)))
+    if not len(bad):
+        return None
+    v = float(values[bad[0]])
+    why = (f"below absolute zero ({v:g} C: a missing-value code? temperatures are in deg C)" if v < low else
+           f"above {high:g} C ({v:g}), where no magnetometer works: a broken cell")
+    return int(bad[0]), why
 DELIMITERS = (",", ";", "\t")
 """Column separators recognised in the header row (CONTRACT: comma; semicolon and tab are read too)."""
 ENCODINGS = ("utf-8-sig",)
@@ -553,6 +574,9 @@ def _numeric(path: Path, table: dict[str, np.ndarray], name: str, first_line: in
                 "semicolons or tabs)" if isinstance(raw_value, str) and DECIMAL_COMMA.match(raw_value.strip()) else "")
         hint = hint or _line_hint(table, int(bad[0]))
         raise InputError(f"{path}: column {name} has a value {why} ({raw_value!r}) on line {rows}{more}{hint}")
+    hot = temperature_problem(values) if name == "temp" else None
+    if hot is not None:
+        raise InputError(f"{path}: column temp on line {first_line + hot[0]} is {hot[1]}")
     return values
 
 

@@ -325,7 +325,7 @@ def test_edges_the_second_probe_found_at_the_new_checks(sphere, tmp_path):
     saved["reference"]["median_nT"] = "x"
     path = tmp_path / "cal.json"
     path.write_text(json.dumps(saved))
-    with pytest.raises(InputError, match="reference.median_nT must be a number"):
+    with pytest.raises(InputError, match="reference.median_nT must be a positive number"):
         magbench.load_calibration(path)
 
 

@@ -10,9 +10,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from magbench import paper
-from magbench.calibrators.acceptance import MIN_REFERENCE_NT
+from magbench.calibrators.acceptance import GLITCH_FACTOR, MIN_REFERENCE_NT
 from magbench.errors import InputError
-from magbench.simulate.dataset import MAX_ABS_OTHER, ScalarSeries
+from magbench.simulate.dataset import MAX_ABS_OTHER, ScalarSeries, temperature_problem
 from magbench.simulate.effects import EFFECTS, OutlierEffect, library_effects
 from magbench.simulate.sensor import paper_matrix
 
@@ -86,21 +86,59 @@ def series_problem(series: ScalarSeries) -> str | None:
             return f"{name} is NaN or infinite in row(s) {', '.join(map(str, bad[:5]))}"
         if name in ("t_s", "temp_C", "heading_deg") and len(a) and float(np.max(np.abs(a))) > MAX_ABS_OTHER:
             return f"{name} has values beyond {MAX_ABS_OTHER:g} in magnitude: a broken column, not {name}"
-    after = series.extra.get("f_meas_after") if isinstance(series.extra, dict) else None
-    if after is not None and (np.shape(after) != (n,) or not np.all(np.isfinite(np.asarray(after, dtype=float)))):
-        return "f_meas_after must be one finite value per row"
+        hot = temperature_problem(a) if name == "temp_C" else None
+        if hot is not None:
+            return f"temp_C in row {hot[0]} is {hot[1]}"
+    extra = series.extra if isinstance(series.extra, dict) else {}
+    measured = {"f_meas_nT": np.asarray(series.f_meas_nT, dtype=float)}
+    for name in ("f_meas_before", "f_meas_after"):
+        value = extra.get(name)
+        if value is None:
+            continue
+        try:
+            a = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            return f"{name} must be numbers, got {type(value).__name__}"
+        if a.shape != (n,) or not np.all(np.isfinite(a)):
+            return f"{name} must be one finite value per row"
+        measured[name] = a
+    for name, meas in measured.items():  # the contract's row checks, as on the readings of a vector record
+        problem = _magnitude_rows(name, meas)
+        if problem:
+            return problem
     if series.f_ref_nT is None:
         return None
-    ref, meas = np.asarray(series.f_ref_nT, dtype=float), np.asarray(series.f_meas_nT, dtype=float)
+    ref = np.asarray(series.f_ref_nT, dtype=float)
     if np.any(ref <= 0):
         return "the reference magnitude must be positive on every row"
     if not float(np.median(ref)) >= MIN_REFERENCE_NT:
         return (f"the reference magnitude is {float(np.median(ref)):.4g} nT: no calibration field is below "
                 f"{MIN_REFERENCE_NT:g} nT; f_meas_nT and f_ref_nT in another unit (uT?), or a wrong reference")
-    ratio = float(np.median(meas) / np.median(ref))
-    if not SCALAR_RATIO_RANGE[0] <= ratio <= SCALAR_RATIO_RANGE[1]:
-        return (f"the measured magnitude (median {np.median(meas):.4g}) is {ratio:.3g} times the reference (median "
-                f"{np.median(ref):.6g} nT): wrong units (f_meas_nT and f_ref_nT are in nT), or a wrong reference")
+    for name, meas in measured.items():  # every measured column, the file's calibrated one too (the residual's)
+        ratio = float(np.median(meas) / np.median(ref))
+        if not SCALAR_RATIO_RANGE[0] <= ratio <= SCALAR_RATIO_RANGE[1]:
+            return (f"the measured magnitude {name} (median {np.median(meas):.4g}) is {ratio:.3g} times the reference "
+                    f"(median {np.median(ref):.6g} nT): wrong units (every magnitude column is in nT), or a wrong "
+                    "reference")
+    return None
+
+
+def _magnitude_rows(name: str, meas: np.ndarray) -> str | None:
+    """Why a column of measured magnitudes has impossible rows, or None: a magnitude is positive, and a row more than
+    GLITCH_FACTOR times the median one is no sensor's reading (docs/CONTRACT.md section 7: a corrupt row, named)."""
+    if not len(meas):
+        return None
+    bad = np.flatnonzero(meas <= 0)
+    if len(bad):
+        return (f"{name} is {meas[bad[0]]:g} in row(s) {', '.join(map(str, bad[:5]))}{', ...' if len(bad) > 5 else ''}: "
+                "a measured magnitude is positive (a missing value written as 0, or a signed component?)")
+    middle = float(np.median(meas))
+    absurd = np.flatnonzero(meas > GLITCH_FACTOR * middle)
+    if len(absurd):
+        worst = int(absurd[np.argmax(meas[absurd])])
+        return (f"{name} in row(s) {', '.join(map(str, absurd[:5]))}{', ...' if len(absurd) > 5 else ''} is more than "
+                f"{GLITCH_FACTOR:g} times the median (row {worst}: {meas[worst]:.4g} against {middle:.4g} nT): beyond any "
+                "magnetometer's range in this field, not a reading (a glitch, a corrupt row); remove those rows")
     return None
 
 
