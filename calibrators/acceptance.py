@@ -1149,8 +1149,9 @@ def structure_check(objective: ScalarObjective, x: np.ndarray, rms_nT: float, fi
     info["noise_independent_nT"], info["noise_independent_from"] = float(sigma), how
     warnings = []
     if how == "rows":
-        warnings.append("the noise could not be estimated independently of the fit (no t column and no repeated "
-                        "attitudes): it was estimated from neighbouring rows taken in file order")
+        warnings.append("the noise could not be estimated independently of the fit (no t column, or one whose times "
+                        "are all equal, and no repeated attitudes): it was estimated from neighbouring rows taken in "
+                        "file order")
     rough = geometry.roughness
     unrelated = rough is not None and rough > UNRELATED_ROUGHNESS
     info["consecutive_unrelated"] = bool(unrelated)

@@ -490,6 +490,9 @@ def load_calibration(path, source: InputBytes | None = None) -> Calibration:
     JSON nested deeper than ``MAX_JSON_DEPTH`` or with numbers longer than ``MAX_JSON_DIGITS``.  The
     file is read once (``source``: bytes read already)."""
     path = as_path(path, "calibration file")
+    if path.suffix.lower() in (".param", ".params"):  # exports for a flight controller, never read back
+        raise InputError(f"{path}: an ArduPilot .param or PX4 .params file is an export for the flight controller, "
+                         "not read back; apply reads magbench JSON or MATLAB magcal (.mat, .json)")
     mat = path.suffix.lower() == ".mat"
     src = source or read_input(path, "calibration file", MAX_MAT_BYTES if mat else MAX_JSON_BYTES)
     if mat:

@@ -286,3 +286,19 @@ def test_compare_refuses_bad_hyper_parameters_before_touching_out(tmp_path, caps
 
 def test_magbench_without_a_command_is_one_line(capsys):
     _refused(capsys, [], "a command is needed: list, data, simulate, calibrate")
+
+
+def test_apply_says_a_flight_controller_export_is_not_read_back(tmp_path, capsys, saved):
+    for name, fmt in (("c.param", "ardupilot"), ("c.params", "px4")):
+        code, _, err = _run(capsys, ["calibrate", saved, "--method", "lsq", "--save", tmp_path / name, "--export", fmt])
+        assert code == 0, err
+        _refused(capsys, ["apply", tmp_path / name, saved, "--out", tmp_path / "o.csv"],
+                 "is an export for the flight controller, not read back")
+
+
+def test_times_all_equal_are_said_so_in_the_noise_warning(tmp_path, capsys):
+    path = tmp_path / "flat_t.csv"
+    path.write_text(_sphere_csv(t=np.zeros(300)))
+    code, out, err = _run(capsys, ["calibrate", path, "--method", "lsq"])
+    assert code == 0, err
+    assert "no t column, or one whose times are all equal" in out + err
