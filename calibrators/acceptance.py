@@ -666,7 +666,9 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
         if close.sum() >= MIN_REPEATS:
             i = np.flatnonzero(close)
             return NoiseGeometry("repeats", pairs=(first[i], first[idx[i, 1]]), distinct_share=share)
-    rows = np.arange(n) if share == 1.0 else np.flatnonzero(~repeated_rows(raw_nT))
+    # every copy left out, not only a row that repeats the one before (a file written twice had its nearest attitudes
+    # found among its own copies: a noise of 0 nT, and a clean record rejected at 2e12 times it)
+    rows = np.arange(n) if share == 1.0 else first
     # rows in file order at unrelated attitudes (the shots of a handheld calibration): the rows' differences hold
     # whatever follows the attitude, so the nearest attitudes judge too (and the halves and thirds of the file)
     along = np.arange(n, dtype=float)

@@ -302,3 +302,14 @@ def test_times_all_equal_are_said_so_in_the_noise_warning(tmp_path, capsys):
     code, out, err = _run(capsys, ["calibrate", path, "--method", "lsq"])
     assert code == 0, err
     assert "no t column, or one whose times are all equal" in out + err
+
+
+def test_a_file_written_twice_over_is_judged_on_its_distinct_readings(tmp_path, capsys):
+    """The same 300 rows 10 times, without a t column: the nearest attitudes had been found among the copies (a noise
+    of 0 nT, the clean record rejected at 2e12 times it).  Now judged on the distinct readings, deviations widened."""
+    one = _sphere_csv().splitlines()
+    path = tmp_path / "ten.csv"
+    path.write_text("\n".join([one[0]] + one[1:] * 10) + "\n")
+    code, out, err = _run(capsys, ["calibrate", path, "--method", "lsq"])
+    assert code == 0, err
+    assert "90 % of the readings repeat another exactly" in out + err and "widened 3.16 times" in out + err
