@@ -654,8 +654,8 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
         return _ordered_geometry("time", raw_nT, order, t_s, roughness(t_s, raw_nT, order, ROUGHNESS_ROWS), share)
     from scipy.spatial import cKDTree
 
-    # identical readings are one reading written again, not a repeated attitude measured again: the pairs are
-    # of distinct readings (their first rows), and the rows in file order skip a row that repeats the one before
+    # identical readings are one reading written again, not a repeated attitude measured again: the pairs are of
+    # distinct readings (their first rows), and so are the rows in file order below
     _, first = np.unique(raw_nT, axis=0, return_index=True)
     first = np.sort(first)
     share = len(first) / n
@@ -666,8 +666,8 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
         if close.sum() >= MIN_REPEATS:
             i = np.flatnonzero(close)
             return NoiseGeometry("repeats", pairs=(first[i], first[idx[i, 1]]), distinct_share=share)
-    # every copy left out, not only a row that repeats the one before (a file written twice had its nearest attitudes
-    # found among its own copies: a noise of 0 nT, and a clean record rejected at 2e12 times it)
+    # every copy left out, wherever it stands (skipping only a row that repeats the one before, a file written twice
+    # had its nearest attitudes found among its own copies: a noise of 0 nT, a clean record rejected at 2e12 times it)
     rows = np.arange(n) if share == 1.0 else first
     # rows in file order at unrelated attitudes (the shots of a handheld calibration): the rows' differences hold
     # whatever follows the attitude, so the nearest attitudes judge too (and the halves and thirds of the file)

@@ -225,6 +225,8 @@ def temperature_problem(values: np.ndarray) -> tuple[int, str] | None:
     why = (f"below absolute zero ({v:g} C: a missing-value code? temperatures are in deg C)" if v < low else
            f"above {high:g} C ({v:g}), where no magnetometer works: a broken cell")
     return int(bad[0]), why
+
+
 DELIMITERS = (",", ";", "\t")
 """Column separators recognised in the header row (CONTRACT: comma; semicolon and tab are read too)."""
 ENCODINGS = ("utf-8-sig",)
