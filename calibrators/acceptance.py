@@ -50,6 +50,7 @@ from magbench.numerics import (
     lm_normal,
     median,
     median_and_sigma,
+    nearest_other,
     orthonormal_basis,
     repeated_rows,
     representatives,
@@ -652,8 +653,6 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
         else:
             share = 1.0
         return _ordered_geometry("time", raw_nT, order, t_s, roughness(t_s, raw_nT, order, ROUGHNESS_ROWS), share)
-    from scipy.spatial import cKDTree
-
     # identical readings are one reading written again, not a repeated attitude measured again: the pairs are of
     # distinct readings (their first rows), and so are the rows in file order below
     _, first = np.unique(raw_nT, axis=0, return_index=True)
@@ -661,11 +660,11 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
     share = len(first) / n
     distinct = raw_nT[first]
     if len(first) >= 2:
-        dist, idx = cKDTree(distinct).query(distinct, k=2)
-        close = dist[:, 1] < REPEAT_FRACTION * field_nT
+        dist, idx = nearest_other(distinct)
+        close = dist < REPEAT_FRACTION * field_nT
         if close.sum() >= MIN_REPEATS:
             i = np.flatnonzero(close)
-            return NoiseGeometry("repeats", pairs=(first[i], first[idx[i, 1]]), distinct_share=share)
+            return NoiseGeometry("repeats", pairs=(first[i], first[idx[i]]), distinct_share=share)
     # every copy left out, wherever it stands (skipping only a row that repeats the one before, a file written twice
     # had its nearest attitudes found among its own copies: a noise of 0 nT, a clean record rejected at 2e12 times it)
     rows = np.arange(n) if share == 1.0 else first

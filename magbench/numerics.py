@@ -102,6 +102,41 @@ def repeated_rows(x: np.ndarray, order: np.ndarray | None = None) -> np.ndarray:
     return out
 
 
+BRUTE_NEAREST_ROWS = 2048
+"""Up to this many points ``nearest_other`` compares every pair itself; above, SciPy's k-d tree (whose import,
+with scipy.sparse behind it, costs about 0.1 s: half of a one-off ``calibrate`` of a few hundred readings)."""
+NEAREST_BLOCK_ELEMENTS = 1 << 20
+"""Pairs handled at once by ``nearest_other`` (their squared distances and one axis's differences, 8 MiB each): its
+memory bounded whatever the count."""
+
+
+def nearest_other(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each point's nearest other point of ``points`` (n, d), n >= 2, by Euclidean distance: (distances, indices).
+    Up to BRUTE_NEAREST_ROWS points every pair is compared (a tie goes to the lower index; the distances are the
+    tree's to the last bit), above that a k-d tree answers (``cKDTree.query`` with k = 2, its second column)."""
+    points = np.asarray(points, dtype=float)
+    n = points.shape[0]
+    if n > BRUTE_NEAREST_ROWS:
+        from scipy.spatial import cKDTree
+
+        dist, idx = cKDTree(points).query(points, k=2)
+        return dist[:, 1], idx[:, 1]
+    dist, idx = np.empty(n), np.empty(n, dtype=np.int64)
+    step = max(1, NEAREST_BLOCK_ELEMENTS // n)
+    for start in range(0, n, step):
+        block = points[start:start + step]
+        d2 = np.zeros((len(block), n))
+        for axis in range(points.shape[1]):  # summed axis by axis, as the tree does: the same distances to the last bit
+            diff = block[:, axis, None] - points[None, :, axis]
+            d2 += diff * diff
+        rows = np.arange(len(block))
+        d2[rows, rows + start] = np.inf  # each point's own pair left out
+        near = d2.argmin(axis=1)
+        idx[start:start + step] = near
+        dist[start:start + step] = np.sqrt(d2[rows, near])
+    return dist, idx
+
+
 def systematic_rows(n: int, limit: int) -> slice:
     """Every k-th row, k the smallest step that keeps at most ``limit`` of ``n`` rows (all when n <= limit):
     a sample stratified in file order (time, and so attitude along the record)."""

@@ -105,3 +105,55 @@ def test_leaving_out_itself_alone_is_the_mask_of_the_diagonal(m):
     assert enough.all() == (m - 1 >= KNN_NEIGHBOURS)
     kept, _ = _nearest_directions(readings, lambda block, n: np.zeros((min(block.stop, n) - block.start, n), bool))
     assert all(i in row for i, row in enumerate(kept.tolist()))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_nearest_other_is_the_k_d_trees_answer_to_the_last_bit(seed):
+    """``numerics.nearest_other`` compares every pair up to BRUTE_NEAREST_ROWS points (sparing a one-off ``calibrate``
+    SciPy's spatial import): the k-d tree's distances and indices exactly, on readings at random attitudes,
+    quantized to 3 nT, and with near-copies 0.5 nT apart (the repeated attitudes the noise estimate looks for)."""
+    from scipy.spatial import cKDTree
+
+    from magbench.numerics import BRUTE_NEAREST_ROWS, nearest_other
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, BRUTE_NEAREST_ROWS + 1)) if seed else 2
+    points = rng.normal(0.0, 5e4, (n, 3))
+    if seed % 2:
+        points = np.round(points / 3.0) * 3.0
+    if seed >= 3:
+        half = n // 2
+        points[:half] = points[half:2 * half] + rng.normal(0.0, 0.5, (half, 3))
+    points = np.unique(points, axis=0)
+    dist, idx = nearest_other(points)
+    tree_dist, tree_idx = cKDTree(points).query(points, k=2)
+    assert np.array_equal(dist, tree_dist[:, 1]) and np.array_equal(idx, tree_idx[:, 1])
+    assert not np.any(idx == np.arange(len(points)))  # a point is never its own nearest
+
+
+ONE_OFF = """
+import sys
+import numpy as np
+from magbench.calibrators import make
+rng = np.random.default_rng(0)
+u = rng.normal(size=(300, 3))
+u /= np.linalg.norm(u, axis=1)[:, None]
+raw = 50000.0 * u * [1.02, 0.99, 1.01] + [150.0, -200.0, 80.0]  # no simulator: it imports SciPy's rotations
+raw = np.repeat(raw, {reps}, axis=0)[:{n}] + rng.normal(0, 0.3, ({n}, 3))
+before = "scipy.spatial" in sys.modules
+make("lsq").fit(raw, f_ref_nT=50000.0)
+print(before, "scipy.spatial" in sys.modules)
+"""
+
+
+@pytest.mark.parametrize("n, reps, imported", [(300, 1, False), (1200, 4, False), (2400, 8, True)])
+def test_a_record_without_times_is_judged_without_scipys_spatial_import(n, reps, imported):
+    """A record without a t column has its repeated attitudes found by ``nearest_other``: up to BRUTE_NEAREST_ROWS
+    readings without importing scipy.spatial (0.1-0.2 s, half of a one-off ``calibrate`` of 300 readings); the
+    control, a record above it, does import it, so the check can fail."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", ONE_OFF.format(n=n, reps=reps)], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.split() == ["False", str(imported)]
