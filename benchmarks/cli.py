@@ -793,6 +793,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_report_parser(sub)
     _add_reproduce_parser(sub)
     _add_demo_parser(sub)
+    parser.set_defaults(command_names=tuple(sub.choices))  # what a bare ``magbench`` names
     return parser
 
 
@@ -1021,8 +1022,8 @@ def main(argv=None) -> int:
             if isinstance(getattr(args, "file", None), str):
                 args.file = resolve_example(args.file)
             if not getattr(args, "command", None):  # a usage error: one line, as every other (CONTRACT section 3)
-                choices = next(a.choices for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-                raise InputError(f"a command is needed: {', '.join(choices)} (magbench --help says what each does)")
+                raise InputError(f"a command is needed: {', '.join(args.command_names)} (magbench --help says what "
+                                 "each does)")
             status = args.func(args)
         _show_warnings(caught)
         return status

@@ -200,8 +200,11 @@ def drift_columns(t_s: np.ndarray, unit: np.ndarray, degree: int, constant: bool
         # 1e-10 nT of it and was rejected.  A column that was the constant there is dropped (set to zero).
         before = np.linalg.norm(design, axis=0)
         design -= design.mean(axis=0)
-        design[:, np.linalg.norm(design, axis=0) <= 1e-9 * before] = 0.0
-    design /= np.maximum(np.linalg.norm(design, axis=0), 1e-300)
+        norms = np.linalg.norm(design, axis=0)
+        design[:, norms <= 1e-9 * before] = 0.0  # zero, and still zero once divided by its old length below
+    else:
+        norms = np.linalg.norm(design, axis=0)
+    design /= np.maximum(norms, 1e-300)
     return design
 
 

@@ -574,12 +574,27 @@ def _numeric(path: Path, table: dict[str, np.ndarray], name: str, first_line: in
         why = absurd if np.isfinite(values[bad[0]]) else "missing, non-numeric or non-finite"
         hint = ("; it has a decimal comma: write numbers with decimal points (and separate columns by commas, "
                 "semicolons or tabs)" if isinstance(raw_value, str) and DECIMAL_COMMA.match(raw_value.strip()) else "")
-        hint = hint or _line_hint(table, int(bad[0]))
+        hint = hint or (_epoch_hint(values[bad[0]]) if name == "t" else "") or _line_hint(table, int(bad[0]))
         raise InputError(f"{path}: column {name} has a value {why} ({raw_value!r}) on line {rows}{more}{hint}")
     hot = temperature_problem(values) if name == "temp" else None
     if hot is not None:
         raise InputError(f"{path}: column temp on line {first_line + hot[0]} is {hot[1]}")
     return values
+
+
+EPOCH_UNITS = (("milliseconds", 1e3, "1000"), ("microseconds", 1e6, "10^6"), ("nanoseconds", 1e9, "10^9"))
+"""Units a logger writes Unix times in, beside seconds, for the hint of a t value beyond MAX_ABS_OTHER."""
+
+
+def _epoch_hint(value: float) -> str:
+    """'; it looks like a Unix time in milliseconds ...' when ``value`` (a t beyond MAX_ABS_OTHER) is a Unix time in
+    one of EPOCH_UNITS between the years 2001 and 2100 (t is in seconds: the column is refused, not rescaled)."""
+    if not np.isfinite(value):
+        return ""
+    for unit, per_second, factor in EPOCH_UNITS:
+        if 1e9 <= value / per_second <= 4.1e9:
+            return f"; it looks like a Unix time in {unit} (t is in seconds: divide the column by {factor})"
+    return ""
 
 
 def _line_hint(table: dict[str, np.ndarray], i: int) -> str:

@@ -51,8 +51,8 @@ def test_table2_as_it_is_is_diagnosed(tmp_path, capsys):
     ("f_meas_after", 0, None, 1e-3, "f_meas_after (median 51.97) is 0.001 times the reference"),
     ("f_meas_after", 0, None, -1.0, "f_meas_after is -5"),
     ("f_meas_after", 3, 1e8, 1.0, "f_meas_after in row(s) 3 (line 7) is more than 1000 times the median"),
-    ("f_meas_before", 5, 1e8, 1.0, "row(s) 5 (line 9) is more than 1000 times the median"),
-    ("f_meas_before", 5, 0, 1.0, "is 0 in row(s) 5 (line 9): a measured magnitude is positive"),
+    ("f_meas_before", 5, 1e8, 1.0, "f_meas_before in row(s) 5 (line 9) is more than 1000 times the median"),
+    ("f_meas_before", 5, 0, 1.0, "f_meas_before is 0 in row(s) 5 (line 9): a measured magnitude is positive"),
     ("f_meas_before", 2, -52000, 1.0, "is -52000 in row(s) 2 (line 6)"),
 ], ids=["after-in-uT", "after-negative", "after-glitch", "before-glitch", "before-zero", "before-negative"])
 def test_a_scalar_series_gets_the_row_checks_of_a_vector_record(tmp_path, capsys, column, row, value, scale, fragment):
@@ -313,3 +313,30 @@ def test_a_file_written_twice_over_is_judged_on_its_distinct_readings(tmp_path, 
     code, out, err = _run(capsys, ["calibrate", path, "--method", "lsq"])
     assert code == 0, err
     assert "90 % of the readings repeat another exactly" in out + err and "widened 3.16 times" in out + err
+
+
+# -- Unix times in milliseconds, microseconds or nanoseconds: refused with what they look like --------------------
+@pytest.mark.parametrize("per_second, unit, factor", [(1e3, "milliseconds", "1000"), (1e6, "microseconds", "10^6"),
+                                                      (1e9, "nanoseconds", "10^9"), (None, None, None)])
+def test_unix_times_in_a_finer_unit_are_refused_with_the_unit_they_look_like(tmp_path, capsys, per_second, unit,
+                                                                            factor):
+    """t is in seconds; a logger's Unix time in ms (1.76e12) is beyond MAX_ABS_OTHER and was refused without a word
+    of why.  The hint names the unit and the factor; the file is not rescaled (and not changed).  The control: the
+    same times in seconds calibrate."""
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=(200, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    raw = F_NT * u + [120.0, -80.0, 40.0] + rng.normal(0, 1.0, (200, 3))
+    t = 1.764e9 + 0.1 * np.arange(200)
+    stamps = t if per_second is None else t * per_second
+    path = tmp_path / "epoch.csv"
+    path.write_text("t,bx,by,bz,f_ref\n" + "".join(f"{s:.17g},{b[0]:.17g},{b[1]:.17g},{b[2]:.17g},{F_NT}\n"
+                                                    for s, b in zip(stamps, raw)))
+    before = _digest(path)
+    if per_second is None:
+        code, _, err = _run(capsys, ["calibrate", path, "--method", "lsq"])
+        assert code == 0, err
+    else:
+        _refused(capsys, ["calibrate", path, "--method", "lsq"],
+                 f"it looks like a Unix time in {unit} (t is in seconds: divide the column by {factor})")
+    assert _digest(path) == before

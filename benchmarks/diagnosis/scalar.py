@@ -101,6 +101,8 @@ def series_problem(series: ScalarSeries) -> str | None:
             return f"{name} must be numbers, got {type(value).__name__}"
         if a.shape != (n,) or not np.all(np.isfinite(a)):
             return f"{name} must be one finite value per row"
+        if name == "f_meas_before" and np.array_equal(a, measured["f_meas_nT"]):
+            del measured["f_meas_nT"]  # the file's one column, read as both: checked once, under the file's name
         measured[name] = a
     for name, meas in measured.items():  # the contract's row checks, as on the readings of a vector record
         problem = _magnitude_rows(name, meas)
