@@ -44,6 +44,8 @@ def _table(result: dict, source: str) -> list[str]:
         lines.append(f"  remainder after the selected effects: {result['remainder_nT']:.3f} nT "
                      f"(z {result['remainder_z']:.1f}, {'significant' if result['remainder_significant'] else 'not significant'}"
                      f"{_measure_note(result)})")
+    if result.get("remainder_beside_named"):
+        lines.append(f"  not called unexplained: {result['remainder_beside_named']}")
     if result.get("remainder_extreme"):
         lines.append(f"  an extreme residual: {result['remainder_extreme']['statement']}")
     if result.get("floor_implausible"):

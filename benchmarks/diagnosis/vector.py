@@ -94,6 +94,7 @@ from .scoring import (
     MIN_SIGNIFICANT_SHRINK_PCT,
     POWER_MAX_OF_FLOOR,
     REMAINDER_Z,
+    REMAINDER_Z_BESIDE_NAMED,
     Z_SIGNIFICANT,
     coverage_pct,
     min_detectable_nT,
@@ -358,6 +359,12 @@ class Diagnosis:
 
         n_params = len(self.tangent.model.free_indices(selected))
         rem = remainder(current, floor, floor_se, n_params, n_train, robust="outliers" in selected)
+        if selected and rem["remainder_significant"] and rem["remainder_z"] <= REMAINDER_Z_BESIDE_NAMED:
+            rem["remainder_significant"] = False  # the named effects' forms are approximations (scoring.py)
+            rem["remainder_beside_named"] = (
+                f"{rem['remainder_nT']:.3g} nT is left above the floor beside the named effects (z "
+                f"{rem['remainder_z']:.2g}): below the z of {REMAINDER_Z_BESIDE_NAMED:g} a remainder beside named effects "
+                "needs to be called unexplained, more likely the named effects' forms than another cause")
         if rem["remainder_significant"] and any(nm in BODY_DRIFTS for nm in order):
             finer = self._finer_drift(current, floor, floor_se, n_params, n_train, "outliers" in selected)
             rem["remainder_finer_drift"] = finer
@@ -393,6 +400,8 @@ class Diagnosis:
                 "structure the neighbours cannot see, not noise (at random attitudes: a dead, stuck or swapped axis, a "
                 "lag of seconds, a reference from another record), so the remainder is unexplained whatever the tests against "
                 "it say")
+        if rem["remainder_significant"]:  # made significant by a rule above after all: the note does not apply
+            rem.pop("remainder_beside_named", None)
         mdn = min_detectable_nT(floor, n)
         powered = mdn <= POWER_MAX_OF_FLOOR * floor
         alternatives = {c["alternatives"][0]: "|".join(c["alternatives"]) for c in confounded if c.get("named", True)}
