@@ -108,16 +108,19 @@ def test_leaving_out_itself_alone_is_the_mask_of_the_diagonal(m):
 
 
 @pytest.mark.parametrize("seed", range(6))
-def test_nearest_other_is_the_k_d_trees_answer_to_the_last_bit(seed):
-    """``numerics.nearest_other`` compares every pair up to BRUTE_NEAREST_ROWS points (sparing a one-off ``calibrate``
-    SciPy's spatial import): the k-d tree's distances and indices exactly, on readings at random attitudes,
-    quantized to 3 nT, and with near-copies 0.5 nT apart (the repeated attitudes the noise estimate looks for)."""
+def test_nearest_other_is_the_k_d_trees_answer_to_the_last_bit(seed, monkeypatch):
+    """``numerics.nearest_other`` compares every pair up to BRUTE_NEAREST_ROWS_UNLOADED points in a one-off process
+    (sparing it SciPy's spatial import): the k-d tree's distances and indices exactly, on readings at random attitudes,
+    quantized to 3 nT, and with near-copies 0.5 nT apart (the repeated attitudes the noise estimate looks for).  The
+    tree is imported here, so the pairwise search is made to run up to that count."""
     from scipy.spatial import cKDTree
 
-    from magbench.numerics import BRUTE_NEAREST_ROWS, nearest_other
+    from magbench import numerics
+    from magbench.numerics import BRUTE_NEAREST_ROWS_UNLOADED, nearest_other
 
+    monkeypatch.setattr(numerics, "BRUTE_NEAREST_ROWS", BRUTE_NEAREST_ROWS_UNLOADED)
     rng = np.random.default_rng(seed)
-    n = int(rng.integers(2, BRUTE_NEAREST_ROWS + 1)) if seed else 2
+    n = int(rng.integers(2, BRUTE_NEAREST_ROWS_UNLOADED + 1)) if seed else 2
     points = rng.normal(0.0, 5e4, (n, 3))
     if seed % 2:
         points = np.round(points / 3.0) * 3.0
@@ -146,11 +149,12 @@ print(before, "scipy.spatial" in sys.modules)
 """
 
 
-@pytest.mark.parametrize("n, reps, imported", [(300, 1, False), (1200, 4, False), (2400, 8, True)])
+@pytest.mark.parametrize("n, reps, imported", [(300, 1, False), (1200, 4, False), (4800, 16, False),
+                                               (7200, 24, True)])
 def test_a_record_without_times_is_judged_without_scipys_spatial_import(n, reps, imported):
-    """A record without a t column has its repeated attitudes found by ``nearest_other``: up to BRUTE_NEAREST_ROWS
-    readings without importing scipy.spatial (0.1-0.2 s, half of a one-off ``calibrate`` of 300 readings); the
-    control, a record above it, does import it, so the check can fail."""
+    """A record without a t column has its repeated attitudes found by ``nearest_other``: in a fresh process up to
+    BRUTE_NEAREST_ROWS_UNLOADED readings without importing scipy.spatial (0.1-0.2 s, half of a one-off ``calibrate``
+    of 300 readings); the control, a record above it, does import it, so the check can fail."""
     import subprocess
     import sys
 
