@@ -680,10 +680,11 @@ def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = Fa
                          "(apply the calibration to the raw file)")
     factor = UNIT_FACTORS_NT[units]
     corrected = cal.correct(data.raw_nT)
-    misfit = correction_misfit(np.linalg.norm(corrected, axis=1), data.raw_nT, data.f_ref_nT)
+    magnitude = np.linalg.norm(corrected, axis=1)
+    misfit = correction_misfit(magnitude, data.raw_nT, data.f_ref_nT)
     if misfit and not accept_any:
         raise InputError(f"{src}: {misfit}; nothing written (--accept-any writes it anyway)")
-    values = np.column_stack([corrected, np.linalg.norm(corrected, axis=1)]) / factor
+    values = np.column_stack([corrected, magnitude]) / factor
     lines = source.data.decode("utf-8-sig").splitlines(keepends=True)
     skipped = head.skipped
     head_lines, body = lines[:skipped], lines[skipped:]

@@ -3,6 +3,7 @@ Levenberg-Marquardt iteration on accumulated normal equations.  Imports nothing 
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Generator
 from typing import NamedTuple
 
@@ -118,8 +119,6 @@ def nearest_other(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Up to BRUTE_NEAREST_ROWS points (BRUTE_NEAREST_ROWS_UNLOADED before SciPy's spatial module is imported) every
     pair is compared (a tie goes to the lower index; the distances are the tree's to the last bit), above that a k-d
     tree answers (``cKDTree.query`` with k = 2, its second column)."""
-    import sys
-
     points = np.asarray(points, dtype=float)
     n = points.shape[0]
     if n > (BRUTE_NEAREST_ROWS if "scipy.spatial" in sys.modules else BRUTE_NEAREST_ROWS_UNLOADED):
