@@ -195,12 +195,12 @@ def holds(t_s: np.ndarray | None, unit: np.ndarray) -> np.ndarray | None:
 def f_test_p(sse_small: float, sse_big: float, extra: int, dof: float) -> float:
     """p-value of the F test that ``extra`` more columns (residual sum of squares ``sse_big`` with ``dof``
     degrees of freedom left, against ``sse_small`` without them) explain nothing."""
-    from scipy.stats import f as f_dist
+    from magbench.lightstats import f_sf
 
     if dof <= 0 or sse_big <= 0:
         return 1.0
     stat = max(sse_small - sse_big, 0.0) / extra / (sse_big / dof)
-    return float(f_dist.sf(stat, extra, dof))
+    return f_sf(stat, extra, dof)
 
 
 def time_derivative(t_s: np.ndarray, x: np.ndarray) -> np.ndarray:

@@ -13,7 +13,6 @@ hysteresis).  Each effect's size is drawn as a multiple (3-12) of the noise in t
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from magbench.simulate.dataset import Dataset
 
@@ -39,6 +38,8 @@ def _attitudes(rng, n, t, coverage):
         rate[:, 2] *= 0.4
     # attitude i is step i (the rotation vector rate_i dt) after attitude i - 1: q_i = s_i s_(i-1) ... s_1, the
     # running products of the steps' quaternions by a doubling scan (log2 n whole-array products)
+    from scipy.spatial.transform import Rotation  # here: the diagnosis imports this module, and never draws cases
+
     q = np.empty((n, 4))
     q[0] = (0.0, 0.0, 0.0, 1.0)
     q[1:] = Rotation.from_rotvec(rate[1:] * np.diff(t)[:, None]).as_quat()

@@ -15,10 +15,9 @@ independent differences, about n / 3 for overlapping second differences)."""
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import lfilter
 from scipy.spatial import cKDTree
-from scipy.stats import norm, spearmanr
 
+from magbench.lightstats import normal_isf, one_pole_lowpass, spearman_rho
 from magbench.numerics import drift_columns, drift_degree, repeated_rows, residual_sum_of_squares, systematic_rows
 from magbench.simulate.effects import SPIKE_SIGMA, Columns, f_test_p, robust_sigma
 
@@ -410,7 +409,7 @@ def neighbour_z(r: np.ndarray, raw_nT: np.ndarray) -> float:
     cols += [nb[:, a] * nb[:, b] for nb in (prev, nxt) for a in range(3) for b in range(a, 3)]
     for tau in MEMORY_SAMPLES:  # where the sensor pointed over the last samples (a field induced with a lag)
         w = np.exp(-1.0 / tau)
-        past = lfilter([0.0, 1.0 - w], [1.0, -w], raw_nT, axis=0)[idx] / scale  # w past[i-1] + (1 - w) x[i-1]
+        past = one_pole_lowpass(raw_nT, w)[idx] / scale  # w past[i-1] + (1 - w) x[i-1]
         cols += [cur[:, a] * past[:, b] for a in range(3) for b in range(3)]
     design = np.column_stack(cols)
     y = r[idx]
@@ -420,7 +419,7 @@ def neighbour_z(r: np.ndarray, raw_nT: np.ndarray) -> float:
     q, dof = design.shape[1] - 1, len(y) - design.shape[1]
     if rss1 <= 0 or dof <= 0:
         return 0.0
-    return float(norm.isf(max(f_test_p(rss0, rss1, q, dof), 1e-300)))
+    return normal_isf(max(f_test_p(rss0, rss1, q, dof), 1e-300))
 
 
 ALLAN_MIN_WINDOWS = 8
@@ -499,7 +498,7 @@ def model_floor(fl: dict, r_model: np.ndarray, t_s: np.ndarray, raw_nT: np.ndarr
     jump = np.zeros(n)
     jump[1:] += step
     jump[:-1] += step
-    rho = spearmanr(np.abs(rk - np.median(rk)), jump).statistic
+    rho = spearman_rho(np.abs(rk - np.median(rk)), jump)
     out = dict(fl)
     out["floor_motion_z"] = float(rho * np.sqrt(n - 1)) if np.isfinite(rho) else 0.0
     out["floor_neighbour_z"] = neighbour_z(rk, raw_nT[keep])

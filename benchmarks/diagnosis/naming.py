@@ -79,9 +79,9 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.polynomial import legendre
-from scipy.stats import kstest, mannwhitneyu, norm
 
 from magbench.calibrators.acceptance import REVISIT_SEPARATION, revisit_neighbours
+from magbench.lightstats import normal_cdf, normal_sf
 from magbench.numerics import roughness  # noqa: F401  (re-exported: the diagnosis reads it from here)
 from magbench.simulate.effects import (  # noqa: F401  (clipped, holds and their constants: re-exported)
     CLIP_MIN_REPEATS,
@@ -250,7 +250,7 @@ def holm(pvalues: dict, alpha: float = FAMILY_ALPHA) -> dict:
 
 
 def one_sided_p(z: float) -> float:
-    return float(norm.sf(z))
+    return normal_sf(z)
 
 
 RUN_FRACTION_MAX = 0.3
@@ -364,7 +364,7 @@ def regular_events(events: np.ndarray, ts: np.ndarray) -> float:
     if below or len(null) < 2 or np.std(null) == 0:
         return float((below + 1) / (len(null) + 1))
     # none of the draws as regular: the tail of the draws' normal approximation (a few hundred draws on long records)
-    return float(norm.cdf((observed - np.mean(null)) / np.std(null)))
+    return normal_cdf((observed - np.mean(null)) / np.std(null))
 
 
 def spike_runs(s: np.ndarray) -> list[tuple[int, int]]:
@@ -440,6 +440,8 @@ def spikes_isolated(spikes: np.ndarray, t_s: np.ndarray | None, raw_nT: np.ndarr
     s = spikes[order]
     if s.sum() == 0:
         return True, 0.0, ()
+    from scipy.stats import kstest, mannwhitneyu  # here, with spikes to judge: scipy.stats costs 0.3 s to import
+
     neighbour = np.zeros_like(s)
     neighbour[1:] |= s[:-1]
     neighbour[:-1] |= s[1:]

@@ -3,8 +3,8 @@ interval, the significance of what is left, and which effects the data can test 
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import norm, poisson
 
+from magbench.lightstats import normal_isf, normal_sf, poisson_sf
 from magbench.simulate.effects import SPIKE_SIGMA, Columns, Effect, OutlierEffect, library_effects, robust_sigma
 
 from .floor import MAD_SE
@@ -80,12 +80,10 @@ def spike_z(n_spikes: int, n: int, sigma: float = 5.0) -> float:
     """z of a count of samples beyond ``sigma`` robust sigma against Gaussian noise (Poisson tail of
     n P(|z| > sigma)).  The test for spikes: their evidence is their number, while the paired z of squared
     residuals cannot exceed about sqrt(number of spikes) however large they are."""
-    from scipy.stats import norm, poisson
-
     if n_spikes <= 0:
         return 0.0
-    p = float(poisson.sf(n_spikes - 1, n * 2.0 * norm.sf(sigma)))
-    return float(norm.isf(max(p, 1e-300)))
+    p = poisson_sf(n_spikes - 1, n * 2.0 * normal_sf(sigma))
+    return normal_isf(max(p, 1e-300))
 
 
 def shrink_pct(rms_base: float, rms_effect: float, floor: float) -> float:
@@ -166,8 +164,8 @@ def shoulder_p(resid: np.ndarray, spikes: np.ndarray) -> float:
         return 0.0
     a = np.abs(resid - np.median(resid[~spikes])) / sigma
     count = int(np.sum((a > SHOULDER_SIGMA) & (a <= SPIKE_SIGMA)))
-    expected = len(resid) * 2.0 * float(norm.sf(SHOULDER_SIGMA) - norm.sf(SPIKE_SIGMA))
-    return float(poisson.sf(count - 1, expected))
+    expected = len(resid) * 2.0 * float(normal_sf(SHOULDER_SIGMA) - normal_sf(SPIKE_SIGMA))
+    return poisson_sf(count - 1, expected)
 
 
 def spikes_enough(n_spikes: int, n: int, count_z: float, shoulder: float) -> bool:
