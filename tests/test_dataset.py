@@ -141,3 +141,41 @@ def test_non_finite_times_temperatures_and_headings_are_refused(column, bad):
     values[[5, 7]] = bad
     with pytest.raises(InputError, match=rf"{column} has NaN or infinite values in row\(s\) 5, 7"):
         Dataset(d.raw_nT, f_ref_nT=d.f_ref_nT, **{column: values})
+
+
+def _long_record(tmp_path, n: int):
+    rng = np.random.default_rng(n)
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    raw = u * 5e4 + rng.normal(size=(n, 3)) * np.exp(rng.uniform(-8, 8, (n, 1))) + [100.0, -50.0, 30.0]
+    path = tmp_path / f"r{n}.csv"
+    # 17 significant digits in some columns, 4 decimals in others: what loggers and numpy write
+    lines = ["t,bx,by,bz,f_ref"] + [f"{0.1 * i:.4f},{a!r},{b:.6f},{c:.4f},50000" for i, (a, b, c) in
+                                    enumerate(raw.tolist())]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_file_below_the_threshold_reads_as_pandas_reads_it(tmp_path, monkeypatch):
+    """Up to SMALL_TABLE_BYTES (2 MiB) the csv module reads; the numbers equal pandas' to the last bit."""
+    from magbench.simulate import dataset
+
+    path = _long_record(tmp_path, 25_000)
+    assert 256 * 1024 < path.stat().st_size <= dataset.SMALL_TABLE_BYTES
+    small = dataset.read_csv(path)
+    monkeypatch.setattr(dataset, "SMALL_TABLE_BYTES", 0)
+    large = dataset.read_csv(path)
+    for name in ("raw_nT", "f_ref_nT", "t_s"):
+        assert np.array_equal(getattr(small, name), getattr(large, name))
+
+
+@pytest.mark.parametrize("n, pandas_loaded", [(25_000, False), (40_000, True)], ids=["1.6-MB", "control-2.7-MB"])
+def test_a_one_off_read_imports_pandas_only_above_the_threshold(tmp_path, n, pandas_loaded):
+    import subprocess
+    import sys
+
+    path = _long_record(tmp_path, n)
+    code = ("import sys; from magbench.simulate.dataset import read_csv; read_csv(sys.argv[1]); "
+            "print('pandas' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, check=True)
+    assert done.stdout.split() == [str(pandas_loaded)]
