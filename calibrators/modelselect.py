@@ -26,12 +26,13 @@ structure the data show, and the richer one is not determined.
 """
 from __future__ import annotations
 
+import sys
 from dataclasses import replace
 
 import numpy as np
 
 from magbench.errors import InputError
-from magbench.numerics import lm_normal
+from magbench.numerics import BRUTE_NEAREST_ROWS, NEAREST_BLOCK_ELEMENTS, lm_normal
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
@@ -52,18 +53,73 @@ IDENTIFIABILITY_WORDS = ("not determined", "outside the physical range", "ended 
 
 
 def distinct_attitudes(raw_nT: np.ndarray, field_nT: float) -> int:
-    """The number of distinct attitudes: groups of readings linked by distances below ``REPEAT_FRACTION`` of
-    the field (connected components)."""
+    """The number of distinct attitudes: groups of readings linked by distances of at most ``REPEAT_FRACTION`` of
+    the field (connected components).  Up to BRUTE_NEAREST_ROWS readings while SciPy's spatial module is not imported
+    (a one-off ``calibrate --model auto``: that import and scipy.sparse's graph module cost it 0.2-0.5 s), every pair
+    is compared (``_linked_groups``: on this project's host 1 ms at 300 readings, 0.04-0.13 s at 1500, the slowest a
+    slow path's chain of readings); above, or once it is imported, a k-d tree finds the pairs and scipy.sparse.csgraph
+    the components.  The same count either way (tests/test_modelselect.py)."""
+    n = len(raw_nT)
+    radius = REPEAT_FRACTION * field_nT
+    if n <= BRUTE_NEAREST_ROWS and "scipy.spatial" not in sys.modules:
+        return _linked_groups(np.asarray(raw_nT, dtype=float), radius)
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
 
-    pairs = cKDTree(raw_nT).query_pairs(REPEAT_FRACTION * field_nT, output_type="ndarray")
-    n = len(raw_nT)
+    pairs = cKDTree(raw_nT).query_pairs(radius, output_type="ndarray")
     if len(pairs) == 0:
         return n
     graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
     return int(connected_components(graph, directed=False)[0])
+
+
+def _squared_distances(block: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Squared distances (rows of ``block``, rows of ``points``), summed axis by axis as the k-d tree sums them."""
+    d2 = np.zeros((len(block), len(points)))
+    for axis in range(points.shape[1]):
+        diff = block[:, axis, None] - points[None, :, axis]
+        d2 += diff * diff
+    return d2
+
+
+def _linked_groups(points: np.ndarray, radius: float) -> int:
+    """The connected components of the readings linked at distances of at most ``radius``, by comparing pairs: the
+    readings with no other within it are one attitude each (found in blocks of NEAREST_BLOCK_ELEMENTS pairs), the
+    others grouped by a breadth-first search among themselves (each step compares the step's new readings with the
+    ones not reached yet: held attitudes, a turntable's positions, take a step or two each)."""
+    n = len(points)
+    if n < 2:
+        return n
+    limit = radius * radius
+    linked = np.zeros(n, dtype=bool)
+    step = max(1, NEAREST_BLOCK_ELEMENTS // n)
+    for start in range(0, n, step):
+        d2 = _squared_distances(points[start:start + step], points)
+        near = d2 <= limit
+        rows = np.arange(near.shape[0])
+        near[rows, rows + start] = False  # a reading and itself are no pair
+        linked[start:start + step] = near.any(axis=1)
+    rest = points[linked]
+    groups = n - len(rest)
+    reached = np.zeros(len(rest), dtype=bool)
+    for seed in range(len(rest)):
+        if reached[seed]:
+            continue
+        groups += 1
+        reached[seed] = True
+        frontier = np.array([seed])
+        while frontier.size:
+            todo = np.flatnonzero(~reached)
+            if not todo.size:
+                break
+            hit = np.zeros(len(todo), dtype=bool)
+            width = max(1, NEAREST_BLOCK_ELEMENTS // len(todo))
+            for start in range(0, len(frontier), width):
+                hit |= (_squared_distances(rest[frontier[start:start + width]], rest[todo]) <= limit).any(axis=0)
+            frontier = todo[hit]
+            reached[frontier] = True
+    return groups
 
 
 def _refit(raw: np.ndarray, f_ref: np.ndarray, model: str, x_start: np.ndarray, box) -> np.ndarray:
