@@ -421,6 +421,9 @@ def _check_quoted_rows(where, body: bytes, sep: str, n_names: int, first_line: i
                 raise InputError(f"{where} is not a readable CSV file: line {start} has {len(record)} field(s) but "
                                  f"the header names {n_names} column(s)")
     except csv.Error as exc:
+        if "field limit" in str(exc):  # a quote never closed: the field runs on to the file's end
+            raise InputError(f"{where}: a quoted field starting on line {line} runs on past {csv.field_size_limit():,} "
+                             "characters: an unbalanced quote (\") joins lines into one field") from None
         raise InputError(f"{where} is not a readable CSV file: {exc} (line {line})") from None
 
 

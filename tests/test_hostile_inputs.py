@@ -871,3 +871,20 @@ def test_more_jobs_than_cpus_runs_as_many_workers_as_cpus(tmp_path, capsys, monk
     assert main(["compare", "--scenarios", "sphere9", "--methods", "lsq", "--trials", "4", "--jobs", "2", "--out",
                  str(tmp_path / "d"), "--quiet", "--no-figures"]) == 0  # the control: no notice
     assert "CPUs" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("rows", [4000, 300], ids=["past-the-field-limit", "control-short"])
+def test_a_quote_never_closed_in_a_long_file_is_named(tmp_path, capsys, rows):
+    """A quote that never closes in a long file runs past the csv module's field limit (131,072 characters): said as
+    the unbalanced quote it is, with its line, not as the parser's 'field larger than field limit'; the control, a
+    short file, is refused by the line count as before."""
+    rng = np.random.default_rng(rows)
+    u = rng.normal(size=(rows, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    lines = ["bx,by,bz,f_ref"] + [f"{a:.3f},{b:.3f},{c:.3f},50000" for a, b, c in (u * 5e4).tolist()]
+    lines[5] = lines[5].replace(",", ',"', 1)
+    path = tmp_path / "q.csv"
+    path.write_text("\n".join(lines) + "\n")
+    fragment = ("a quoted field starting on line 6 runs on past 131,072 characters: an unbalanced quote" if rows == 4000
+                else "starting on line 6 spans")
+    _refused(capsys, ["calibrate", path, "--method", "lsq"], fragment)
