@@ -712,6 +712,22 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
     return ScalarSeries(column(scalar_col) * factor, f_ref_nT=f_ref, extra=others, meta=meta, **common)
 
 
+def read_columns(path, wanted) -> dict[str, np.ndarray]:
+    """The columns of ``wanted`` (lower-case names) that a data file has, read as ``read_csv`` reads the file (its
+    separator, metadata lines, quoting and rows, so row i is ``read_csv``'s row i): float arrays, NaN where a cell does
+    not parse.  For columns ``read_csv`` does not keep (the accelerometer's ax, ay, az or gx, gy, gz), read without
+    pandas where ``read_csv`` does; ``{}`` when the file has none of them."""
+    path = as_path(path, "data file")
+    data = newline_lines(read_input(path, "data file").data)
+    head = _parse_head(data, str(path))
+    sep, names = _header(path, head.header)
+    present = [c for c in wanted if c in names]
+    if not present:
+        return {}
+    table, _ = _table(path, data, head, sep, names, present)
+    return {c: table[c] if table[c].dtype == np.float64 else _as_floats(table[c]) for c in present}
+
+
 def check_units(magnitude: float, units: str, expected_field_nT: float | None = None, where: str = "input") -> None:
     """Refuse magnitudes that look like another unit than the one given.
 

@@ -261,36 +261,20 @@ def gravity_problem_free(gravity, n: int) -> np.ndarray:
     return g
 
 
-def _header_names(path) -> list[str] | None:
-    """The column names of a CSV file as ``pandas.read_csv(path, comment="#", nrows=0)`` gives them (its first line
-    with anything before a '#', split at commas, quotes honoured), read without pandas; None when it cannot be read."""
-    import csv
+def read_gravity(path) -> np.ndarray | None:
+    """The accelerometer columns ax, ay, az (else gx, gy, gz) of a CSV file, any unit, row for row with the readings
+    (``read_columns``: the file read as the readings are, any separator; the header's names in any letter case); None
+    without them, ``InputError`` when a row of them is not a direction (NaN, empty, text, zero)."""
+    from magbench.simulate.dataset import read_columns
 
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            for line in fh:
-                text = line.split("#", 1)[0]
-                if text.strip():
-                    return next(csv.reader([text]))
-    except (OSError, UnicodeDecodeError, csv.Error):
+        found = read_columns(path, ("ax", "ay", "az", "gx", "gy", "gz"))
+    except InputError:  # unreadable files are refused by the loader with their own message
         return None
-    return None
-
-
-def read_gravity(path) -> np.ndarray | None:
-    """The accelerometer columns ax, ay, az (else gx, gy, gz) of a CSV file, any unit; None without them,
-    ``InputError`` when a row of them is not a direction (NaN, empty, zero)."""
-    header = _header_names(path)
-    if header is None:  # unreadable files are refused by the loader with their own message
-        return None
-    cols = {c.strip().lower(): c for c in header}
     for names in (("ax", "ay", "az"), ("gx", "gy", "gz")):
-        if all(n in cols for n in names):
-            import pandas as pd  # only for a file that has the columns (0.15-0.2 s of every diagnose otherwise)
-
-            frame = pd.read_csv(path, comment="#", usecols=[cols[n] for n in names])
+        if all(n in found for n in names):
             try:  # columns that are there but broken are refused, not silently left out of the diagnosis
-                return gravity_problem_free(frame[[cols[n] for n in names]].to_numpy(), len(frame))
+                return gravity_problem_free(np.column_stack([found[n] for n in names]), len(found[names[0]]))
             except InputError as exc:
                 raise InputError(f"{path}: the accelerometer columns {', '.join(names)}: {exc}") from None
     return None
