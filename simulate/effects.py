@@ -45,6 +45,7 @@ import numpy as np
 from numpy.polynomial import legendre
 
 from magbench.errors import InputError
+from magbench.lightstats import f_sf
 from magbench.numerics import MAD_TO_SIGMA, robust_sigma, systematic_rows  # noqa: F401  (re-exported)
 
 from .field import ConstantField, VaryingField
@@ -195,8 +196,6 @@ def holds(t_s: np.ndarray | None, unit: np.ndarray) -> np.ndarray | None:
 def f_test_p(sse_small: float, sse_big: float, extra: int, dof: float) -> float:
     """p-value of the F test that ``extra`` more columns (residual sum of squares ``sse_big`` with ``dof``
     degrees of freedom left, against ``sse_small`` without them) explain nothing."""
-    from magbench.lightstats import f_sf
-
     if dof <= 0 or sse_big <= 0:
         return 1.0
     stat = max(sse_small - sse_big, 0.0) / extra / (sse_big / dof)

@@ -26,7 +26,7 @@ from magbench.calibrators.core.objective import ScalarObjective, identity_vector
 from magbench.calibrators.fisher import coverage
 from magbench.errors import MAX_SEED, InputError, check_int
 from magbench.numerics import time_column_note
-from magbench.simulate.dataset import Dataset, ScalarSeries, real_array
+from magbench.simulate.dataset import Dataset, ScalarSeries, read_columns, real_array
 from magbench.simulate.sensor import PARAM_NAMES
 
 from .blind import blind_dataset, blind_kinds
@@ -265,8 +265,6 @@ def read_gravity(path) -> np.ndarray | None:
     """The accelerometer columns ax, ay, az (else gx, gy, gz) of a CSV file, any unit, row for row with the readings
     (``read_columns``: the file read as the readings are, any separator; the header's names in any letter case); None
     without them, ``InputError`` when a row of them is not a direction (NaN, empty, text, zero)."""
-    from magbench.simulate.dataset import read_columns
-
     try:
         found = read_columns(path, ("ax", "ay", "az", "gx", "gy", "gz"))
     except InputError:  # unreadable files are refused by the loader with their own message
