@@ -420,11 +420,28 @@ def _check_quoted_rows(where, body: bytes, sep: str, n_names: int, first_line: i
             if len(record) != n_names:
                 raise InputError(f"{where} is not a readable CSV file: line {start} has {len(record)} field(s) but "
                                  f"the header names {n_names} column(s)")
+        tail = text.rsplit("\n", 1)[-1]
+        if tail.strip() and _open_at_end(tail, sep):  # the csv module closes a quote left open at the file's end
+            raise InputError(f"{where}: a quote (\") on line {line - 1 if line > first_line else line}, the last, "
+                             "never closes: an unbalanced quote")
     except csv.Error as exc:
         if "field limit" in str(exc):  # a quote never closed: the field runs on to the file's end
             raise InputError(f"{where}: a quoted field starting on line {line} runs on past {csv.field_size_limit():,} "
                              "characters: an unbalanced quote (\") joins lines into one field") from None
         raise InputError(f"{where} is not a readable CSV file: {exc} (line {line})") from None
+
+
+def _open_at_end(last_line: str, sep: str) -> bool:
+    """Whether a file's last line (without a line end) leaves a quoted field open: a quote at a field's start that
+    never closes, which the csv module's lenient reader closes silently (a stray quote inside a field, 12"3, is
+    text, not a quote)."""
+    import csv
+
+    try:
+        list(csv.reader([last_line], delimiter=sep, skipinitialspace=True, strict=True))
+    except csv.Error as exc:
+        return "unexpected end of data" in str(exc)
+    return False
 
 
 SMALL_TABLE_BYTES = 2 * 1024 * 1024

@@ -888,3 +888,28 @@ def test_a_quote_never_closed_in_a_long_file_is_named(tmp_path, capsys, rows):
     fragment = ("a quoted field starting on line 6 runs on past 131,072 characters: an unbalanced quote" if rows == 4000
                 else "starting on line 6 spans")
     _refused(capsys, ["calibrate", path, "--method", "lsq"], fragment)
+
+
+@pytest.mark.parametrize("last, status", [(',"50000', 2), (',"50000"', 0), (',50000,12"3', 0)],
+                         ids=["quote-open-at-the-end", "control-closed", "control-inch-mark"])
+@pytest.mark.parametrize("rows", [300, 6000], ids=["small", "1-MB"])
+def test_a_quote_left_open_on_the_last_line_is_refused(tmp_path, capsys, last, status, rows):
+    """A file whose last line (no line end after it) opens a quote that never closes had been read without a word
+    (the csv module closes it at the end of the data); refused with its line.  Controls: the quote closed, and a
+    stray inch mark inside a text field (text, not a quote)."""
+    rng = np.random.default_rng(rows)
+    u = rng.normal(size=(rows, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    note = last.count(",") == 2
+    lines = ["bx,by,bz,f_ref" + (",note" if note else "")] + [
+        f"{a:.3f},{b:.3f},{c:.3f},50000" + (",x" if note else "") for a, b, c in (u * 5e4).tolist()]
+    a, b, c = (u[-1] * 5e4).tolist()
+    lines[-1] = f"{a:.3f},{b:.3f},{c:.3f}" + last
+    path = tmp_path / "q.csv"
+    path.write_text("\n".join(lines))  # no line end after the last line
+    if status == 2:
+        _refused(capsys, ["calibrate", path, "--method", "lsq"], f"a quote (\") on line {rows + 1}, the last, never "
+                                                                   "closes: an unbalanced quote")
+    else:
+        code, _, err = _run(capsys, ["calibrate", path, "--method", "lsq"])
+        assert code in (0, 3), err
