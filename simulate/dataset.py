@@ -473,8 +473,10 @@ def _small_table(path, body: bytes, sep: str, names: list[str], numeric: list[st
             try:
                 if any("_" in v for v in values):  # Python reads 1_000 as a number; pandas and C do not
                     raise ValueError
-                out[name] = np.array([float(v) for v in values], dtype=np.float64)
-                continue
+                floats = np.array([float(v) for v in values], dtype=np.float64)
+                if np.isfinite(floats).all():  # else kept as text: the refusal then quotes the cell as written
+                    out[name] = floats
+                    continue
             except ValueError:
                 pass
         out[name] = np.array(values, dtype=object)
@@ -524,6 +526,8 @@ def _pandas_table(path, body: memoryview, sep: str, names: list[str], numeric: l
             try:
                 frame = pd.read_csv(io.BytesIO(body), dtype={n: np.float64 for n in numeric}, na_filter=False,
                                     **options)
+                if not all(np.isfinite(frame[n].to_numpy()).all() for n in numeric if n in frame):
+                    raise ValueError  # a NaN or infinite cell (refused): read as text, so that the refusal quotes it
             except ValueError:
                 frame = pd.read_csv(io.BytesIO(body), dtype=str, na_filter=False, **options)
     except UnicodeDecodeError as exc:

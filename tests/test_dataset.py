@@ -179,3 +179,18 @@ def test_a_one_off_read_imports_pandas_only_above_the_threshold(tmp_path, n, pan
             "print('pandas' in sys.modules)")
     done = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, check=True)
     assert done.stdout.split() == [str(pandas_loaded)]
+
+
+@pytest.mark.parametrize("cell", ["NaN", "-inf", "Infinity"])
+def test_a_non_finite_cell_is_quoted_as_written(tmp_path, monkeypatch, cell):
+    """The refusal quotes the cell as the file has it, by either reader (the csv module's path had said (nan))."""
+    from magbench.simulate import dataset
+
+    rows = [f"{i * 0.1:.1f},{30000 + i},{100 + i},{40000 - i}" for i in range(40)]
+    rows[7] = rows[7].replace(f",{100 + 7},", f",{cell},")
+    path = tmp_path / "n.csv"
+    path.write_text("t,bx,by,bz\n" + "\n".join(rows) + "\n")
+    for small in (True, False):
+        monkeypatch.setattr(dataset, "SMALL_TABLE_BYTES", 1 << 30 if small else 0)
+        with pytest.raises(InputError, match=f"non-finite \\('{cell}'\\) on line 9"):
+            dataset.read_csv(path)
