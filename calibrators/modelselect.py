@@ -32,7 +32,7 @@ from dataclasses import replace
 import numpy as np
 
 from magbench.errors import InputError
-from magbench.numerics import BRUTE_NEAREST_ROWS, NEAREST_BLOCK_ELEMENTS, lm_normal
+from magbench.numerics import BRUTE_NEAREST_ROWS, NEAREST_BLOCK_ELEMENTS, lm_normal, squared_distances
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES
 
@@ -74,15 +74,6 @@ def distinct_attitudes(raw_nT: np.ndarray, field_nT: float) -> int:
     return int(connected_components(graph, directed=False)[0])
 
 
-def _squared_distances(block: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Squared distances (rows of ``block``, rows of ``points``), summed axis by axis as the k-d tree sums them."""
-    d2 = np.zeros((len(block), len(points)))
-    for axis in range(points.shape[1]):
-        diff = block[:, axis, None] - points[None, :, axis]
-        d2 += diff * diff
-    return d2
-
-
 def _linked_groups(points: np.ndarray, radius: float) -> int:
     """The connected components of the readings linked at distances of at most ``radius``, by comparing pairs: the
     readings with no other within it are one attitude each (found in blocks of NEAREST_BLOCK_ELEMENTS pairs), the
@@ -95,7 +86,7 @@ def _linked_groups(points: np.ndarray, radius: float) -> int:
     linked = np.zeros(n, dtype=bool)
     step = max(1, NEAREST_BLOCK_ELEMENTS // n)
     for start in range(0, n, step):
-        d2 = _squared_distances(points[start:start + step], points)
+        d2 = squared_distances(points[start:start + step], points)
         near = d2 <= limit
         rows = np.arange(near.shape[0])
         near[rows, rows + start] = False  # a reading and itself are no pair
@@ -116,7 +107,7 @@ def _linked_groups(points: np.ndarray, radius: float) -> int:
             hit = np.zeros(len(todo), dtype=bool)
             width = max(1, NEAREST_BLOCK_ELEMENTS // len(todo))
             for start in range(0, len(frontier), width):
-                hit |= (_squared_distances(rest[frontier[start:start + width]], rest[todo]) <= limit).any(axis=0)
+                hit |= (squared_distances(rest[frontier[start:start + width]], rest[todo]) <= limit).any(axis=0)
             frontier = todo[hit]
             reached[frontier] = True
     return groups

@@ -130,16 +130,23 @@ def nearest_other(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     step = max(1, NEAREST_BLOCK_ELEMENTS // n)
     for start in range(0, n, step):
         block = points[start:start + step]
-        d2 = np.zeros((len(block), n))
-        for axis in range(points.shape[1]):  # summed axis by axis, as the tree does: the same distances to the last bit
-            diff = block[:, axis, None] - points[None, :, axis]
-            d2 += diff * diff
+        d2 = squared_distances(block, points)
         rows = np.arange(len(block))
         d2[rows, rows + start] = np.inf  # each point's own pair left out
         near = d2.argmin(axis=1)
         idx[start:start + step] = near
         dist[start:start + step] = np.sqrt(d2[rows, near])
     return dist, idx
+
+
+def squared_distances(block: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Squared distances (rows of ``block``, rows of ``points``), summed axis by axis as SciPy's k-d tree sums them:
+    the tree's distances to the last bit."""
+    d2 = np.zeros((len(block), len(points)))
+    for axis in range(points.shape[1]):
+        diff = block[:, axis, None] - points[None, :, axis]
+        d2 += diff * diff
+    return d2
 
 
 def systematic_rows(n: int, limit: int) -> slice:

@@ -93,13 +93,18 @@ def spherical_design(u: np.ndarray, degree: int) -> np.ndarray:
     return np.column_stack(cols)
 
 
+def heading_design(heading_deg: np.ndarray, k_max: int = HEADING_HARMONICS) -> np.ndarray:
+    """The columns 1, cos h, sin h, ..., cos k_max h, sin k_max h of ``harmonics``' least squares."""
+    h = np.radians(heading_deg)
+    return np.column_stack([np.ones_like(h)] + [f(k * h) for k in range(1, k_max + 1) for f in (np.cos, np.sin)])
+
+
 def harmonics(heading_deg: np.ndarray, r: np.ndarray, k_max: int = HEADING_HARMONICS) -> dict:
     """Amplitude (nT) of the residual at k cycles per revolution of the heading (least squares)."""
-    h = np.radians(heading_deg)
-    cols = [np.ones_like(h)] + [f(k * h) for k in range(1, k_max + 1) for f in (np.cos, np.sin)]
-    coef, *_ = np.linalg.lstsq(np.column_stack(cols), r, rcond=None)
+    design = heading_design(heading_deg, k_max)
+    coef, *_ = np.linalg.lstsq(design, r, rcond=None)
     amps = {f"{k}_per_rev_nT": float(np.hypot(coef[2 * k - 1], coef[2 * k])) for k in range(1, k_max + 1)}
-    fit = np.column_stack(cols) @ coef
+    fit = design @ coef
     amps["mean_nT"] = float(coef[0])
     amps["rms_beyond_nT"] = float(np.sqrt(np.mean((r - fit) ** 2)))
     return amps

@@ -17,7 +17,7 @@ from magbench.simulate.effects import EFFECTS, OutlierEffect, library_effects
 from magbench.simulate.sensor import paper_matrix
 
 from .floor import second_difference_floor
-from .localize import HEADING_HARMONICS, harmonics
+from .localize import harmonics, heading_design
 from .scoring import MIN_SIGNIFICANT_SHRINK_PCT, Z_SIGNIFICANT, paired_z, rms, shrink_pct
 
 MIN_HEADINGS = 12
@@ -356,10 +356,7 @@ def _mounting_harmonics(thetas: np.ndarray, h: np.ndarray, f: float, p_after: np
     t = np.diag([kx, ky, kz]) @ np.linalg.inv(paper_matrix(a, b, g)) @ (rx @ ry)  # (m, 3, 3); soft iron: none
     raw = np.einsum("mnj,mkj->mnk", c, t) + np.array([ox, oy, oz])
     diff = np.linalg.norm(raw, axis=-1) - np.linalg.norm(raw @ p_after.T, axis=-1)  # (m, n)
-    hh = np.radians(np.degrees(h))  # the headings as ``harmonics`` is given them
-    design = np.column_stack([np.ones_like(hh)] + [fn(k * hh) for k in range(1, HEADING_HARMONICS + 1)
-                                                   for fn in (np.cos, np.sin)])
-    coef, *_ = np.linalg.lstsq(design, diff.T, rcond=None)
+    coef, *_ = np.linalg.lstsq(heading_design(np.degrees(h)), diff.T, rcond=None)  # as ``harmonics`` is given them
     return np.column_stack([np.hypot(coef[1], coef[2]), np.hypot(coef[3], coef[4])])
 
 
