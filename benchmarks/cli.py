@@ -47,7 +47,7 @@ from magbench.calibrators.artifacts import apply_problems, apply_to_csv, export,
 from magbench.calibrators.registry import plugin_errors
 from magbench.errors import InputError, with_file_lines
 from magbench.paper import ARCSEC_PER_RAD
-from magbench.safeio import atomic_output, check_output, os_reason
+from magbench.safeio import atomic_output, check_output, os_reason, read_input
 from magbench.simulate.dataset import UNIT_FACTORS_NT, read_csv, write_truth
 from magbench.simulate.effects import EFFECTS
 from magbench.simulate.field import igrf_field
@@ -137,11 +137,13 @@ def _reference_from_args(args) -> float | None:
     return None
 
 
-def load_dataset(args, require_vector: bool = True):
-    """Read FILE with the reference options; f_ref column > --field > --igrf > '# field_nT:'."""
+def load_dataset(args, require_vector: bool = True, file_bytes=None):
+    """Read FILE with the reference options; f_ref column > --field > --igrf > '# field_nT:'.  ``file_bytes``: the
+    file read already (``safeio.read_input``), when the caller has it."""
 
     cli_ref = _reference_from_args(args)
-    data = read_csv(args.file, units=args.units, require_vector=require_vector, expected_field_nT=cli_ref)
+    data = read_csv(args.file, units=args.units, require_vector=require_vector, expected_field_nT=cli_ref,
+                    source=file_bytes)
     _FIRST_DATA_LINE[0] = data.meta.get("first_data_line")
     ignored = None
     source: str | None
@@ -682,7 +684,8 @@ def cmd_diagnose(args) -> int:
 
     talk = not getattr(args, "json", False)
     with slow_phase(f"reading {args.file}", talk):
-        data = load_dataset(args, require_vector=False)
+        file_bytes = read_input(args.file, "data file")  # once: the readings and the accelerometer columns
+        data = load_dataset(args, require_vector=False, file_bytes=file_bytes)
     figure = Path(args.figure) if args.figure and not args.no_figure else None
     if figure is not None:
         if figure.suffix.lower().lstrip(".") not in DIAGNOSIS_FIGURE_FORMATS:
@@ -693,7 +696,7 @@ def cmd_diagnose(args) -> int:
         check_output(figure, [args.file], args.force, what="--figure file")
     with slow_phase(f"diagnosing {len(data):,} readings (fits of every candidate effect, blocked in time and "
                     "attitude)", talk):
-        result = diagnose(data, base=args.model, folds=args.folds, seed=args.seed, gravity=read_gravity(args.file))
+        result = diagnose(data, base=args.model, folds=args.folds, seed=args.seed, gravity=read_gravity(args.file, file_bytes))
     if figure is not None:
         with atomic_output(figure, [args.file], args.force, what="--figure file") as tmp:
             diagnosis_figure(diagnosed_rows(data, result), result, tmp)

@@ -688,10 +688,7 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
     path = as_path(path, "data file")
     if not isinstance(units, str) or units not in UNIT_FACTORS_NT:
         raise InputError(f"unknown unit {units!r}: use one of nT, uT, mG, G")
-    src = source if source is not None else read_input(path, "data file")
-    data = newline_lines(src.data)
-    head = _parse_head(data, str(path))
-    sep, names = _header(path, head.header)
+    src, data, head, sep, names = _opened(path, source)
     _check_meta_units(path, head.meta, units)
     numeric = [c for c in names if c in NUMERIC_COLUMNS]
     has_vector = all(c in names for c in ("bx", "by", "bz"))
@@ -733,15 +730,22 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
     return ScalarSeries(column(scalar_col) * factor, f_ref_nT=f_ref, extra=others, meta=meta, **common)
 
 
-def read_columns(path, wanted) -> dict[str, np.ndarray]:
+def _opened(path: Path, source: InputBytes | None) -> tuple[InputBytes, bytes, _Head, str, list[str]]:
+    """A data file's bytes (``source`` when read already), its lines' bytes, its head, separator and column names."""
+    src = source if source is not None else read_input(path, "data file")
+    data = newline_lines(src.data)
+    head = _parse_head(data, str(path))
+    sep, names = _header(path, head.header)
+    return src, data, head, sep, names
+
+
+def read_columns(path, wanted, source: InputBytes | None = None) -> dict[str, np.ndarray]:
     """The columns of ``wanted`` (lower-case names) that a data file has, read as ``read_csv`` reads the file (its
     separator, metadata lines, quoting and rows, so row i is ``read_csv``'s row i): float arrays, NaN where a cell does
     not parse.  For columns ``read_csv`` does not keep (the accelerometer's ax, ay, az or gx, gy, gz), read without
-    pandas where ``read_csv`` does; ``{}`` when the file has none of them."""
-    path = as_path(path, "data file")
-    data = newline_lines(read_input(path, "data file").data)
-    head = _parse_head(data, str(path))
-    sep, names = _header(path, head.header)
+    pandas where ``read_csv`` does; ``{}`` when the file has none of them.  ``source``: the file's bytes, when the
+    caller read them for ``read_csv`` already (read once)."""
+    _, data, head, sep, names = _opened(as_path(path, "data file"), source)
     present = [c for c in wanted if c in names]
     if not present:
         return {}

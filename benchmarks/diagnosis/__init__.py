@@ -261,12 +261,13 @@ def gravity_problem_free(gravity, n: int) -> np.ndarray:
     return g
 
 
-def read_gravity(path) -> np.ndarray | None:
+def read_gravity(path, source=None) -> np.ndarray | None:
     """The accelerometer columns ax, ay, az (else gx, gy, gz) of a CSV file, any unit, row for row with the readings
     (``read_columns``: the file read as the readings are, any separator; the header's names in any letter case); None
-    without them, ``InputError`` when a row of them is not a direction (NaN, empty, text, zero)."""
+    without them, ``InputError`` when a row of them is not a direction (NaN, empty, text, zero).  ``source``: the
+    file's bytes, when read already for the readings."""
     try:
-        found = read_columns(path, ("ax", "ay", "az", "gx", "gy", "gz"))
+        found = read_columns(path, ("ax", "ay", "az", "gx", "gy", "gz"), source)
     except InputError:  # unreadable files are refused by the loader with their own message
         return None
     for names in (("ax", "ay", "az"), ("gx", "gy", "gz")):
