@@ -1,12 +1,18 @@
 """The real-coded GAs' generation kernel (calibrators/_gakernel.py, ``ga`` and seed 002's ``rga``): the
 numba loops and the numpy arrays give bit-identical results, and the numpy version keeps the operators'
 semantics (children inside the box, elites unchanged, the non-uniform step shrinking with t)."""
+import contextlib
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from magbench.calibrators import make
+from magbench.calibrators.core.evaluator import Budget, BudgetExhausted, Evaluator
+from magbench.calibrators.core.loop import Termination, drive
+from magbench.calibrators.core.objective import ScalarObjective
+from magbench.calibrators.core.problem import Problem
 from magbench.calibrators.methods import _gakernel as K
 from magbench.calibrators.methods import genetic
 from magbench.simulate import simulate
@@ -214,3 +220,35 @@ def test_other_operators_run_their_own_loop():
     data = simulate("sphere9", 0)
     res = Custom(model="nine", population=8, generations=5).fit(data)
     assert res.n_evaluations == 8 * 5 + 1
+
+
+def _stopped_run(data, budget: int, generations: int = 150):
+    """``real_ga`` of ``ga`` on sphere9's objective, stopped by an evaluation budget (or by its generations);
+    returns the best point, the evaluations spent and the next uniforms its rng gives."""
+    ga = make("ga", population=20, generations=generations)
+    counter = Evaluator(ScalarObjective(data.raw_nT, data.f_ref_nT, "nine"), Budget(max_evaluations=budget))
+    termination = Termination(budget=counter.budget, max_iterations=generations)
+    lower = np.array([-0.1] * 3 + [0.9] * 3 + [-2000.0] * 3)
+    upper = np.array([0.1] * 3 + [1.1] * 3 + [2000.0] * 3)
+    rng = np.random.default_rng(11)
+    problem = Problem(counter, "nine", (lower + upper) / 2, lower, upper, rng, None, termination)
+    with contextlib.suppress(BudgetExhausted):  # the budget ends the search: the counter keeps its best point
+        drive(genetic.real_ga(problem, ga), counter, termination)
+    return counter.best_x, counter.n_evaluations, rng.random(5)
+
+
+@pytest.mark.parametrize("budget", [20 * 7 + 5, 20 * 64 + 20 * 3, 20 * 150, 10 ** 6])
+def test_block_draws_equal_per_generation_draws_and_a_stopped_run_gives_back_the_rest(budget, monkeypatch):
+    """The numpy kernel draws and prepares up to 64 generations' uniforms at once (``_numpy_block_loop``): the
+    same points as one draw per generation, and a run stopped inside a block (the budget spent) leaves its rng
+    where one draw per generation leaves it (what draws next, as seed 001's next GA, draws the same numbers).
+    Negative control: the per-generation path, forced by saying the rng cannot be rewound."""
+    monkeypatch.setenv(K.KERNEL_ENV, "numpy")
+    data = simulate("sphere9", 0)
+    block = _stopped_run(data, budget)
+    assert block[1] == min(budget, 20 * 150)
+    monkeypatch.setattr(genetic, "_rewindable", lambda rng: False)
+    per_generation = _stopped_run(data, budget)
+    np.testing.assert_array_equal(block[0], per_generation[0])
+    assert block[1] == per_generation[1]
+    np.testing.assert_array_equal(block[2], per_generation[2])

@@ -30,6 +30,7 @@ import itertools
 import math
 from collections.abc import Mapping
 from types import MappingProxyType
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -425,55 +426,99 @@ def real_uniforms_needed(m: int, p: int, selection: int, tournament: int, crosso
     return max(s.stop for s in real_uniform_layout(m, p, selection, tournament, crossover, mutation).values())
 
 
-def _pow_each(r: np.ndarray, e: float) -> np.ndarray:
+def _pow_each(r: np.ndarray, e) -> np.ndarray:
     """``r ** e`` element by element with the C library's ``pow`` (as the compiled loops call it; numpy's
-    own vectorized power may differ in the last bit)."""
-    return np.fromiter(map(math.pow, r.tolist(), itertools.repeat(e, r.size)), dtype=float, count=r.size)
+    own vectorized power may differ in the last bit); ``e`` one exponent, or one per element."""
+    exponents = itertools.repeat(e, r.size) if np.ndim(e) == 0 else np.asarray(e, dtype=float).tolist()
+    return np.fromiter(map(math.pow, r.tolist(), exponents), dtype=float, count=r.size)
 
 
-def real_generation_numpy(f, pop, u, z, selection, tournament, crossover, alpha, pc, mutation, pm, shrink,
-                          elitism, lo, span, out_pop, out_x):
-    """One generation of the real-coded GA (seed 002, section 3.3: selection, crossover, mutation and an
-    elite carried over), on whole arrays.  Arguments and outputs: the comment above ``TOURNAMENT``.
+class RealDraws(NamedTuple):
+    """What B generations of the real-coded GA take from their uniforms alone, before any population is
+    known (``real_prepare``): per generation, the tournaments' contestants or the rank-SUS pointers' offset
+    and shuffle, which pairs cross, the BLX blend factors or the scattered swaps, and the non-uniform
+    mutation's hits with their steps (``hits[at[g]:at[g + 1]]`` flat indices into generation g's children,
+    ``up`` their direction, ``delta`` their step) or the Gaussian mutation's rows.  Each field an array, or None
+    where the generation's operators do not use it."""
 
-    Selection: TOURNAMENT, the best-ranked of ``tournament`` individuals drawn with replacement; RANK_SUS,
-    rank scaling (weight 1/sqrt(rank)) and stochastic universal sampling (pointers (u0 + j)/n of the
-    cumulative weight, then shuffled by sorting n uniforms).  Parents k and half + k form pair k; the pair
-    crosses with probability ``pc`` (else the children are the parents, copied).  BLX-alpha (Eshelman &
-    Schaffer 1993): child = pa + (pb - pa) s, s = u (1 + 2 alpha) - alpha uniform in [-alpha, 1 + alpha].
-    SCATTERED: each gene of the first child from pa or pb at even odds, the second child the other one.
-    NONUNIFORM (Michalewicz 1992): a gene hit (w < pm) moves towards 0 (w/pm < 1/2) or 1 by the distance
-    times 1 - r^((1 - t/T)^b), with r = 2 w/pm (mod 1) the uniform left in the hit draw.  GAUSSIAN: a
-    child mutated (w < pm) gets sigma z added to each gene.  Then clipping to [0, 1], and the elites
-    (first ranks, best first) replace the last children.
-    """
-    m, p = pop.shape
+    contestants: Any  # (B, tournament, n) int64: generation g's c-th contestants (TOURNAMENT)
+    offsets: Any      # (B,) the pointers' offset (RANK_SUS)
+    shuffle: Any      # (B, n) the order of the picked parents (RANK_SUS)
+    cross: np.ndarray  # (B, half) bool
+    blend: Any        # (B, m, p) BLX factors s in [-alpha, 1 + alpha]
+    swap: Any         # (B, half, p) bool (SCATTERED)
+    hits: Any         # flat indices of the mutated genes, generation after generation (NONUNIFORM)
+    at: Any           # (B + 1,) where each generation's hits start
+    up: Any           # their direction: 1.0 towards the upper bound, 0.0 towards the lower (NONUNIFORM)
+    delta: Any        # their step 1 - r^shrink (NONUNIFORM)
+    mutated: Any      # (B, m) bool: the rows a Gaussian mutation moves (GAUSSIAN)
+
+
+def real_prepare(u, m, p, selection, tournament, crossover, alpha, pc, mutation, pm, shrinks) -> RealDraws:
+    """The population-independent part of ``real_generation_numpy`` for B generations at once: ``u`` (B, k)
+    their uniforms (row g: generation g's, laid out as ``real_uniform_layout`` says) and ``shrinks`` (B,) the
+    non-uniform exponents (unused for GAUSSIAN).  Every number is computed by the operations
+    ``real_generation_numpy`` applies to one generation, element by element, so the generations bred from it
+    by ``real_apply`` are bit-identical to one call per generation: a run draws its uniforms for many
+    generations in one ``rng.random`` call (the same stream), and prepares them in a few whole-block
+    operations rather than a few dozen small ones per generation."""
+    b = u.shape[0]
     half = (m + 1) // 2
     n = 2 * half
     parts = real_uniform_layout(m, p, selection, tournament, crossover, mutation)
-    order = np.argsort(f, kind="stable")
+    contestants = offsets = shuffle = blend = swap = hits = at = up = delta = mutated = None
+    if selection == TOURNAMENT:
+        drawn = np.minimum((u[:, parts["select"]] * m).astype(np.int64), m - 1).reshape(b, n, tournament)
+        contestants = np.ascontiguousarray(drawn.transpose(0, 2, 1))  # one contiguous row per contestant
+    else:
+        offsets = u[:, parts["offset"].start]
+        shuffle = np.argsort(u[:, parts["shuffle"]], axis=1, kind="stable")
+    cross = u[:, parts["cross"]] < pc
+    if crossover == BLX:
+        blend = u[:, parts["blend"]].reshape(b, m, p) * (1.0 + 2.0 * alpha)
+        blend -= alpha
+    else:
+        swap = ~(u[:, parts["pick"]].reshape(b, half, p) < 0.5) & cross[:, :, None]
+    w = u[:, parts["mutate"]]
+    if mutation == NONUNIFORM:
+        q = min(pm, 1.0)
+        gen, hits = np.nonzero(w < q)  # generation after generation, each one's genes in order
+        v = w[gen, hits] / q * 2.0
+        up = (v >= 1.0).astype(float)  # 1.0 towards the upper bound, 0.0 towards the lower
+        delta = 1.0 - _pow_each(v - up, np.asarray(shrinks, dtype=float)[gen])
+        at = np.searchsorted(gen, np.arange(b + 1))
+    else:
+        mutated = w < pm
+    return RealDraws(contestants, offsets, shuffle, cross, blend, swap, hits, at, up, delta, mutated)
+
+
+def real_apply(f, pop, draws: RealDraws, g, z, shrink, elitism, lo, span, out_pop, out_x):
+    """Generation g of ``draws`` bred from ``pop`` and its values ``f`` (the population-dependent part of
+    ``real_generation_numpy``; ``z`` and ``shrink`` the Gaussian mutation's normals and standard deviation)."""
+    m, p = pop.shape
+    half = (m + 1) // 2
+    n = 2 * half
+    order = f.argsort(kind="stable")
     rank = np.empty(m, np.int64)
     rank[order] = np.arange(m)
-    if selection == TOURNAMENT:
-        cand = np.minimum((u[parts["select"]] * m).astype(np.int64), m - 1).reshape(n, tournament)
-        if tournament == 2:
-            ranked = rank[cand]
-            mates = np.where(ranked[:, 0] < ranked[:, 1], cand[:, 0], cand[:, 1])
-        else:
-            mates = cand[np.arange(n), np.argmin(rank[cand], axis=1)]
+    if draws.contestants is not None:
+        cand = draws.contestants[g]
+        best = rank[cand[0]]
+        for c in range(1, cand.shape[0]):
+            np.minimum(best, rank[cand[c]], out=best)
+        mates = order[best]  # the best-ranked contestant of each tournament
     else:
         cum = np.cumsum(1.0 / np.sqrt(rank + 1.0))
-        pointers = (u[parts["offset"]][0] + np.arange(n)) / n * cum[-1]
+        pointers = (draws.offsets[g] + np.arange(n)) / n * cum[-1]
         picked = np.minimum(np.searchsorted(cum, pointers, side="left"), m - 1)
-        mates = picked[np.argsort(u[parts["shuffle"]], kind="stable")]
+        mates = picked[draws.shuffle[g]]
     parents = pop[mates]  # pair k: parents[k] and parents[half + k]
     pa, pb = parents[:half], parents[half:]
     second = m - half  # the second children kept
-    cross = u[parts["cross"]] < pc
+    cross = draws.cross[g]
     out_pop[:] = parents[:m]  # the first children pa, the second pb[:second]
-    if crossover == BLX:
-        s = u[parts["blend"]].reshape(m, p) * (1.0 + 2.0 * alpha)
-        s -= alpha
+    if draws.blend is not None:
+        s = draws.blend[g]  # used once: scaled in place
         d = pb - pa
         if second == half and out_pop.flags.c_contiguous:  # both children of every pair as (2, half, p) views
             pairs = s.reshape(2, half, p)
@@ -488,29 +533,48 @@ def real_generation_numpy(f, pop, u, z, selection, tournament, crossover, alpha,
             rows = np.concatenate((cross, cross[:second]))
             out_pop[rows] = s[rows]
     else:
-        pick = u[parts["pick"]].reshape(half, p) < 0.5
-        swap = ~pick & cross[:, None]
+        swap = draws.swap[g]
         out_pop[:half][swap] = pb[swap]
         out_pop[half:][swap[:second]] = pa[:second][swap[:second]]
-    w = u[parts["mutate"]]
-    if mutation == NONUNIFORM:
-        q = min(pm, 1.0)
+    if draws.hits is not None:
+        lo_at, hi_at = draws.at[g], draws.at[g + 1]
+        hit = draws.hits[lo_at:hi_at]
         flat = out_pop.reshape(-1)
-        hit = np.flatnonzero(w < q)
-        v = w[hit] / q * 2.0
-        up = v >= 1.0
-        delta = 1.0 - _pow_each(v - up, shrink)
         c = flat[hit]
-        flat[hit] = c + (up - c) * delta
+        flat[hit] = c + (draws.up[lo_at:hi_at] - c) * draws.delta[lo_at:hi_at]
     else:
-        rows = np.flatnonzero(w < pm)
+        rows = np.flatnonzero(draws.mutated[g])
         out_pop[rows] += shrink * z[:len(rows) * p].reshape(len(rows), p)
     np.maximum(out_pop, 0.0, out=out_pop)
     np.minimum(out_pop, 1.0, out=out_pop)
-    if elitism:
+    if elitism == 1:
+        out_pop[m - 1] = pop[order[0]]
+    elif elitism:
         out_pop[m - elitism:] = pop[order[:elitism]]
     np.multiply(out_pop, span, out=out_x)
     out_x += lo
+
+
+def real_generation_numpy(f, pop, u, z, selection, tournament, crossover, alpha, pc, mutation, pm, shrink,
+                          elitism, lo, span, out_pop, out_x):
+    """One generation of the real-coded GA (seed 002, section 3.3: selection, crossover, mutation and an
+    elite carried over), on whole arrays: ``real_prepare`` of its uniforms, then ``real_apply``.  Arguments
+    and outputs: the comment above ``TOURNAMENT``.
+
+    Selection: TOURNAMENT, the best-ranked of ``tournament`` individuals drawn with replacement; RANK_SUS,
+    rank scaling (weight 1/sqrt(rank)) and stochastic universal sampling (pointers (u0 + j)/n of the
+    cumulative weight, then shuffled by sorting n uniforms).  Parents k and half + k form pair k; the pair
+    crosses with probability ``pc`` (else the children are the parents, copied).  BLX-alpha (Eshelman &
+    Schaffer 1993): child = pa + (pb - pa) s, s = u (1 + 2 alpha) - alpha uniform in [-alpha, 1 + alpha].
+    SCATTERED: each gene of the first child from pa or pb at even odds, the second child the other one.
+    NONUNIFORM (Michalewicz 1992): a gene hit (w < pm) moves towards 0 (w/pm < 1/2) or 1 by the distance
+    times 1 - r^((1 - t/T)^b), with r = 2 w/pm (mod 1) the uniform left in the hit draw.  GAUSSIAN: a
+    child mutated (w < pm) gets sigma z added to each gene.  Then clipping to [0, 1], and the elites
+    (first ranks, best first) replace the last children.
+    """
+    draws = real_prepare(u[None, :], pop.shape[0], pop.shape[1], selection, tournament, crossover, alpha, pc,
+                         mutation, pm, (shrink,))
+    real_apply(f, pop, draws, 0, z, shrink, elitism, lo, span, out_pop, out_x)
 
 
 def _real_generation_loops(f, pop, u, z, selection, tournament, crossover, alpha, pc, mutation, pm, shrink,

@@ -334,6 +334,8 @@ def _kernel_loop(rng, ga, operators, u, x, f, lo, span):
     settings = (selection, tournament, crossover, float(ga.blx_alpha), float(ga.pc), mutation, float(ga.pm))
     pm, elitism, no_normals = float(ga.pm), int(ga.elitism), np.empty(0)
     u, children = np.ascontiguousarray(u, dtype=float), np.empty((m, p))
+    if kernel is _gakernel.real_generation_numpy and mutation == _gakernel.NONUNIFORM and _rewindable(rng):
+        return (yield from _numpy_block_loop(rng, ga, settings, n_uniforms, u, children, x, f, lo, span))
     gen = 1
     while not (yield loop.iteration()):  # the framework stops the search after ``generations``
         t = gen / ga.generations
@@ -347,6 +349,49 @@ def _kernel_loop(rng, ga, operators, u, x, f, lo, span):
         f = yield loop.values(x)
         u, children = children, u
         gen += 1
+    return gen
+
+
+BLOCK_GENERATIONS = 64
+"""Generations whose uniforms the numpy kernel draws and prepares at once (``_numpy_block_loop``)."""
+
+
+def _rewindable(rng) -> bool:
+    """Whether ``rng``'s stream can be moved back (numpy's PCG64, what ``default_rng`` makes): a block of
+    uniforms drawn for generations that do not run is given back (``_numpy_block_loop``)."""
+    return type(getattr(rng, "bit_generator", None)) is np.random.PCG64
+
+
+def _numpy_block_loop(rng, ga, settings, n_uniforms, u, children, x, f, lo, span):
+    """``_kernel_loop``'s generations on the numpy kernel with a non-uniform mutation (no normal draws between
+    the generations' uniforms): the uniforms of up to ``BLOCK_GENERATIONS`` generations in one ``rng.random``
+    call (the same stream as one call per generation) and their population-independent part prepared in one
+    pass (``_gakernel.real_prepare``); each generation then costs ``real_apply`` alone.  The same numbers as
+    the per-generation kernels, bit for bit; uniforms drawn for generations that do not run (the budget ended
+    the search) are given back to ``rng``, so what draws from it next draws what it would have."""
+    selection, tournament, crossover, alpha, pc, mutation, pm = settings
+    m, p = u.shape
+    elitism, total = int(ga.elitism), int(ga.generations)
+    draws, first, drawn = None, 1, 0  # the prepared block covers generations first .. first + drawn - 1
+    gen = taken = 1  # taken: the generations whose uniforms were used end before it
+    try:
+        while not (yield loop.iteration()):  # the framework stops the search after ``generations``
+            if gen >= first + drawn:
+                first, drawn = gen, max(1, min(BLOCK_GENERATIONS, total - gen))
+                shrinks = [float((1.0 - g / total) ** ga.nonuniform_b) for g in range(first, first + drawn)]
+                block = rng.random(drawn * n_uniforms).reshape(drawn, n_uniforms)
+                draws = _gakernel.real_prepare(block, m, p, selection, tournament, crossover, alpha, pc, mutation,
+                                               pm, shrinks)
+            taken = gen + 1
+            _gakernel.real_apply(np.ascontiguousarray(f, dtype=float), u, draws, gen - first, None, 0.0, elitism,
+                                 lo, span, children, x)
+            f = yield loop.values(x)
+            u, children = children, u
+            gen += 1
+    finally:
+        unused = first + drawn - taken
+        if unused > 0:
+            rng.bit_generator.advance(-unused * n_uniforms)  # one 64-bit step per double
     return gen
 
 
