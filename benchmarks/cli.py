@@ -280,11 +280,11 @@ def list_effects() -> list[dict]:
 def cmd_simulate(args) -> int:
 
     scenario = get_scenario(args.scenario)
+    check_output(args.out, force=args.force, what="--out file")  # the name as given: '' is no file (Path('') is '.')
     out = Path(args.out)
     if args.truth and (Path(args.truth).resolve() == out.resolve()
                        or (out.exists() and Path(args.truth).exists() and os.path.samefile(out, args.truth))):
         raise InputError(f"--out and --truth name the same file ({out}, by inode): the truth would overwrite the data")
-    check_output(out, force=args.force, what="--out file")
     if args.truth:
         check_output(args.truth, [out], force=args.force, what="--truth file")
     data = scenario.build(args.seed)
@@ -856,7 +856,7 @@ def _add_simulate_parser(sub) -> None:
     p = sub.add_parser("simulate", help="simulate a scenario to a CSV file and its truth to JSON")
     p.add_argument("--scenario", required=True)
     p.add_argument("--seed", type=seed, default=0, help="random seed, a non-negative integer (default 0)")
-    p.add_argument("--out", required=True, metavar="FILE.csv")
+    p.add_argument("--out", required=True, metavar="FILE.csv", help="the data file to write (CSV, CONTRACT section 2)")
     p.add_argument("--truth", metavar="FILE.json")
     p.add_argument("--force", action="store_true", help="overwrite existing output files")
     p.add_argument("--json", action="store_true")
@@ -999,8 +999,10 @@ def _first_line(exc: BaseException) -> str:
 def _usage_error(exc: BaseException) -> str | None:
     """The one-line message of an exception that is bad input, not our fault (None otherwise): an
     ``InputError``, an ``OSError`` (a path and the system's reason), memory or nesting beyond the machine's."""
-    if isinstance(exc, InputError):
-        return cli_words(_first_line(exc))
+    if isinstance(exc, InputError):  # ours: all of it on one line (a line break in a file or column name it quotes is
+        # shown escaped, not cut there: the reason after it had been lost)
+        text = str(exc).strip()
+        return cli_words(_printable(text)) if text else type(exc).__name__
     if isinstance(exc, OSError):
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
         return _printable(f"cannot read or write {where}{os_reason(exc)}")

@@ -58,6 +58,7 @@ from magbench.numerics import (
     roughness,
     systematic_rows,
 )
+from magbench.simulate.dataset import UNIT_FACTORS_NT
 from magbench.simulate.effects import COLUMNS, HOLD_ANGLE_RAD, HOLD_MIN_SAMPLES, HOLD_SHARE, Columns
 from magbench.simulate.sensor import PARAM_NAMES, embed
 
@@ -1886,6 +1887,23 @@ def time_key(t_s: np.ndarray | None) -> str | None:
     return None if t_s is None else hashlib.sha256(np.ascontiguousarray(t_s, dtype="<f8").data).hexdigest()
 
 
+def units_apart(ratio: float) -> str | None:
+    """What to say when the readings are ``ratio`` times the reference and that ratio is the factor between two units
+    (1000 between uT and nT): the two columns were written in different units, and one ``units`` reads both (a file of
+    readings in uT beside an f_ref in nT had been told to use units='uT', and then refused again)."""
+    if not ratio > 0:
+        return None
+    exponent = round(math.log10(ratio))
+    if exponent == 0 or abs(math.log10(ratio) - exponent) > 0.05:
+        return None
+    factor = 10.0 ** abs(exponent)
+    pairs = [f"{a} and {b}" for a, b in (("uT", "nT"), ("mG", "nT"), ("G", "nT"), ("uT", "mG"), ("G", "uT"), ("G", "mG"))
+             if UNIT_FACTORS_NT[a] / UNIT_FACTORS_NT[b] == factor]
+    return (f"a factor of {factor:,.0f}{', as between ' + ' or '.join(pairs) if pairs else ''}: the readings and f_ref "
+            "were written in different units, and the units they are read in (units=) apply to both: write f_ref "
+            "in the readings' unit (or the readings in f_ref's)")
+
+
 def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray, t_s: np.ndarray | None = None) -> str | None:
     """Why the reference and the readings cannot belong together, or None: the readings' magnitude
     against the reference (wrong units, raw ADC counts, a wrong reference), rows in mixed units, and a
@@ -1903,7 +1921,8 @@ def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray, t_s: np.ndarray
     typical = median(ratio)
     if not MAGNITUDE_RATIO_RANGE[0] <= typical <= MAGNITUDE_RATIO_RANGE[1]:
         return (f"the readings' magnitude (median {np.median(mag):.4g}) is {typical:.3g} times the reference "
-                f"(median {np.median(f_ref_nT):.6g} nT): wrong units (read with units=), raw ADC counts, or a wrong reference")
+                f"(median {np.median(f_ref_nT):.6g} nT): " + (units_apart(typical) or "wrong units (read with units=), "
+                                                              "raw ADC counts, or a wrong reference"))
     off = (ratio > typical * UNIT_OUTLIER_FACTOR) | (ratio < typical / UNIT_OUTLIER_FACTOR)
     if off.mean() >= MIXED_UNITS_FRACTION:
         rows = np.flatnonzero(off)

@@ -216,10 +216,9 @@ class Calibration:
         try:
             p = d["parameters"]
             nine = np.array([float(p[name]["value"]) for name in NINE_NAMES])
-            matrix = np.array(d["M"], dtype=float)
-            offset = np.array(d["o_nT"], dtype=float)
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"{where}: missing or malformed entry {exc}") from None
+        matrix, offset = _numbers(d, "M", where), _numbers(d, "o_nT", where)
         if not np.all(np.isfinite(nine)) or matrix.shape != (3, 3) or offset.shape != (3,) \
                 or not np.all(np.isfinite(matrix)) or not np.all(np.isfinite(offset)):
             raise InputError(f"{where}: the parameters, M (3x3) and o_nT (3) must be finite numbers")
@@ -286,6 +285,18 @@ def _float(v) -> float:
         return float(v) if v is not None else float("nan")
     except (TypeError, ValueError):
         return float("nan")
+
+
+def _numbers(d: dict, key: str, where: str) -> np.ndarray:
+    """``d[key]`` as a float array, or an ``InputError`` that names the entry in the file's terms (numpy's own text about
+    'inhomogeneous shapes' had been passed on for a ragged M)."""
+    if key not in d:
+        raise InputError(f"{where}: missing entry {key!r}")
+    try:
+        return np.array(d[key], dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: {key} must be " + ("a 3x3 matrix of numbers (three rows of three)" if key == "M" else
+                                                        "three numbers")) from None
 
 
 def _finite_or_none(v):

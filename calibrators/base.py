@@ -53,7 +53,7 @@ from .core.problem import (  # noqa: F401
     search_bounds,
 )
 from .fisher import coverage, crb_std, one_pass
-from .inputs import algebraic_vector, as_dataset
+from .inputs import algebraic_vector, as_dataset, magnitude_spikes
 from .params import BUDGET, SEED, Options, as_budget, validate_params
 
 
@@ -451,6 +451,11 @@ class Calibrator(metaclass=_Sealed):
             else:
                 out = SolveOutput(evaluator.best_x, status="budget", message=f"stopped: {exc}", success=True)
             stopped = Stopped(getattr(exc, "iterations", 0), "budget")
+        except InputError as exc:  # the method cannot fit these readings: spikes among them, if any, said beside its reason
+            spikes = magnitude_spikes(dataset.raw_nT)
+            if spikes is None:
+                raise
+            raise InputError(f"{exc}; but {spikes}") from exc
         if not isinstance(out, SolveOutput):
             out = SolveOutput(out, status="no_output", message=f"{self.name}'s _solve returned {type(out).__name__}, "
                               "not a SolveOutput", success=False)

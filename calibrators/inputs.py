@@ -122,6 +122,34 @@ def algebraic_vector(raw_nT: np.ndarray, f_ref_nT, model: str) -> np.ndarray | N
     return None
 
 
+SPIKE_SHARE = 0.05
+"""Fewer readings than this share far from the others' magnitude are spikes (CONTRACT section 5: left to the outlier
+screening); more are a record of another shape (mixed units, a second field), which the reference checks name."""
+SPIKE_SPREADS = 10.0
+"""A reading is far from the others when its magnitude is more than this many robust spreads (1.4826 MAD) from their
+median, and more than ``SPIKE_FIELD_SHARE`` of it."""
+SPIKE_FIELD_SHARE = 0.1
+
+
+def magnitude_spikes(raw_nT: np.ndarray) -> str | None:
+    """What to add to a method's refusal when a few readings (fewer than ``SPIKE_SHARE``) have magnitudes far from the
+    others: spikes, which a closed-form fit takes as they are (one row in a hundred at 50 times the field had turned
+    TWOSTEP's and Merayo's quadrics indefinite, refused as too little attitude coverage on a full sphere)."""
+    raw = np.asarray(raw_nT, dtype=float)
+    mag = np.sqrt(np.einsum("ij,ij->i", raw, raw))
+    middle = float(np.median(mag))
+    spread = 1.4826 * float(np.median(np.abs(mag - middle)))
+    far = np.abs(mag - middle) > max(SPIKE_SPREADS * spread, SPIKE_FIELD_SHARE * middle)
+    k = int(far.sum())
+    if k == 0 or k >= SPIKE_SHARE * len(mag):
+        return None
+    rows = np.flatnonzero(far)
+    listed = ", ".join(map(str, rows[:5])) + (", ..." if k > 5 else "")
+    return (f"{k} of {len(mag)} readings (row{'s' if k > 1 else ''} {listed}) have magnitudes far from the others' "
+            f"(median {middle:.6g} nT): spikes, which this method fits as they are; a robust method (ransac) fits "
+            "around them, and lsq names them")
+
+
 MIN_SPREAD_FOR_SHAPE_FIT = 0.2
 """Readings whose spread along their least-covered direction is below this fraction of the largest spread
 (a level turntable, a vehicle pitching a few degrees) fit no sphere or ellipsoid reliably: the magnitude is

@@ -289,6 +289,24 @@ def newline_lines(data: bytes) -> bytes:
     return data.replace(b"\r", b"\n") if b"\r" in data and b"\n" not in data else data
 
 
+EXCEL_SEP = re.compile(r"sep=[,;\t|]")
+"""The separator hint a spreadsheet writes as a CSV file's first line (Excel's ``sep=,``): not a header, skipped."""
+
+
+def _spreadsheet_comment(line: str) -> str:
+    """A ``#`` line as a spreadsheet exports it, with its row's empty cells after it (``# field_nT: 50000,,,``) or its
+    one cell quoted (``"# note: a, b",,,``), as the ``#`` line it is; any other line as it is (such files had been
+    refused as a metadata value that is not a number, or as a header without bx, by, bz)."""
+    if line.startswith('"#'):
+        close = line.find('"', 2)
+        if close > 0 and not line[close + 1:].strip(",;\t| "):
+            return line[1:close]
+        return line
+    if line.startswith("#"):
+        return line.rstrip(",;\t| ")
+    return line
+
+
 def _parse_head(data: bytes, where: str) -> _Head:
     """The ``#`` metadata before the header, the number of lines before it, the header line and where the
     rows start; refuses what is not UTF-8 text, and an overlong header."""
@@ -311,6 +329,11 @@ def _parse_head(data: bytes, where: str) -> _Head:
             line = raw.decode("utf-8").rstrip("\r")
         except UnicodeDecodeError as exc:
             raise InputError(f"{where} is not UTF-8 text ({exc.reason} at byte {pos + exc.start})") from None
+        if skipped == 0 and EXCEL_SEP.fullmatch(line):  # a spreadsheet's separator hint ('sep=,') as the first line
+            skipped += 1
+            pos = end + 1
+            continue
+        line = _spreadsheet_comment(line)
         if line.startswith("#") or not line.strip():
             if line.startswith("#"):
                 meta_lines.append(line)
@@ -753,18 +776,34 @@ def read_columns(path, wanted, source: InputBytes | None = None) -> dict[str, np
     return {c: table[c] if table[c].dtype == np.float64 else _as_floats(table[c]) for c in present}
 
 
+GEOMAGNETIC_NT = (20000.0, 70000.0)
+"""The geomagnetic field's magnitude, widened a little (22,000 to 67,000 nT at the surface): without a known field, a
+median magnitude outside it that another unit brings inside it is refused (``check_units``)."""
+
+
 def check_units(magnitude: float, units: str, expected_field_nT: float | None = None, where: str = "input") -> None:
     """Refuse magnitudes that look like another unit than the one given.
 
     With a known field the median magnitude, converted to nT, must lie within a factor 5 of it; without
     one, between 1,000 and 10,000,000 nT (Earth's field is 22,000 to 67,000 nT; hard-iron offsets and
-    lab coils widen that).  The message names the unit the numbers look like.
+    lab coils widen that), and not outside ``GEOMAGNETIC_NT`` where another unit would bring it inside (the unit
+    given wrongly: a laboratory field says so with the field).  The message names the unit the numbers look like.
     """
     nt = magnitude * UNIT_FACTORS_NT[units]
     reference = expected_field_nT if expected_field_nT else 50000.0
     ok = 1.0e3 <= nt <= 1.0e7
     if expected_field_nT:
         ok = ok and 0.2 <= nt / expected_field_nT <= 5.0
+    if ok and not expected_field_nT and not GEOMAGNETIC_NT[0] <= nt <= GEOMAGNETIC_NT[1]:
+        # plausible as a laboratory field, but another unit makes it the geomagnetic field: a unit given wrongly (a
+        # file in uT read as mG, with an f_ref column in the same unit, had been calibrated 10 times too small)
+        other = next((u for u in ("nT", "uT", "mG", "G") if u != units and
+                      GEOMAGNETIC_NT[0] <= magnitude * UNIT_FACTORS_NT[u] <= GEOMAGNETIC_NT[1]), None)
+        if other is not None:
+            raise InputError(f"{where}: median field magnitude {magnitude:.4g} {units} is {nt:.4g} nT, outside the "
+                             f"geomagnetic field's {GEOMAGNETIC_NT[0]:,.0f} to {GEOMAGNETIC_NT[1]:,.0f} nT; they look like "
+                             f"{other} ({magnitude * UNIT_FACTORS_NT[other]:.4g} nT): read with units='{other}', or, for a "
+                             f"laboratory field of {nt:.4g} nT, give that field (--field, or a '# field_nT:' line)")
     if not ok:
         guess = guess_unit(magnitude, reference)
         converted = magnitude * UNIT_FACTORS_NT[guess]

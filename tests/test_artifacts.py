@@ -175,6 +175,15 @@ def test_loader_refuses_bad_files(tmp_path):
         path.write_text(json.dumps(d))
         with pytest.raises(InputError):
             load_calibration(path)
+    # said in the file's terms, not numpy's ('inhomogeneous shape after 1 dimensions' for a ragged M)
+    ragged = {**good, "M": [good["M"][0], good["M"][1], [0.0, 0.0, 1.0, 5.0]]}
+    for what, d, message in (("ragged M", ragged, "M must be a 3x3 matrix of numbers"),
+                             ("text in o_nT", {**good, "o_nT": [1.0, "a", None]}, "o_nT must be three numbers"),
+                             ("missing o_nT", {k: v for k, v in good.items() if k != "o_nT"}, "missing entry 'o_nT'")):
+        path = tmp_path / f"{what.replace(' ', '_')}.json"
+        path.write_text(json.dumps(d))
+        with pytest.raises(InputError, match=message):
+            load_calibration(path)
     (tmp_path / "junk.json").write_text("{not json")
     with pytest.raises(InputError, match="not JSON"):
         load_calibration(tmp_path / "junk.json")

@@ -88,6 +88,13 @@ def _half_uT():
     return _csv(raw, fmt="{:.6g}")
 
 
+def _spiked():
+    """GOOD with data rows 30, 130 and 230 at 50 times their readings (1 % spikes)."""
+    raw = RAW.copy()
+    raw[[30, 130, 230]] *= 50.0
+    return _csv(raw)
+
+
 def _quoted(opening, closing):
     """GOOD with a text column ``note``; a quote opens on data row ``opening`` and closes on row ``closing``
     (the same row: balanced; None: never)."""
@@ -155,6 +162,32 @@ CASES = [
     ("uT-with-units", _csv(RAW / 1000.0, f_ref=50.0, fmt="{:.6g}", meta=()), ["--units", "uT"], 0, ""),
     ("gauss-with-units", _csv(RAW / 1e5, f_ref=0.5, fmt="{:.8g}", meta=()), ["--units", "G"], 0, ""),
     ("nT-read-as-uT", GOOD, ["--units", "uT"], 2, "implausible"),
+    # a unit given wrongly with an f_ref in the same unit: the magnitudes stay within 1,000 .. 10^7 nT (a laboratory
+    # field's range) and agree with the reference, but another unit makes them the geomagnetic field (had been
+    # calibrated with offsets 10 and 100 times off, exit 0)
+    ("uT-read-as-mG", _csv(RAW / 1000.0, f_ref=50.0, fmt="{:.6g}", meta=()), ["--units", "mG"], 2,
+     "outside the geomagnetic field's 20,000 to 70,000 nT; they look like uT"),
+    ("uT-read-as-G", _csv(RAW / 1000.0, f_ref=50.0, fmt="{:.6g}", meta=()), ["--units", "G"], 2, "they look like uT"),
+    ("nT-read-as-mG", _csv(RAW, meta=()), ["--units", "mG"], 2, "they look like nT"),
+    ("mG-read-as-uT", _csv(RAW / 100.0, f_ref=500.0, fmt="{:.6g}", meta=()), ["--units", "uT"], 2, "they look like mG"),
+    ("lab-field-in-mG-said", _csv(RAW / 1000.0, f_ref=50.0, fmt="{:.6g}", meta=()), ["--units", "mG", "--field", "5000"],
+     0, ""),
+    ("lab-field-in-mG-metadata", _csv(RAW / 1000.0, f_ref=50.0, fmt="{:.6g}", meta=("# field_nT: 5000",)),
+     ["--units", "mG"], 0, ""),
+    ("uT-beside-f-ref-in-nT", _csv(RAW / 1000.0, f_ref=F_NT, fmt="{:.6g}", meta=()), ["--units", "uT"], 2,
+     "a factor of 1,000, as between uT and nT or G and mG: the readings and f_ref were written in different units"),
+    # spikes make the closed-form scalar calibrations' quadrics indefinite: said beside their reason (the reason
+    # alone had blamed the attitude coverage of a full sphere)
+    ("spikes-merayo", _spiked(), ["--method", "merayo"], 2, "3 of 300 readings (rows 30, 130, 230 (lines 33, 133, 233)) "
+     "have magnitudes far from the others'"),
+    ("spikes-twostep", _spiked(), ["--method", "twostep"], 2, "spikes, which this method fits as they are"),
+    # spreadsheet exports: Excel's separator hint, and '#' lines with their row's empty cells or quoted
+    ("excel-sep-line", "\ufeffsep=,\r\n" + GOOD.replace("\n", "\r\n"), [], 0, ""),
+    ("excel-sep-line-semicolon", "sep=;\n" + _csv(RAW, sep=";"), [], 0, ""),
+    ("comment-with-empty-cells", GOOD.replace("# field_nT: 50000", "# field_nT: 50000,,,"), [], 0, ""),
+    ("comment-quoted", GOOD.replace("# field_nT: 50000", '"# field_nT: 50000",,,'), [], 0, ""),
+    ("sep-line-not-first", "# field_nT: 50000\nsep=,\n" + "\n".join(GOOD.splitlines()[1:]) + "\n", [], 2,
+     "lacks column"),
     ("adc-counts", _csv(np.round(RAW / 3.0517578125), meta=(), fmt="{:.0f}"), [], 2, "times the reference"),
     ("f-ref-ten-times-off", _csv(RAW, f_ref=5000.0, meta=()), [], 2, "times the reference"),
     ("field-option-ten-times-off", _csv(RAW, header=("bx", "by", "bz"), meta=()), ["--field", "5000"], 2,
@@ -370,11 +403,39 @@ def test_simulate_refuses_out_equal_to_truth_and_keeps_the_data(tmp_path, capsys
     assert out.read_bytes() == before
 
 
+def test_simulate_out_empty_or_a_folder_is_refused_by_what_it_is(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "--scenario", "sphere9", "--out", ""]) == 2
+    assert "the --out file name is empty" in capsys.readouterr().err  # had been ". is a directory, not a file"
+    assert main(["simulate", "--scenario", "sphere9", "--out", str(tmp_path)]) == 2
+    assert "is a directory, not a file" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_control_characters_in_names_are_not_echoed_raw(tmp_path, capsys):
     name = str(tmp_path / "evil\x1b[31mred\rname.csv")
     assert main(["calibrate", name, "--method", "lsq"]) == 2
     err = capsys.readouterr().err
     assert "\x1b" not in err and "\r" not in err and "\\x1b" in err
+
+
+@pytest.mark.parametrize("where", ["file-name", "column-name"])
+def test_a_line_break_in_a_name_is_shown_escaped_and_the_reason_kept(tmp_path, capsys, where):
+    """One line on stderr with the whole reason: a line break in a file or column name is escaped, not cut there
+    (the message had ended at it: 'magbench: /tmp/a' and nothing more)."""
+    if where == "file-name":
+        path = tmp_path / "a\nb.csv"
+        path.write_text(_edit_row(GOOD, 7, "nan,1,2,50000"))
+        reason = "column bx has a value missing, non-numeric or non-finite ('nan') on line 10"
+    else:
+        path = tmp_path / "c.csv"
+        path.write_text(GOOD.replace("bx,by,bz,f_ref", '"b\rx",by,bz,f_ref'))
+        reason = "units go in --units or a '# units:' line"
+    assert main(["calibrate", str(path), "--method", "lsq"]) == 2
+    err = capsys.readouterr().err
+    lines = err.splitlines()
+    assert len(lines) == 1 and "\r" not in err and reason in lines[0]
+    assert ("a\\nb.csv" if where == "file-name" else "b\\rx") in lines[0]
 
 
 def test_igrf_warnings_never_reach_stdout(tmp_path, capsys):

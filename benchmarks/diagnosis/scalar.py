@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from magbench import paper
-from magbench.calibrators.acceptance import GLITCH_FACTOR, MIN_REFERENCE_NT
+from magbench.calibrators.acceptance import GLITCH_FACTOR, MIN_REFERENCE_NT, units_apart
 from magbench.errors import InputError
 from magbench.simulate.dataset import MAX_ABS_OTHER, ScalarSeries, temperature_problem
 from magbench.simulate.effects import EFFECTS, OutlierEffect, library_effects
@@ -120,8 +120,8 @@ def series_problem(series: ScalarSeries) -> str | None:
         ratio = float(np.median(meas) / np.median(ref))
         if not SCALAR_RATIO_RANGE[0] <= ratio <= SCALAR_RATIO_RANGE[1]:
             return (f"the measured magnitude {name} (median {np.median(meas):.4g}) is {ratio:.3g} times the reference "
-                    f"(median {np.median(ref):.6g} nT): wrong units (every magnitude column is in nT), or a wrong "
-                    "reference")
+                    f"(median {np.median(ref):.6g} nT): " + (units_apart(ratio) or "wrong units (every magnitude "
+                                                              "column is read in one unit, units=), or a wrong reference"))
     return None
 
 
