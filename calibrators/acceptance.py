@@ -1899,7 +1899,9 @@ def units_apart(ratio: float) -> str | None:
     factor = 10.0 ** abs(exponent)
     pairs = [f"{a} and {b}" for a, b in (("uT", "nT"), ("mG", "nT"), ("G", "nT"), ("uT", "mG"), ("G", "uT"), ("G", "mG"))
              if UNIT_FACTORS_NT[a] / UNIT_FACTORS_NT[b] == factor]
-    return (f"a factor of {factor:,.0f}{', as between ' + ' or '.join(pairs) if pairs else ''}: the readings and f_ref "
+    if not pairs:  # 10^4, 10^6: no two units are that far apart
+        return None
+    return (f"a factor of {factor:,.0f}, as between {' or '.join(pairs)}: the readings and f_ref "
             "were written in different units, and the units they are read in (units=) apply to both: write f_ref "
             "in the readings' unit (or the readings in f_ref's)")
 

@@ -25,7 +25,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from magbench.errors import InputError
+from magbench.errors import FitError, InputError
 from magbench.numerics import median, repeated_rows, systematic_rows, time_column_note
 from magbench.simulate.dataset import Dataset
 from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
@@ -451,11 +451,11 @@ class Calibrator(metaclass=_Sealed):
             else:
                 out = SolveOutput(evaluator.best_x, status="budget", message=f"stopped: {exc}", success=True)
             stopped = Stopped(getattr(exc, "iterations", 0), "budget")
-        except InputError as exc:  # the method cannot fit these readings: spikes among them, if any, said beside its reason
-            spikes = magnitude_spikes(dataset.raw_nT)
+        except FitError as exc:  # the readings do not take the method's form: spikes among them, if any, said beside it
+            spikes = magnitude_spikes(dataset.raw_nT) if self.name != "ransac" else None
             if spikes is None:
                 raise
-            raise InputError(f"{exc}; but {spikes}") from exc
+            raise FitError(f"{exc}; but {spikes}") from exc
         if not isinstance(out, SolveOutput):
             out = SolveOutput(out, status="no_output", message=f"{self.name}'s _solve returned {type(out).__name__}, "
                               "not a SolveOutput", success=False)

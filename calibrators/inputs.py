@@ -132,9 +132,10 @@ SPIKE_FIELD_SHARE = 0.1
 
 
 def magnitude_spikes(raw_nT: np.ndarray) -> str | None:
-    """What to add to a method's refusal when a few readings (fewer than ``SPIKE_SHARE``) have magnitudes far from the
-    others: spikes, which a closed-form fit takes as they are (one row in a hundred at 50 times the field had turned
-    TWOSTEP's and Merayo's quadrics indefinite, refused as too little attitude coverage on a full sphere)."""
+    """What to add to a closed-form method's ``FitError`` when a few readings (fewer than ``SPIKE_SHARE``) have
+    magnitudes far from the others: spikes, perhaps, which a closed-form fit takes as they are (one row in a hundred
+    at 50 times the field had turned TWOSTEP's and Merayo's quadrics indefinite, refused as too little attitude
+    coverage on a full sphere).  A vehicle's brief turn with a large hard iron can look the same: hence 'if'."""
     raw = np.asarray(raw_nT, dtype=float)
     mag = np.sqrt(np.einsum("ij,ij->i", raw, raw))
     middle = float(np.median(mag))
@@ -146,8 +147,8 @@ def magnitude_spikes(raw_nT: np.ndarray) -> str | None:
     rows = np.flatnonzero(far)
     listed = ", ".join(map(str, rows[:5])) + (", ..." if k > 5 else "")
     return (f"{k} of {len(mag)} readings (row{'s' if k > 1 else ''} {listed}) have magnitudes far from the others' "
-            f"(median {middle:.6g} nT): spikes, which this method fits as they are; a robust method (ransac) fits "
-            "around them, and lsq names them")
+            f"(median {middle:.6g} nT): if they are spikes, this method fits them as they are; a robust method "
+            "(ransac) fits around them, and lsq names them")
 
 
 MIN_SPREAD_FOR_SHAPE_FIT = 0.2

@@ -11,6 +11,12 @@ class InputError(ValueError):
     """Bad input or usage: the command line reports it in one line and exits with status 2."""
 
 
+class FitError(InputError):
+    """Readings that do not take the form a closed-form method fits (a quadric that is not an ellipsoid, a gain that
+    is not positive, a design the readings leave singular): bad input for that method (status 2), whose cause may lie
+    in the readings (too little coverage, spikes: ``Calibrator.fit`` names those beside it)."""
+
+
 _NUMBER = r"\d+(?:,\d{3})*(?!\d|,\d)"  # 7, 1234 or 1,234 (a list's ", " is not a thousands separator)
 _ROWS = re.compile(rf"\b(rows?|row\(s\)) ({_NUMBER}(?:(?:, | and ){_NUMBER}(?! more))*)(?! \(line)")
 

@@ -297,10 +297,13 @@ def _spreadsheet_comment(line: str) -> str:
     """A ``#`` line as a spreadsheet exports it, with its row's empty cells after it (``# field_nT: 50000,,,``) or its
     one cell quoted (``"# note: a, b",,,``), as the ``#`` line it is; any other line as it is (such files had been
     refused as a metadata value that is not a number, or as a header without bx, by, bz)."""
-    if line.startswith('"#'):
-        close = line.find('"', 2)
-        if close > 0 and not line[close + 1:].strip(",;\t| "):
-            return line[1:close]
+    if line.startswith('"#'):  # quoted as a spreadsheet quotes ("" for a quote inside), whatever its separator
+        import csv
+
+        for sep in DELIMITERS:
+            cells = next(csv.reader([line], delimiter=sep))
+            if cells and cells[0].startswith("#") and not any(c.strip() for c in cells[1:]):
+                return cells[0]
         return line
     if line.startswith("#"):
         return line.rstrip(",;\t| ")
@@ -736,10 +739,12 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
     if f_ref is not None and np.any(f_ref <= 0):
         row = first_line + int(np.flatnonzero(f_ref <= 0)[0])
         raise InputError(f"{path}: f_ref must be a positive magnitude, not {f_ref[f_ref <= 0][0]:g} (line {row})")
-    f_ref = f_ref * factor if f_ref is not None else None
     field_meta = _meta_field_nT(path, meta)
     if expected_field_nT is None:
         expected_field_nT = field_meta
+    if f_ref is not None and not expected_field_nT:
+        check_reference_units(float(np.median(f_ref)), units, where=str(path))
+    f_ref = f_ref * factor if f_ref is not None else None
 
     common = dict(t_s=column("t"), temp_C=column("temp"), heading_deg=column("heading_deg"))
     meta = {**meta, "source_file": str(path), "units_read": units, "file_sha256": src.sha256}
@@ -777,8 +782,27 @@ def read_columns(path, wanted, source: InputBytes | None = None) -> dict[str, np
 
 
 GEOMAGNETIC_NT = (20000.0, 70000.0)
-"""The geomagnetic field's magnitude, widened a little (22,000 to 67,000 nT at the surface): without a known field, a
-median magnitude outside it that another unit brings inside it is refused (``check_units``)."""
+"""The geomagnetic field's magnitude, widened a little (22,000 to 67,000 nT at the surface): without a known field, an
+f_ref whose median lies outside it and another unit brings inside it is refused (``check_reference_units``)."""
+
+
+def check_reference_units(f_ref_median: float, units: str, where: str = "input") -> None:
+    """Refuse an f_ref column (its median ``f_ref_median`` in ``units``) that ``units`` puts outside the geomagnetic
+    field and another unit inside it: the unit given wrongly for readings and f_ref alike (a file in uT read as mG,
+    whose readings then agree with their reference, had been calibrated with offsets 10 times off and accepted).
+    Asked only where no field is known (``--field``, ``--igrf``, a ``# field_nT:`` line: a laboratory field says so
+    there).  The reference, not the readings: an uncalibrated sensor's hard iron can put the readings' magnitude
+    far outside the geomagnetic field (a phone's 200 uT) while the field is geomagnetic."""
+    nt = f_ref_median * UNIT_FACTORS_NT[units]
+    if GEOMAGNETIC_NT[0] <= nt <= GEOMAGNETIC_NT[1] or not 1.0e3 <= nt <= 1.0e7:
+        return  # geomagnetic; or no field at all, which the readings' and the reference's own checks refuse
+    other = next((u for u in ("nT", "uT", "mG", "G") if u != units and
+                  GEOMAGNETIC_NT[0] <= f_ref_median * UNIT_FACTORS_NT[u] <= GEOMAGNETIC_NT[1]), None)
+    if other is not None:
+        raise InputError(f"{where}: f_ref (median {f_ref_median:.4g} {units}) is {nt:.4g} nT, outside the geomagnetic "
+                         f"field's {GEOMAGNETIC_NT[0]:,.0f} to {GEOMAGNETIC_NT[1]:,.0f} nT; it looks like {other} "
+                         f"({f_ref_median * UNIT_FACTORS_NT[other]:.4g} nT): read with units='{other}', or, for a "
+                         f"laboratory field of {nt:.4g} nT, say so with a '# field_nT:' line (or --field)")
 
 
 def check_units(magnitude: float, units: str, expected_field_nT: float | None = None, where: str = "input") -> None:
@@ -786,24 +810,13 @@ def check_units(magnitude: float, units: str, expected_field_nT: float | None = 
 
     With a known field the median magnitude, converted to nT, must lie within a factor 5 of it; without
     one, between 1,000 and 10,000,000 nT (Earth's field is 22,000 to 67,000 nT; hard-iron offsets and
-    lab coils widen that), and not outside ``GEOMAGNETIC_NT`` where another unit would bring it inside (the unit
-    given wrongly: a laboratory field says so with the field).  The message names the unit the numbers look like.
+    lab coils widen that).  The message names the unit the numbers look like.
     """
     nt = magnitude * UNIT_FACTORS_NT[units]
     reference = expected_field_nT if expected_field_nT else 50000.0
     ok = 1.0e3 <= nt <= 1.0e7
     if expected_field_nT:
         ok = ok and 0.2 <= nt / expected_field_nT <= 5.0
-    if ok and not expected_field_nT and not GEOMAGNETIC_NT[0] <= nt <= GEOMAGNETIC_NT[1]:
-        # plausible as a laboratory field, but another unit makes it the geomagnetic field: a unit given wrongly (a
-        # file in uT read as mG, with an f_ref column in the same unit, had been calibrated 10 times too small)
-        other = next((u for u in ("nT", "uT", "mG", "G") if u != units and
-                      GEOMAGNETIC_NT[0] <= magnitude * UNIT_FACTORS_NT[u] <= GEOMAGNETIC_NT[1]), None)
-        if other is not None:
-            raise InputError(f"{where}: median field magnitude {magnitude:.4g} {units} is {nt:.4g} nT, outside the "
-                             f"geomagnetic field's {GEOMAGNETIC_NT[0]:,.0f} to {GEOMAGNETIC_NT[1]:,.0f} nT; they look like "
-                             f"{other} ({magnitude * UNIT_FACTORS_NT[other]:.4g} nT): read with units='{other}', or, for a "
-                             f"laboratory field of {nt:.4g} nT, give that field (--field, or a '# field_nT:' line)")
     if not ok:
         guess = guess_unit(magnitude, reference)
         converted = magnitude * UNIT_FACTORS_NT[guess]

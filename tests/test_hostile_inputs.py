@@ -166,10 +166,15 @@ CASES = [
     # field's range) and agree with the reference, but another unit makes them the geomagnetic field (had been
     # calibrated with offsets 10 and 100 times off, exit 0)
     ("uT-read-as-mG", _csv(RAW / 1000.0, f_ref=50.0, fmt="{:.6g}", meta=()), ["--units", "mG"], 2,
-     "outside the geomagnetic field's 20,000 to 70,000 nT; they look like uT"),
-    ("uT-read-as-G", _csv(RAW / 1000.0, f_ref=50.0, fmt="{:.6g}", meta=()), ["--units", "G"], 2, "they look like uT"),
-    ("nT-read-as-mG", _csv(RAW, meta=()), ["--units", "mG"], 2, "they look like nT"),
-    ("mG-read-as-uT", _csv(RAW / 100.0, f_ref=500.0, fmt="{:.6g}", meta=()), ["--units", "uT"], 2, "they look like mG"),
+     "f_ref (median 50 mG) is 5000 nT, outside the geomagnetic field's 20,000 to 70,000 nT; it looks like uT"),
+    ("uT-read-as-G", _csv(RAW / 1000.0, f_ref=50.0, fmt="{:.6g}", meta=()), ["--units", "G"], 2, "it looks like uT"),
+    ("nT-read-as-mG", _csv(RAW, meta=()), ["--units", "mG"], 2, "it looks like nT"),
+    ("mG-read-as-uT", _csv(RAW / 100.0, f_ref=500.0, fmt="{:.6g}", meta=()), ["--units", "uT"], 2, "it looks like mG"),
+    # the reference, not the readings, is held to the geomagnetic range: an uncalibrated phone's hard iron (180 uT)
+    # puts the readings' magnitude at 200 uT, and mG would bring that inside (had been refused as units): judged
+    # by the calibration (outside a fluxgate's physical range), not refused as a unit
+    ("uT-with-a-phone's-hard-iron", _csv((RAW + [180000.0, -90000.0, 50000.0]) / 1000.0, f_ref=50.0, fmt="{:.6g}",
+                                          meta=()), ["--units", "uT"], 3, "outside a fluxgate's physical range"),
     ("lab-field-in-mG-said", _csv(RAW / 1000.0, f_ref=50.0, fmt="{:.6g}", meta=()), ["--units", "mG", "--field", "5000"],
      0, ""),
     ("lab-field-in-mG-metadata", _csv(RAW / 1000.0, f_ref=50.0, fmt="{:.6g}", meta=("# field_nT: 5000",)),
@@ -180,12 +185,13 @@ CASES = [
     # alone had blamed the attitude coverage of a full sphere)
     ("spikes-merayo", _spiked(), ["--method", "merayo"], 2, "3 of 300 readings (rows 30, 130, 230 (lines 33, 133, 233)) "
      "have magnitudes far from the others'"),
-    ("spikes-twostep", _spiked(), ["--method", "twostep"], 2, "spikes, which this method fits as they are"),
+    ("spikes-twostep", _spiked(), ["--method", "twostep"], 2, "if they are spikes, this method fits them as they are"),
     # spreadsheet exports: Excel's separator hint, and '#' lines with their row's empty cells or quoted
     ("excel-sep-line", "\ufeffsep=,\r\n" + GOOD.replace("\n", "\r\n"), [], 0, ""),
     ("excel-sep-line-semicolon", "sep=;\n" + _csv(RAW, sep=";"), [], 0, ""),
     ("comment-with-empty-cells", GOOD.replace("# field_nT: 50000", "# field_nT: 50000,,,"), [], 0, ""),
     ("comment-quoted", GOOD.replace("# field_nT: 50000", '"# field_nT: 50000",,,'), [], 0, ""),
+    ("comment-quoted-with-quotes", '"# note: say ""hi""",,,\n' + GOOD, [], 0, ""),
     ("sep-line-not-first", "# field_nT: 50000\nsep=,\n" + "\n".join(GOOD.splitlines()[1:]) + "\n", [], 2,
      "lacks column"),
     ("adc-counts", _csv(np.round(RAW / 3.0517578125), meta=(), fmt="{:.0f}"), [], 2, "times the reference"),

@@ -222,7 +222,7 @@ def test_other_operators_run_their_own_loop():
     assert res.n_evaluations == 8 * 5 + 1
 
 
-def _stopped_run(data, budget: int, generations: int = 150):
+def _stopped_run(data, budget: int, generations: int = 150, before: bool = False):
     """``real_ga`` of ``ga`` on sphere9's objective, stopped by an evaluation budget (or by its generations);
     returns the best point, the evaluations spent and the next uniforms its rng gives."""
     ga = make("ga", population=20, generations=generations)
@@ -231,24 +231,33 @@ def _stopped_run(data, budget: int, generations: int = 150):
     lower = np.array([-0.1] * 3 + [0.9] * 3 + [-2000.0] * 3)
     upper = np.array([0.1] * 3 + [1.1] * 3 + [2000.0] * 3)
     rng = np.random.default_rng(11)
+    if before:  # a small-range integer first: half of a 64-bit draw stays buffered in the generator
+        rng.integers(0, 10)
     problem = Problem(counter, "nine", (lower + upper) / 2, lower, upper, rng, None, termination)
     with contextlib.suppress(BudgetExhausted):  # the budget ends the search: the counter keeps its best point
         drive(genetic.real_ga(problem, ga), counter, termination)
-    return counter.best_x, counter.n_evaluations, rng.random(5)
+    return counter.best_x, counter.n_evaluations, np.concatenate([rng.random(5), rng.integers(0, 1000, 5)])
 
 
-@pytest.mark.parametrize("budget", [20 * 7 + 5, 20 * 64 + 20 * 3, 20 * 150, 10 ** 6])
-def test_block_draws_equal_per_generation_draws_and_a_stopped_run_gives_back_the_rest(budget, monkeypatch):
+@pytest.mark.parametrize("budget,before,block_uniforms", [(20 * 7 + 5, False, None), (20 * 64 + 20 * 3, False, None),
+                                                          (20 * 150, False, None), (10 ** 6, False, None),
+                                                          (20 * 7 + 5, True, None), (20 * 40 + 7, False, 2000)])
+def test_block_draws_equal_per_generation_draws_and_a_stopped_run_gives_back_the_rest(budget, before, block_uniforms,
+                                                                                      monkeypatch):
     """The numpy kernel draws and prepares up to 64 generations' uniforms at once (``_numpy_block_loop``): the
     same points as one draw per generation, and a run stopped inside a block (the budget spent) leaves its rng
     where one draw per generation leaves it (what draws next, as seed 001's next GA, draws the same numbers).
-    Negative control: the per-generation path, forced by saying the rng cannot be rewound."""
+    Also with half of a 64-bit draw buffered before the run (which ``advance`` alone clears), and with blocks capped
+    by their size (``BLOCK_UNIFORMS``: a large population's blocks are a few generations).  Negative control: the
+    per-generation path, forced by saying the rng cannot be rewound."""
     monkeypatch.setenv(K.KERNEL_ENV, "numpy")
+    if block_uniforms:
+        monkeypatch.setattr(genetic, "BLOCK_UNIFORMS", block_uniforms)
     data = simulate("sphere9", 0)
-    block = _stopped_run(data, budget)
+    block = _stopped_run(data, budget, before=before)
     assert block[1] == min(budget, 20 * 150)
     monkeypatch.setattr(genetic, "_rewindable", lambda rng: False)
-    per_generation = _stopped_run(data, budget)
+    per_generation = _stopped_run(data, budget, before=before)
     np.testing.assert_array_equal(block[0], per_generation[0])
     assert block[1] == per_generation[1]
     np.testing.assert_array_equal(block[2], per_generation[2])

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from magbench.errors import InputError
+from magbench.errors import FitError, InputError
 from magbench.simulate.sensor import ErrorParams
 
 ELLIPSOID_K_MAX = 256.0
@@ -36,14 +36,14 @@ def fit_ellipsoid(raw_nT: np.ndarray, k: float = 4.0) -> tuple[np.ndarray, np.nd
         s22_inv_s21 = np.linalg.solve(s22, s12.T)
         eigval, eigvec = np.linalg.eig(np.linalg.solve(c1, s11 - s12 @ s22_inv_s21))
     except np.linalg.LinAlgError:
-        raise InputError("the readings do not determine an ellipsoid (singular design: coplanar "
+        raise FitError("the readings do not determine an ellipsoid (singular design: coplanar "
                          "or too few distinct points)") from None
     eigval, eigvec = np.real(eigval), np.real(eigvec)
     positive = np.flatnonzero(eigval > 0)
     if positive.size == 0:
         if k < ELLIPSOID_K_MAX:  # Li & Griffiths, section 4: a larger k admits more elongated ellipsoids
             return fit_ellipsoid(raw, 2.0 * k)
-        raise InputError("the ellipsoid fit has no admissible solution (no positive eigenvalue)")
+        raise FitError("the ellipsoid fit has no admissible solution (no positive eigenvalue)")
     v1 = eigvec[:, positive[np.argmax(eigval[positive])]]
     v2 = -s22_inv_s21 @ v1
     a, b, c, f, g, h = v1
@@ -66,12 +66,12 @@ def quadric_to_ellipsoid(quad: np.ndarray, lin: np.ndarray, const: float) -> tup
     if np.trace(quad) < 0:
         quad, lin, const = -quad, -lin, -const
     if np.any(np.linalg.eigvalsh(quad) <= 0):
-        raise InputError("the fitted quadric is not an ellipsoid (the readings do not cover enough "
+        raise FitError("the fitted quadric is not an ellipsoid (the readings do not cover enough "
                          "directions)")
     center = -np.linalg.solve(quad, lin)
     rhs = center @ quad @ center - const
     if not rhs > 0:
-        raise InputError("the fitted quadric is not an ellipsoid (imaginary or degenerate)")
+        raise FitError("the fitted quadric is not an ellipsoid (imaginary or degenerate)")
     return quad / rhs, center
 
 
@@ -100,7 +100,7 @@ def sphere_fit(raw_nT: np.ndarray) -> tuple[np.ndarray, float]:
     c, k = sol[:3], sol[3]
     r2 = k + c @ c
     if not r2 > 0:
-        raise InputError("the readings fit no sphere")
+        raise FitError("the readings fit no sphere")
     return mu + s * c, float(s * np.sqrt(r2))
 
 
@@ -115,11 +115,11 @@ def axis_ellipsoid_fit(raw_nT: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     sol, *_ = np.linalg.lstsq(design, np.ones(len(x)), rcond=None)
     quad, lin = sol[:3], sol[3:]
     if np.any(quad <= 0):
-        raise InputError("the readings fit no axis-aligned ellipsoid (they cover too few directions)")
+        raise FitError("the readings fit no axis-aligned ellipsoid (they cover too few directions)")
     centre = -lin / (2 * quad)
     g = 1.0 + np.sum(quad * centre * centre)
     if not g > 0:
-        raise InputError("the readings fit no axis-aligned ellipsoid")
+        raise FitError("the readings fit no axis-aligned ellipsoid")
     return mu + s * centre, s * np.sqrt(g / quad)
 
 
@@ -140,7 +140,7 @@ def fit_quadric(raw_nT: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     try:
         v = np.linalg.svd(design, full_matrices=False)[2][-1]
     except np.linalg.LinAlgError:
-        raise InputError("the readings do not determine an ellipsoid (singular design)") from None
+        raise FitError("the readings do not determine an ellipsoid (singular design)") from None
     a, b, c, h, g, f = v[:6]
     shape, centre_n = quadric_to_ellipsoid(np.array([[a, h, g], [h, b, f], [g, f, c]]), v[6:9], v[9])
     return shape / (s * s), mu + s * centre_n
@@ -151,5 +151,5 @@ def volume_radius(shape: np.ndarray) -> float:
     (MATLAB magcal's ``expmfs``)."""
     det = float(np.linalg.det(shape))
     if not det > 0:
-        raise InputError("the fitted quadric is not an ellipsoid")
+        raise FitError("the fitted quadric is not an ellipsoid")
     return det ** (-1.0 / 6.0)

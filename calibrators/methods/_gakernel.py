@@ -26,7 +26,6 @@ parameters, eq. 7); the return value is ``(mean G, max G)`` of the current gener
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 from collections.abc import Mapping
 from types import MappingProxyType
@@ -426,11 +425,10 @@ def real_uniforms_needed(m: int, p: int, selection: int, tournament: int, crosso
     return max(s.stop for s in real_uniform_layout(m, p, selection, tournament, crossover, mutation).values())
 
 
-def _pow_each(r: np.ndarray, e) -> np.ndarray:
-    """``r ** e`` element by element with the C library's ``pow`` (as the compiled loops call it; numpy's
-    own vectorized power may differ in the last bit); ``e`` one exponent, or one per element."""
-    exponents = itertools.repeat(e, r.size) if np.ndim(e) == 0 else np.asarray(e, dtype=float).tolist()
-    return np.fromiter(map(math.pow, r.tolist(), exponents), dtype=float, count=r.size)
+def _pow_each(r: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """``r ** e`` element by element (``e`` one exponent per element) with the C library's ``pow``, as the compiled
+    loops call it (numpy's own vectorized power may differ in the last bit)."""
+    return np.fromiter(map(math.pow, r.tolist(), e.tolist()), dtype=float, count=r.size)
 
 
 class RealDraws(NamedTuple):

@@ -2,7 +2,8 @@
 and seed 002's real-coded elitist GA (``rga``).
 
 Every generation is evaluated in one call of the shared counted objective.  Each GA draws a generation's
-random numbers in one call (the Gaussian mutation of ``rga`` adds one call for its normals) and breeds
+random numbers in one call (the Gaussian mutation of ``rga`` adds one call for its normals; ``ga`` on the numpy
+kernel draws the same stream for up to 64 generations in one call) and breeds
 it in one compiled kernel (``_gakernel``: numba, or the same steps in numpy where numba is missing or
 cannot compile, with identical results); other objects run by ``real_ga`` (seed 001's ``RowGA``) use
 their own array operators.
@@ -283,7 +284,8 @@ def real_ga(problem: Problem, ga):
     Genes are normalized to [0, 1] over the box; each generation is evaluated in one counted call of
     ``problem.values``.  Returns the best point the counter has seen.  A ``RealGA`` whose operators are
     ``RealGA``'s or ``ElitistRealGA``'s breeds each generation in one kernel call (``_gakernel``, seed 002
-    section 3.3) from one draw of uniforms; other objects run their own operators (``_operator_loop``).
+    section 3.3) from one draw of uniforms (or from its share of a block drawn for many, the same stream:
+    ``_numpy_block_loop``); other objects run their own operators (``_operator_loop``).
     """
     if ga.population < 4:
         raise InputError(f"{ga.name}: population must be at least 4")
@@ -321,7 +323,8 @@ def _kernel_operators(ga) -> tuple[int, int, int] | None:
 def _kernel_loop(rng, ga, operators, u, x, f, lo, span):
     """Generations 1 .. T-1 bred by ``_gakernel``'s real-coded kernel: per generation one ``rng.random``
     draw (``real_uniform_layout``) and, for the Gaussian mutation, one ``rng.standard_normal`` draw for the
-    rows that mutate; the mutation's shrink depends on t = generation / T."""
+    rows that mutate; the mutation's shrink depends on t = generation / T.  The numpy kernel with the
+    non-uniform mutation draws the same stream for many generations at once (``_numpy_block_loop``)."""
     selection, crossover, mutation = operators
     m, p = u.shape
     tournament = int(ga.tournament) if selection == _gakernel.TOURNAMENT else 1
@@ -353,7 +356,10 @@ def _kernel_loop(rng, ga, operators, u, x, f, lo, span):
 
 
 BLOCK_GENERATIONS = 64
-"""Generations whose uniforms the numpy kernel draws and prepares at once (``_numpy_block_loop``)."""
+"""Generations whose uniforms the numpy kernel draws and prepares at once (``_numpy_block_loop``), at most."""
+BLOCK_UNIFORMS = 1 << 17
+"""Uniforms a block holds at most (1 MiB; its prepared arrays a few times that): a large population's block is a
+few generations, or one (64 generations of 20,000 individuals had taken 480 MB against 8 MB for one)."""
 
 
 def _rewindable(rng) -> bool:
@@ -362,13 +368,24 @@ def _rewindable(rng) -> bool:
     return type(getattr(rng, "bit_generator", None)) is np.random.PCG64
 
 
+def _give_back(rng, doubles: int) -> None:
+    """Move ``rng`` (PCG64) back by ``doubles`` uniforms (one 64-bit step each), its buffered 32-bit half (what
+    ``integers`` of small ranges keeps between calls, which ``advance`` clears) kept as it was."""
+    buffered = rng.bit_generator.state
+    rng.bit_generator.advance(-doubles)
+    state = rng.bit_generator.state
+    state["has_uint32"], state["uinteger"] = buffered["has_uint32"], buffered["uinteger"]
+    rng.bit_generator.state = state
+
+
 def _numpy_block_loop(rng, ga, settings, n_uniforms, u, children, x, f, lo, span):
     """``_kernel_loop``'s generations on the numpy kernel with a non-uniform mutation (no normal draws between
     the generations' uniforms): the uniforms of up to ``BLOCK_GENERATIONS`` generations in one ``rng.random``
     call (the same stream as one call per generation) and their population-independent part prepared in one
     pass (``_gakernel.real_prepare``); each generation then costs ``real_apply`` alone.  The same numbers as
     the per-generation kernels, bit for bit; uniforms drawn for generations that do not run (the budget ended
-    the search) are given back to ``rng``, so what draws from it next draws what it would have."""
+    the search) are given back to ``rng`` (its 32-bit buffer kept as it was), so what draws from it next draws what
+    it would have."""
     selection, tournament, crossover, alpha, pc, mutation, pm = settings
     m, p = u.shape
     elitism, total = int(ga.elitism), int(ga.generations)
@@ -377,9 +394,10 @@ def _numpy_block_loop(rng, ga, settings, n_uniforms, u, children, x, f, lo, span
     try:
         while not (yield loop.iteration()):  # the framework stops the search after ``generations``
             if gen >= first + drawn:
-                first, drawn = gen, max(1, min(BLOCK_GENERATIONS, total - gen))
+                size = max(1, min(BLOCK_GENERATIONS, total - gen, BLOCK_UNIFORMS // n_uniforms))
+                block = rng.random(size * n_uniforms).reshape(size, n_uniforms)
+                first, drawn = gen, size  # only once drawn: a draw that fails gives nothing back
                 shrinks = [float((1.0 - g / total) ** ga.nonuniform_b) for g in range(first, first + drawn)]
-                block = rng.random(drawn * n_uniforms).reshape(drawn, n_uniforms)
                 draws = _gakernel.real_prepare(block, m, p, selection, tournament, crossover, alpha, pc, mutation,
                                                pm, shrinks)
             taken = gen + 1
@@ -391,7 +409,7 @@ def _numpy_block_loop(rng, ga, settings, n_uniforms, u, children, x, f, lo, span
     finally:
         unused = first + drawn - taken
         if unused > 0:
-            rng.bit_generator.advance(-unused * n_uniforms)  # one 64-bit step per double
+            _give_back(rng, unused * n_uniforms)
     return gen
 
 

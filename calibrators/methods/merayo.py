@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from magbench.errors import InputError
+from magbench.errors import FitError
 from magbench.simulate.sensor import ErrorParams
 
 from ..base import Calibrator
@@ -42,16 +42,16 @@ def merayo_params(raw_nT: np.ndarray, f_ref_nT: np.ndarray) -> ErrorParams:
     quad = np.array([[a, h, g], [h, b, fz], [g, fz, 1.0 - a - b]])
     lin, const = coef[5:8], coef[8]
     if not np.all(np.isfinite(coef)):
-        raise InputError("the readings do not determine a scalar calibration")
+        raise FitError("the readings do not determine a scalar calibration")
     if varies:
         weight = coef[9]
         if not weight > 0:
-            raise InputError("the scalar calibration found no positive gain for the reference")
+            raise FitError("the scalar calibration found no positive gain for the reference")
         w_n = quad / weight  # W in normalized units: (r - o)^T W (r - o) = F² / s²
         centre_n = -np.linalg.solve(quad, lin)
         shape_n = w_n / float(np.median(f2))  # the form shape_to_params scales back by the median F²
         if np.any(np.linalg.eigvalsh(shape_n) <= 0):
-            raise InputError("the fitted quadric is not an ellipsoid")
+            raise FitError("the fitted quadric is not an ellipsoid")
     else:
         shape_n, centre_n = quadric_to_ellipsoid(quad, lin, const)
     return shape_to_params(shape_n / (s * s), mu + s * centre_n, f)

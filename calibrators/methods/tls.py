@@ -18,7 +18,7 @@ from numbers import Integral
 
 import numpy as np
 
-from magbench.errors import InputError
+from magbench.errors import FitError, InputError
 
 from ..base import Calibrator
 from ..core.algebra import normalize, quadric_to_ellipsoid, shape_to_params
@@ -41,7 +41,7 @@ def ttls_solution(vt: np.ndarray, k: int) -> np.ndarray:
     v12, v22 = v[:N_UNKNOWNS, k:], v[N_UNKNOWNS, k:]
     denom = float(v22 @ v22)
     if denom <= 1e-300:
-        raise InputError("the TLS problem has no solution (the last row of V vanishes)")
+        raise FitError("the TLS problem has no solution (the last row of V vanishes)")
     return -v12 @ v22 / denom
 
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from magbench.errors import InputError
+from magbench.errors import FitError
 from magbench.numerics import lm_iterations
 from magbench.simulate.sensor import ErrorParams
 
@@ -46,7 +46,7 @@ def centred_estimate(raw_nT: np.ndarray, f_ref_nT: np.ndarray, model: str) -> np
         z = np.sum(bn * bn, axis=1) - f2
         theta, *_ = np.linalg.lstsq(design - design.mean(axis=0), z - z.mean(), rcond=None)
         if not np.all(np.isfinite(theta)):
-            raise InputError("the readings do not determine TWOSTEP's centred estimate")
+            raise FitError("the readings do not determine TWOSTEP's centred estimate")
         return theta * scale
     # B^T W B - 2 B^T c - mu F² = const, centred, with trace W = 3: w_xx = a, w_yy = b, w_zz = 3 - a - b
     cols = [x * x - w * w, y * y - w * w, 2 * x * y, 2 * x * w, 2 * y * w, -2 * x, -2 * y, -2 * w]
@@ -57,17 +57,17 @@ def centred_estimate(raw_nT: np.ndarray, f_ref_nT: np.ndarray, model: str) -> np
     rhs = -3.0 * w * w
     theta, *_ = np.linalg.lstsq(design - design.mean(axis=0), rhs - rhs.mean(), rcond=None)
     if not np.all(np.isfinite(theta)):
-        raise InputError("the readings do not determine TWOSTEP's centred estimate")
+        raise FitError("the readings do not determine TWOSTEP's centred estimate")
     a, bb, h, g, fz = theta[:5]
     wmat = np.array([[a, h, g], [h, bb, fz], [g, fz, 3.0 - a - bb]])
     if np.any(np.linalg.eigvalsh(wmat) <= 0):
-        raise InputError("TWOSTEP's centred estimate is not positive definite (too little attitude coverage)")
+        raise FitError("TWOSTEP's centred estimate is not positive definite (too little attitude coverage)")
     offset_n = np.linalg.solve(wmat, theta[5:8])
     d = bn - offset_n
     q = np.einsum("ij,jk,ik->i", d, wmat, d)
     gain = float(q @ f2 / (q @ q))
     if not gain > 0:
-        raise InputError("TWOSTEP's centred estimate has no positive gain")
+        raise FitError("TWOSTEP's centred estimate has no positive gain")
     m = np.linalg.cholesky(gain * wmat).T  # any M with M^T M = W: the canonical form fixes the rotation
     return ErrorParams.from_correction(m, offset_n * scale).to_vector("nine")
 
