@@ -542,6 +542,8 @@ def _campaign_from_args(args):
         args.jobs = local_workers(args.jobs)
     if args.force and args.resume:
         raise InputError("--force starts the campaign over and --resume continues it: give one of them")
+    if not str(args.out).strip():  # Path('') is '.': with --force the campaign had cleared and filled the working folder
+        raise InputError("the --out folder name is empty: give a folder for the campaign")
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out} exists and is not a directory")
@@ -686,6 +688,8 @@ def cmd_diagnose(args) -> int:
     with slow_phase(f"reading {args.file}", talk):
         file_bytes = read_input(args.file, "data file")  # once: the readings and the accelerometer columns
         data = load_dataset(args, require_vector=False, file_bytes=file_bytes)
+    if args.figure is not None and not args.figure.strip() and not args.no_figure:  # '' had been no figure, silently
+        raise InputError("--figure: the file name is empty (give PATH.png, .svg or .pdf)")
     figure = Path(args.figure) if args.figure and not args.no_figure else None
     if figure is not None:
         if figure.suffix.lower().lstrip(".") not in DIAGNOSIS_FIGURE_FORMATS:

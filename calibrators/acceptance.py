@@ -1891,7 +1891,7 @@ def units_apart(ratio: float) -> str | None:
     """What to say when the readings are ``ratio`` times the reference and that ratio is the factor between two units
     (1000 between uT and nT): the two columns were written in different units, and one ``units`` reads both (a file of
     readings in uT beside an f_ref in nT had been told to use units='uT', and then refused again)."""
-    if not ratio > 0:
+    if not 0 < ratio < math.inf:
         return None
     exponent = round(math.log10(ratio))
     if exponent == 0 or abs(math.log10(ratio) - exponent) > 0.05:
@@ -1942,15 +1942,31 @@ def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray, t_s: np.ndarray
                 f"{', ...' if len(rows) > 5 else ''}) have a magnitude more than {GLITCH_FACTOR:g} times the others' "
                 f"(row {worst}: {size} against a median of {middle:.4g}): beyond any magnetometer's range in "
                 "this field, not a reading (a glitch, a corrupt row); remove those rows")
-    if len(f_ref_nT) > 1:
-        step = np.abs(np.diff(f_ref_nT)) / f_ref_nT[:-1]
-        big = step > REFERENCE_JUMP
-        if big.any() and t_s is not None and len(t_s) == len(f_ref_nT):
-            big &= ~_smooth_steps(np.asarray(f_ref_nT, dtype=float), np.asarray(t_s, dtype=float), big)
-        jumps = int(np.sum(big))
-        if jumps:
-            i = int(np.argmax(np.where(big, step, -1.0)))
-            return (f"the reference jumps {jumps} time(s) by more than {100 * REFERENCE_JUMP:g} % between rows "
-                    f"(e.g. {f_ref_nT[i]:.6g} -> {f_ref_nT[i + 1]:.6g} nT at row {i + 1}): one sensor in one "
-                    "place has a smooth reference")
-    return None
+    tiny = mag * GLITCH_FACTOR < middle  # near zero but not exactly (1e-300: the coverage check's eigenvalues broke)
+    if tiny.any():
+        rows = np.flatnonzero(tiny)
+        worst = int(rows[np.argmin(peak[rows])])
+        size = f"{mag[worst]:.4g}" if mag[worst] > 0 else f"{peak[worst]:.4g} on its largest axis"  # squares underflow
+        return (f"{len(rows)} row(s) (row{'s' if len(rows) > 1 else ''} {', '.join(map(str, rows[:5]))}"
+                f"{', ...' if len(rows) > 5 else ''}) have a magnitude less than 1/{GLITCH_FACTOR:g} of the others' "
+                f"(row {worst}: {size} against a median of {middle:.4g}): no reading of this field (a "
+                "dropout, a corrupt row); remove those rows")
+    return reference_jumps(f_ref_nT, t_s)
+
+
+def reference_jumps(f_ref_nT: np.ndarray, t_s: np.ndarray | None = None) -> str | None:
+    """Why the reference cannot be one place's field, or None: it jumps by more than REFERENCE_JUMP from one row to the
+    next, where its rate is not in line with its own change around (``_smooth_steps``, with times)."""
+    if len(f_ref_nT) < 2:
+        return None
+    step = np.abs(np.diff(f_ref_nT)) / f_ref_nT[:-1]
+    big = step > REFERENCE_JUMP
+    if big.any() and t_s is not None and len(t_s) == len(f_ref_nT):
+        big &= ~_smooth_steps(np.asarray(f_ref_nT, dtype=float), np.asarray(t_s, dtype=float), big)
+    jumps = int(np.sum(big))
+    if not jumps:
+        return None
+    i = int(np.argmax(np.where(big, step, -1.0)))
+    return (f"the reference jumps {jumps} time(s) by more than {100 * REFERENCE_JUMP:g} % between rows "
+            f"(e.g. {f_ref_nT[i]:.6g} -> {f_ref_nT[i + 1]:.6g} nT at row {i + 1}): one sensor in one "
+            "place has a smooth reference")

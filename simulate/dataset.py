@@ -195,6 +195,14 @@ class ScalarSeries:
     def __len__(self) -> int:
         return len(self.f_meas_nT)
 
+    def has_reference(self) -> bool:
+        return self.f_ref_nT is not None
+
+    def with_reference(self, f_ref_nT) -> ScalarSeries:
+        """The series with a reference per row (a file without f_ref, given ``--field``, ``--igrf`` or a ``# field_nT:``
+        line: had been an internal error, a ``Dataset``'s method asked of a series)."""
+        return replace(self, f_ref_nT=f_ref_nT)
+
 
 def guess_unit(median_magnitude: float, expected_nT: float) -> str:
     """The unit whose conversion puts a typical magnitude nearest (in log) to the expected field."""

@@ -9,6 +9,7 @@ import hashlib
 import io
 import json
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -204,6 +205,9 @@ CASES = [
     # the calibrators count data rows from 0, the reader names file lines: the command line says both (GOOD's data
     # row 0 is its line 3)
     ("readings-zero-row", _edit_row(GOOD, 7, "0,0,0,50000"), [], 2, "in 1 row(s) (row 7 (line 10))"),
+    # near zero but not exactly: the coverage check's eigenvalues had not converged (an internal error, exit 1)
+    ("readings-tiny-row", _edit_row(GOOD, 4, "1e-300,0,0,50000"), [], 2,
+     "1 row(s) (row 4 (line 7)) have a magnitude less than 1/1000 of the others'"),
     ("reference-steps-once", _csv(RAW, f_ref=np.where(np.arange(len(RAW)) < 150, F_NT, 0.9 * F_NT)), [], 2,
      "at row 150 (line 153)"),
     ("f-ref-negative", _csv(RAW, f_ref=-50000.0), [], 2, "positive"),
@@ -416,6 +420,54 @@ def test_simulate_out_empty_or_a_folder_is_refused_by_what_it_is(tmp_path, capsy
     assert main(["simulate", "--scenario", "sphere9", "--out", str(tmp_path)]) == 2
     assert "is a directory, not a file" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+TABLE2 = (Path(__file__).resolve().parents[1] / "simulate" / "data" / "lu2014_table2.csv").read_text()
+
+
+def _table2(edit=None, drop_f_ref=False):
+    lines = TABLE2.splitlines()
+    if edit is not None:
+        row, column, value = edit
+        first = next(i for i, ln in enumerate(lines) if not ln.startswith("#")) + 1
+        cells = lines[first + row].split(",")
+        cells[column] = value
+        lines[first + row] = ",".join(cells)
+    if drop_f_ref:
+        lines = [ln if ln.startswith("#") else ln.rsplit(",", 1)[0] for ln in lines]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("content,extra,status,fragment", [
+    # a scalar series without f_ref, given its field: had been an internal error (a Dataset's method asked of it)
+    (_table2(drop_f_ref=True), [], 0, ""),
+    (_table2(drop_f_ref=True), ["--field", "51978.74"], 0, ""),
+    # the reference's rows as a vector record's: had been diagnosed (a residual of 1.8e7 nT reported)
+    (_table2(edit=(5, 6, "1.04e8")), [], 2, "f_ref_nT in row(s) 5 (line 9) is more than 1000 times the median"),
+    (_table2(edit=(2, 6, "60000")), [], 2, "the reference jumps 2 time(s)"),
+    (_table2(edit=(3, 2, "0.01")), [], 2, "f_meas_before in row(s) 3 (line 7) is less than 1/1000 of the median"),
+], ids=["no-f-ref-field-line", "no-f-ref-field-option", "f-ref-spike", "f-ref-jump", "f-meas-tiny"])
+def test_scalar_series_rows_and_references(tmp_path, capsys, content, extra, status, fragment):
+    path = tmp_path / "scalar.csv"
+    path.write_text(content)
+    code = main(["diagnose", str(path), *extra])
+    out, err = capsys.readouterr()
+    assert code == status, err
+    assert "internal error" not in err and fragment in err
+    if status == 0:
+        assert "residual RMS 57.812 nT on the fit" in out  # Table 2's diagnosis, as with its f_ref column
+
+
+def test_empty_output_names_are_refused_before_anything_is_written(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "keep.txt").write_text("mine")
+    assert main(["compare", "--scenarios", "sphere9", "--methods", "lsq", "--trials", "1", "--out", "", "--force"]) == 2
+    assert "the --out folder name is empty" in capsys.readouterr().err  # '' had been '.': cleared and filled
+    assert [p.name for p in tmp_path.iterdir()] == ["keep.txt"]
+    data = tmp_path / "keep.csv"
+    data.write_text(GOOD)
+    assert main(["diagnose", str(data), "--figure", ""]) == 2  # had been no figure, without a word
+    assert "--figure: the file name is empty" in capsys.readouterr().err
 
 
 def test_control_characters_in_names_are_not_echoed_raw(tmp_path, capsys):

@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from magbench import paper
-from magbench.calibrators.acceptance import GLITCH_FACTOR, MIN_REFERENCE_NT, units_apart
+from magbench.calibrators.acceptance import GLITCH_FACTOR, MIN_REFERENCE_NT, reference_jumps, units_apart
 from magbench.errors import InputError
 from magbench.simulate.dataset import MAX_ABS_OTHER, ScalarSeries, temperature_problem
 from magbench.simulate.effects import EFFECTS, OutlierEffect, library_effects
@@ -116,6 +116,12 @@ def series_problem(series: ScalarSeries) -> str | None:
     if not float(np.median(ref)) >= MIN_REFERENCE_NT:
         return (f"the reference magnitude is {float(np.median(ref)):.4g} nT: no calibration field is below "
                 f"{MIN_REFERENCE_NT:g} nT; f_meas_nT and f_ref_nT in another unit (uT?), or a wrong reference")
+    # the reference's rows as a vector record's (a row 2000 times the others, a jump between rows: had been diagnosed,
+    # a residual of 1.8e7 nT reported)
+    rows = np.atleast_1d(ref)  # one value for every row, or one per row
+    problem = _magnitude_rows("f_ref_nT", rows) or reference_jumps(rows, series.t_s if len(rows) > 1 else None)
+    if problem:
+        return problem
     for name, meas in measured.items():  # every measured column, the file's calibrated one too (the residual's)
         ratio = float(np.median(meas) / np.median(ref))
         if not SCALAR_RATIO_RANGE[0] <= ratio <= SCALAR_RATIO_RANGE[1]:
@@ -135,6 +141,11 @@ def _magnitude_rows(name: str, meas: np.ndarray) -> str | None:
         return (f"{name} is {meas[bad[0]]:g} in row(s) {', '.join(map(str, bad[:5]))}{', ...' if len(bad) > 5 else ''}: "
                 "a measured magnitude is positive (a missing value written as 0, or a signed component?)")
     middle = float(np.median(meas))
+    tiny = np.flatnonzero(meas * GLITCH_FACTOR < middle)
+    if len(tiny):
+        return (f"{name} in row(s) {', '.join(map(str, tiny[:5]))}{', ...' if len(tiny) > 5 else ''} is less than "
+                f"1/{GLITCH_FACTOR:g} of the median (row {int(tiny[0])}: {meas[tiny[0]]:.4g} against {middle:.4g} nT): "
+                "no reading of this field (a dropout, a corrupt row); remove those rows")
     absurd = np.flatnonzero(meas > GLITCH_FACTOR * middle)
     if len(absurd):
         worst = int(absurd[np.argmax(meas[absurd])])
