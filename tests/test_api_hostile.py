@@ -378,3 +378,17 @@ def test_noise_correlated_over_a_wide_turn_widens_the_deviations(monkeypatch):
     monkeypatch.setattr(acceptance, "nonlinearity_shift", lambda *args, **kwargs: (None, None))  # which widens some of them too
     count, warned = wrong()
     assert count >= 7 and warned == 0
+
+
+@pytest.mark.parametrize("kw", [{"max_evaluations": "10"}, {"max_evaluations": 1.5}, {"max_evaluations": float("nan")},
+                                {"max_evaluations": True}, {"max_time_s": "1"}, {"max_time_s": float("nan")},
+                                {"max_time_s": float("inf")}],
+                         ids=["evals-text", "evals-fraction", "evals-nan", "evals-bool", "time-text", "time-nan",
+                              "time-inf"])
+def test_a_budget_of_the_wrong_type_is_refused_where_it_is_made(kw):
+    """'10' had raised a TypeError from a comparison, 1.5 one from a slice inside the fit, nan had been no budget."""
+    from magbench.calibrators.core.evaluator import Budget
+
+    with pytest.raises(InputError, match="must be"):
+        Budget(**kw)
+    assert Budget(max_evaluations=np.int64(5)).max_evaluations == 5 and Budget(max_time_s=2).max_time_s == 2

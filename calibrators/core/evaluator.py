@@ -2,9 +2,11 @@
 from __future__ import annotations
 
 import contextvars
+import math
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
+from numbers import Integral, Real
 
 import numpy as np
 
@@ -19,10 +21,13 @@ class Budget:
     max_time_s: float | None = None
 
     def __post_init__(self):
-        if self.max_evaluations is not None and self.max_evaluations < 1:
-            raise InputError(f"max_evaluations must be at least 1, got {self.max_evaluations}")
-        if self.max_time_s is not None and not self.max_time_s > 0:
-            raise InputError(f"max_time_s must be positive, got {self.max_time_s}")
+        # an int and a finite positive number, by type as well as value ('10' had raised a TypeError from '<', 1.5 one
+        # from a slice inside the fit, and nan had acted as no budget)
+        m, t = self.max_evaluations, self.max_time_s
+        if m is not None and (not isinstance(m, Integral) or isinstance(m, bool) or m < 1):
+            raise InputError(f"max_evaluations must be at least 1 (an int), got {m!r}")
+        if t is not None and (not isinstance(t, Real) or isinstance(t, bool) or not 0 < t < math.inf):
+            raise InputError(f"max_time_s must be a finite positive number of seconds, got {t!r}")
 
 
 class BudgetExhausted(Exception):
