@@ -1942,7 +1942,8 @@ def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray, t_s: np.ndarray
                 f"{', ...' if len(rows) > 5 else ''}) have a magnitude more than {GLITCH_FACTOR:g} times the others' "
                 f"(row {worst}: {size} against a median of {middle:.4g}): beyond any magnetometer's range in "
                 "this field, not a reading (a glitch, a corrupt row); remove those rows")
-    tiny = mag * GLITCH_FACTOR < middle  # near zero but not exactly (1e-300: the coverage check's eigenvalues broke)
+    tiny = (mag * GLITCH_FACTOR < middle) & (peak > 0)  # near zero but not exactly (1e-300: the coverage check's
+    # eigenvalues broke); rows exactly 0 on all three axes are named as such by the row checks (data_problem, apply)
     if tiny.any():
         rows = np.flatnonzero(tiny)
         worst = int(rows[np.argmin(peak[rows])])
