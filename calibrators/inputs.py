@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from magbench.errors import InputError
-from magbench.numerics import lm_normal
+from magbench.numerics import lm_normal, median_and_sigma
 from magbench.simulate.dataset import UNIT_FACTORS_NT, Dataset, real_array
 
 from .acceptance import least_covered_direction
@@ -138,8 +138,7 @@ def magnitude_spikes(raw_nT: np.ndarray) -> str | None:
     coverage on a full sphere).  A vehicle's brief turn with a large hard iron can look the same: hence 'if'."""
     raw = np.asarray(raw_nT, dtype=float)
     mag = np.sqrt(np.einsum("ij,ij->i", raw, raw))
-    middle = float(np.median(mag))
-    spread = 1.4826 * float(np.median(np.abs(mag - middle)))
+    middle, spread = median_and_sigma(mag)
     far = np.abs(mag - middle) > max(SPIKE_SPREADS * spread, SPIKE_FIELD_SHARE * middle)
     k = int(far.sum())
     if k == 0 or k >= SPIKE_SHARE * len(mag):
