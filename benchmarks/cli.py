@@ -705,6 +705,9 @@ def cmd_diagnose(args) -> int:
         with atomic_output(figure, [args.file], args.force, what="--figure file") as tmp:
             diagnosis_figure(diagnosed_rows(data, result), result, tmp)
     result["figure"] = str(figure) if figure else None
+    ignored = (getattr(data, "meta", None) or {}).get("reference_ignored")
+    if ignored:  # --field or --igrf beside the file's f_ref column: said, as calibrate says it
+        result["reference_ignored"] = ignored
     _emit(args, result, diagnosis_text(result, args.file))
     return EXIT_OK
 

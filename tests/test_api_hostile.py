@@ -209,6 +209,8 @@ def test_a_scalar_series_is_checked_before_it_is_diagnosed():
         with pytest.raises(InputError, match=message):
             magbench.diagnose(ScalarSeries(**columns))
     assert magbench.diagnose(ScalarSeries(f_meas_nT=fm, heading_deg=hd, f_ref_nT=ref))["verdict"] == "offset"
+    with pytest.raises(InputError, match="--folds must be at most 8 for 24 readings"):  # had been taken silently
+        magbench.diagnose(ScalarSeries(f_meas_nT=fm, heading_deg=hd, f_ref_nT=ref), folds=9)
 
 
 @pytest.mark.parametrize("readings", [np.ones((4, 3, 1)), None, 5.0, np.ones((4, 2)), np.ones(2), "abc",

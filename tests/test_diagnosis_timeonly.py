@@ -338,3 +338,33 @@ def test_a_fixed_sensor_below_its_resolution_gets_a_floor_from_its_lattice_not_a
     assert c["held_sample_fraction"] > 0.3 and "grid" in c["floor_method"] and "distinct" not in c["floor_method"]
     assert 0.2 < c["noise_floor_nT"] < 0.5, c["noise_floor_nT"]
     assert "grid" not in f["floor_method"] and 0.2 < f["noise_floor_nT"] < 0.4, f
+
+
+def test_without_a_clock_the_drift_is_per_row_not_per_hour():
+    """No t column, or one time on every row: the rows' order is the time axis, and the drift is given per row
+    (it had been reported in nT/h as if the rows were one second apart); with the clock the same readings give
+    nT/h (the control)."""
+    timed = fixed(seed=7)  # 4 nT a day over 2000 rows
+    per_h = diagnose(timed)["time_only"]
+    assert per_h["time_axis"] == "the t column" and abs(per_h["drift"]["drift_nT_per_h"] * 24 - 4.0) < 0.2
+    for t, said in ((None, "no t column"), (np.zeros(len(timed)), "one time for every row")):
+        to = diagnose(Dataset(timed.raw_nT, f_ref_nT=timed.f_ref_nT, t_s=t, temp_C=timed.temp_C))["time_only"]
+        assert said in to["time_axis"] and to["span_h"] is None and to["span_rows"] == len(timed) - 1
+        assert to["drift"]["drift_nT_per_h"] is None
+        assert abs(to["drift"]["drift_nT_per_row"] * (len(timed) - 1) - 4.0) < 0.2 and to["drift"]["significant"]
+
+
+def test_the_command_says_a_drift_per_row_and_the_folds_out_of_range_and_the_reference_not_used(tmp_path, capsys):
+    d = fixed(seed=8, n=600)
+    path = tmp_path / "fixed.csv"
+    pd.DataFrame({"bx": d.raw_nT[:, 0], "by": d.raw_nT[:, 1], "bz": d.raw_nT[:, 2], "f_ref": d.f_ref_nT}).to_csv(
+        path, index=False)
+    assert main(["diagnose", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "nT per 1000 rows" in out and "nT/h" not in out and "no t column" in out
+    assert main(["diagnose", str(path), "--folds", "1000"]) == 2  # a fixed sensor uses no folds: still refused
+    assert "--folds must be at most 100 for 600 readings" in capsys.readouterr().err
+    assert main(["diagnose", str(path), "--field", "50000", "--json"]) == 0
+    assert "--field was not used" in json.loads(capsys.readouterr().out)["reference_ignored"]
+    assert main(["diagnose", str(path), "--json"]) == 0  # the control: nothing given beside f_ref, nothing said
+    assert "reference_ignored" not in json.loads(capsys.readouterr().out)

@@ -35,7 +35,7 @@ from .report import diagnosis_figure, diagnosis_text
 from .scalar import diagnose_scalar
 from .scoring import candidate_effects
 from .timeonly import time_only
-from .vector import DEFAULT_FOLDS, Diagnosis
+from .vector import DEFAULT_FOLDS, Diagnosis, check_folds
 
 __all__ = ["read_gravity", "Diagnosis", "blind_dataset", "blind_kinds", "candidate_effects", "diagnose", "diagnose_scalar",
            "diagnosed_rows", "diagnosis_figure", "diagnosis_text"]
@@ -56,6 +56,7 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
                          f"{type(data).__name__}")
     if gravity is not None and not isinstance(data, ScalarSeries):
         gravity = gravity_problem_free(gravity, len(data))
+    check_folds(folds, len(data))  # on every path, also those that do not use them
     with one_blas_thread():
         out = _diagnose(data, base, folds, seed, gravity, progress)
     note = time_column_note(data.t_s)

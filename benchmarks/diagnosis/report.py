@@ -84,11 +84,15 @@ def time_only_text(result: dict, source: str = "") -> str:
     """The human summary of a fixed sensor's time-only diagnosis."""
     to = result["time_only"]
     dr = to["drift"]
+    clock = to.get("span_h") is not None
+    span = f"{to['span_h']:.3g} h" if clock else f"{to['span_rows'] + 1} rows"
+    rate = (f"{dr['drift_nT_per_h']:.4g} +- {dr['drift_se_nT_per_h']:.2g} nT/h" if clock else
+            f"{1000 * dr['drift_nT_per_row']:.4g} +- {1000 * dr['drift_se_nT_per_row']:.2g} nT per 1000 rows")
     lines = [f"diagnosis of {source} ({result['n_points']} points): the attitudes cannot determine a calibration "
              "model, so only the time question is answered",
-             f"  |B| - F: {to['constant_nT']:.3f} nT (median), RMS {to['rms_nT']:.3f} nT over {to['span_h']:.3g} h",
-             f"  drift: {dr['drift_nT_per_h']:.4g} +- {dr['drift_se_nT_per_h']:.2g} nT/h"
-             f" ({'significant' if dr['significant'] else 'not significant'})",
+             f"  |B| - F: {to['constant_nT']:.3f} nT (median), RMS {to['rms_nT']:.3f} nT over {span}",
+             f"  drift: {rate} ({'significant' if dr['significant'] else 'not significant'})",
+             *([] if clock else [f"  time axis: {to['time_axis']}"]),
              f"  noise floor {to['noise_floor_nT']:.3f} nT ({to['floor_method']})"]
     spectrum = dr.get("noise_spectrum") or {}
     if spectrum.get("statement"):
@@ -108,7 +112,8 @@ def time_only_text(result: dict, source: str = "") -> str:
 
 def diagnosis_text(result: dict, source: str = "") -> str:
     """The human table of a diagnosis (``magbench diagnose`` without ``--json``)."""
-    note = [f"  time column: {result['time_column']}"] if result.get("time_column") else []
+    note = ([f"  time column: {result['time_column']}"] if result.get("time_column") else []) + (
+        [f"  reference: {result['reference_ignored']}"] if result.get("reference_ignored") else [])
     if result.get("kind") == "time_only":
         return time_only_text(result, source) + "".join("\n" + ln for ln in note)
     lines = _table(result, source) + note + _localization(result.get("localization", {}))

@@ -167,10 +167,14 @@ def time_only(data: Dataset, reason: str) -> dict:
     f = np.asarray(data.f_ref_nT, dtype=float)
     r = np.linalg.norm(raw, axis=1) - f
     n = len(r)
-    t = np.arange(n, dtype=float) if data.t_s is None else np.asarray(data.t_s, dtype=float)
+    # a clock: a t column that changes (one time on every row is no clock, as on the vector path's 'no informative t
+    # column'); without one the rows' order is the time axis, and a drift is per row, not per hour (it had been
+    # reported in nT/h as if the rows were one second apart)
+    clock = data.t_s is not None and float(np.ptp(np.asarray(data.t_s, dtype=float))) > 0
+    t = np.asarray(data.t_s, dtype=float) if clock else np.arange(n, dtype=float)
     order = np.argsort(t, kind="stable")
     t, r = t[order], r[order]
-    hours = (t - t[0]) / SECONDS_PER_HOUR
+    hours = (t - t[0]) / SECONDS_PER_HOUR if clock else t  # rows, without a clock
     out: dict = {"kind": "time_only", "n_points": n, "attitude": "insufficient_data", "attitude_reason": reason}
     span = np.ptp(t)
     trend_design = legendre.legvander(2 * (t - t[0]) / span - 1, TREND_DEGREE) if span > 0 else None
@@ -189,13 +193,16 @@ def time_only(data: Dataset, reason: str) -> dict:
     keep = ~spikes
     held_share = float(held.mean())
     on = keep & ~held if logger and (keep & ~held).sum() >= MIN_DISTINCT else keep
-    floor = time_difference_floor(r[on], t[on] if data.t_s is not None else None, grid=grid)
+    floor = time_difference_floor(r[on], t[on] if clock else None, grid=grid)
     if on is not keep:
         floor["floor_method"] += f" (on the {int(on.sum())} distinct samples: {100 * held_share:.1f} % held)"
     design = np.column_stack([np.ones(n), hours - hours.mean()])
     coef, se, resid = _linear(design[keep], r[keep])
-    drift: dict = {"drift_nT_per_h": float(coef[1]), "drift_se_nT_per_h": float(se[1]),
+    unit = "h" if clock else "row"
+    drift: dict = {f"drift_nT_per_{unit}": float(coef[1]), f"drift_se_nT_per_{unit}": float(se[1]),
                    "significant": bool(abs(coef[1]) > DRIFT_Z * se[1]) if np.ptp(hours) > 0 else False}
+    if not clock:  # the keys a clock gives, said empty rather than left out
+        drift.update(drift_nT_per_h=None, drift_se_nT_per_h=None)
     left = None  # what the smooth trend of |B| - F leaves on the kept samples
     if trend_design is not None and n > 3 * TREND_DEGREE:
         trend = trend_design @ np.linalg.lstsq(trend_design[keep], r[keep], rcond=None)[0]
@@ -206,7 +213,11 @@ def time_only(data: Dataset, reason: str) -> dict:
     out["time_only"] = {
         "constant_nT": float(np.median(r)), "mean_nT": float(np.mean(r[keep])), "rms_nT": rms(r[keep]),
         "spikes": spike_info,
-        "span_h": float(np.ptp(hours)), "drift": drift, "noise_floor_nT": floor["noise_floor_nT"],
+        "span_h": float(np.ptp(hours)) if clock else None, **({} if clock else {"span_rows": n - 1}),
+        "time_axis": "the t column" if clock else (
+            "the rows' order (no t column: a drift is per row, not per hour)" if data.t_s is None else
+            "the rows' order (the t column holds one time for every row: no clock; a drift is per row, not per hour)"),
+        "drift": drift, "noise_floor_nT": floor["noise_floor_nT"],
         "floor_method": floor["floor_method"], "held_sample_fraction": held_share,
         "statement": "|B| - F of the uncalibrated readings: a constant is a scale or offset error along the one "
                      "direction the fixed sensor sees; its drift is a drift of either or of the field's magnitude"}
@@ -243,7 +254,7 @@ def time_only(data: Dataset, reason: str) -> dict:
     named = outliers + named
     temperature_named = bool(out["time_only"].get("temperature", {}).get("named"))
     direction = _drift_direction(raw[order], t, keep, None if data.temp_C is None else np.asarray(data.temp_C, float)[order],
-                                 data.t_s is not None, f[order])
+                                 clock, f[order])
     out["time_only"]["drift_direction"] = direction
     drifts = [] if temperature_named or direction.get("named") is None else [direction["named"]]
     out["confounded"] = [_alternatives(name, direction) for name in drifts if "|" in name]

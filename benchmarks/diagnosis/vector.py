@@ -189,6 +189,18 @@ again with the prior: attitudes that leave directions of the base model free (a 
 squares run along them."""
 
 
+def check_folds(folds: int, n: int) -> None:
+    """Refuses a number of cross-validation folds outside 2 .. max(DEFAULT_FOLDS, min(MAX_FOLDS, n // MIN_FOLD_ROWS))
+    for ``n`` readings (InputError): on every path of ``diagnose``, also those that do not use folds (a fixed sensor's
+    time-only answer), so that an option out of range is never taken silently."""
+    if folds < 2:
+        raise InputError(f"--folds must be at least 2, not {folds}")
+    most = max(DEFAULT_FOLDS, min(MAX_FOLDS, n // MIN_FOLD_ROWS))
+    if folds > most:
+        raise InputError(f"--folds must be at most {most} for {n} readings (each fold holds at least "
+                         f"{MIN_FOLD_ROWS} out, and every fold is a fit of every candidate), not {folds}")
+
+
 def plausible_base(x9: np.ndarray) -> bool:
     """Whether the base nine-vector's angles and scales lie within IMPLAUSIBLE_SD prior standard deviations."""
     return bool(np.all(np.abs(x9[:3]) <= IMPLAUSIBLE_SD * BASE_PRIOR_SD["angle"])
@@ -226,12 +238,7 @@ class Diagnosis:
             raise InputError(f"unknown base model {base!r}: use angles or nine")
         if not data.has_reference:
             raise InputError("no reference magnitude: give an f_ref column, --field NT, --igrf ..., or '# field_nT:'")
-        if folds < 2:
-            raise InputError(f"--folds must be at least 2, not {folds}")
-        most = max(DEFAULT_FOLDS, min(MAX_FOLDS, len(data) // MIN_FOLD_ROWS))
-        if folds > most:
-            raise InputError(f"--folds must be at most {most} for {len(data)} readings (each fold holds at least "
-                             f"{MIN_FOLD_ROWS} out, and every fold is a fit of every candidate), not {folds}")
+        check_folds(folds, len(data))
         self.dataset, self.base, self.k, self.seed = data, base, folds, seed
         self.gravity = gravity
         self.rows_in_time_order = rows_in_time_order
