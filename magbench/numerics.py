@@ -357,6 +357,36 @@ TIME_REPEAT_SHARE = 0.01
 """``time_column_note`` speaks of repeated times when at least this share of the rows repeat the previous row's."""
 
 
+TIME_GLITCH_STEPS = 1000.0
+"""``timestamp_glitches``: a row's time lies this many median steps (or more) from both its neighbours' while theirs
+are within it of each other."""
+
+
+def timestamp_glitches(t_s: np.ndarray | None) -> str | None:
+    """Why the t column cannot be used as it is, or None: rows (in file order) whose time lies far from both
+    neighbours' (TIME_GLITCH_STEPS median steps) while the neighbours agree with each other: a glitched timestamp
+    (one row's clock read as 0, or 1e9 among seconds).  Every time-based test takes such a row far from its
+    readings (a fixed sensor's 20 nT/h drift had come back 'not significant', the time span 277,778 h; the lag's
+    derivatives had failed with a singular matrix).  A gap in a record (its time jumps and stays) is no glitch,
+    nor rows in no time order (their steps are all large)."""
+    if t_s is None or len(t_s) < 5:
+        return None
+    t = np.asarray(t_s, dtype=float)
+    steps = np.abs(np.diff(t))
+    moving = steps[steps > 0]
+    if not len(moving):
+        return None
+    far = TIME_GLITCH_STEPS * float(np.median(moving))
+    glitch = (np.abs(t[1:-1] - t[:-2]) > far) & (np.abs(t[1:-1] - t[2:]) > far) & (np.abs(t[2:] - t[:-2]) <= far)
+    rows = np.flatnonzero(glitch) + 1
+    if not len(rows):
+        return None
+    i = int(rows[0])
+    return (f"the t column has {len(rows)} glitched time{'s' if len(rows) > 1 else ''}: row {i} reads {t[i]:.6g} s "
+            f"between {t[i - 1]:.6g} and {t[i + 1]:.6g} s (more than {TIME_GLITCH_STEPS:g} sampling steps from both); "
+            "correct or remove such rows")
+
+
 def time_column_note(t_s: np.ndarray | None) -> str | None:
     """What a user should know of a time column that is not a clock read once per sample in file order (None when
     it is): times that step back between rows (a logger restarted, files joined out of order: every time-based

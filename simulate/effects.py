@@ -234,13 +234,17 @@ def local_derivatives(t_s: np.ndarray, x: np.ndarray, half_window: int = 3) -> t
         start = np.clip(np.arange(n) - half_window, 0, n - 1 - w)
         idx = start[:, None] + np.arange(w + 1)[None, :]
         idx = idx[idx != np.arange(n)[:, None]].reshape(n, w)  # every window holds i once: drop it
-        scale = float(np.median(np.diff(ts))) or float(np.ptp(ts)) / n
-        dt = (ts[idx] - ts[:, None]) / scale
+        # each window in its own time unit (its farthest neighbour at 1): a time far from the rest (a glitched
+        # timestamp of 2e8 s among seconds) had made the windows around it singular in one global unit
+        dt = ts[idx] - ts[:, None]
+        scale = np.max(np.abs(dt), axis=1)
+        scale[scale == 0] = 1.0
+        dt /= scale[:, None]
         basis = np.stack([np.ones_like(dt), dt, 0.5 * dt**2], axis=2)  # (n, w, 3)
         a = np.einsum("nwi,nwj->nij", basis, basis) + 1e-9 * np.eye(3)
         b = np.einsum("nwi,nwk->nik", basis, xo[idx])
         coef = np.linalg.solve(a, b)  # (n, 3, k)
-        d1[order], d2[order] = coef[:, 1] / scale, coef[:, 2] / scale**2
+        d1[order], d2[order] = coef[:, 1] / scale[:, None], coef[:, 2] / scale[:, None] ** 2
     return (d1[:, 0], d2[:, 0]) if flat else (d1, d2)
 
 

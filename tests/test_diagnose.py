@@ -153,7 +153,42 @@ def test_a_scalar_series_without_times_in_another_order_keeps_its_floor():
     f = ref + 3 + 5 * np.cos(np.radians(heading)) + rng.normal(0, 0.5, len(heading))
     shuffled = rng.permutation(len(heading))
     step = np.where(np.arange(len(heading)) < len(heading) // 2, 0.0, 40.0)
-    for order, extra in ((np.arange(len(heading)), 0.0), (shuffled, 0.0), (np.arange(len(heading)), step)):
-        r = diagnose(ScalarSeries(f_meas_nT=(f + extra)[order], heading_deg=heading[order], f_ref_nT=ref[order]))
+    for order, extra, t in ((np.arange(len(heading)), 0.0, None), (shuffled, 0.0, None),
+                            (shuffled, 0.0, np.zeros(len(heading))),  # one time on every row: no clock either
+                            (np.arange(len(heading)), step, None)):
+        r = diagnose(ScalarSeries(f_meas_nT=(f + extra)[order], heading_deg=heading[order], f_ref_nT=ref[order], t_s=t))
         assert 0.4 < r["noise_floor_nT"] < 0.7, (r["noise_floor_nT"], r["floor_method"])
         assert r["verdict"] == ("offset" if np.isscalar(extra) else "field_drift+unexplained")  # the step: in time
+
+
+def test_folds_out_of_range_for_the_readings_left_beside_a_rail_are_refused():
+    """--folds is checked on the readings the diagnosis keeps: beside clipped readings the fallback to the whole
+    record had taken the refusal as the rest's and answered (exit 0, the folds' message in its statement)."""
+    from magbench.simulate import simulate
+
+    d = simulate("sphere9", 0)
+    raw = d.raw_nT.copy()
+    top = raw[:, 2] >= np.quantile(raw[:, 2], 0.9)
+    raw[top, 2] = raw[:, 2].max()  # a rail at the converter's top: 10 % of the rows
+    clipped = Dataset(raw, f_ref_nT=d.f_ref_nT, t_s=d.t_s)
+    with pytest.raises(InputError, match="--folds must be at most"):
+        diagnose(clipped, folds=95)  # 300 rows allow 100; the 270 left beside the rail 90
+    assert diagnose(clipped, folds=5)["verdict"]  # the control: the default is taken
+
+
+def test_local_derivatives_take_a_time_far_from_the_rest():
+    """Each window in its own time unit: a time of 2e8 s among seconds had made the windows near it singular."""
+    from magbench.simulate import simulate
+    from magbench.simulate.effects import local_derivatives
+
+    d = simulate("sphere9", 1)
+    t = d.t_s.copy()
+    t[100] = 2e8  # the readings of a rotating sensor, as the lag's derivatives take them: had raised LinAlgError
+    d1, d2 = local_derivatives(t, d.raw_nT)
+    assert np.all(np.isfinite(d1)) and np.all(np.isfinite(d2))
+    t = np.arange(50.0)
+    t[20] = 2e8
+    x = np.sin(t / 5.0)
+    d1, d2 = local_derivatives(t, x)
+    away = slice(3, 16)  # windows that do not reach the odd one (last in time order): the usual derivative
+    assert np.allclose(d1[away], np.cos(t[away] / 5.0) / 5.0, rtol=0.06, atol=2e-3)

@@ -4,9 +4,11 @@ import json
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from magbench.benchmarks.cli import main
 from magbench.benchmarks.diagnosis import diagnose
+from magbench.errors import InputError
 from magbench.simulate.dataset import Dataset
 
 B = np.array([20000.0, 1500.0, 44000.0])
@@ -368,3 +370,53 @@ def test_the_command_says_a_drift_per_row_and_the_folds_out_of_range_and_the_ref
     assert "--field was not used" in json.loads(capsys.readouterr().out)["reference_ignored"]
     assert main(["diagnose", str(path), "--json"]) == 0  # the control: nothing given beside f_ref, nothing said
     assert "reference_ignored" not in json.loads(capsys.readouterr().out)
+
+
+def test_a_clock_needs_ten_different_times_and_a_sample_index_is_no_clock():
+    """Two different times (most rows sharing one) or a t column the file calls a sample index give the drift per
+    row; their 'drift' in nT/h had come from two time points, or had taken samples for seconds."""
+    d = fixed(seed=9, n=600)
+    two = np.where(np.arange(600) < 300, 0.0, 1.0)
+    to = diagnose(Dataset(d.raw_nT, f_ref_nT=d.f_ref_nT, t_s=two))["time_only"]
+    assert "only 2 different times" in to["time_axis"] and to["drift"]["drift_nT_per_h"] is None
+    indexed = Dataset(d.raw_nT, f_ref_nT=d.f_ref_nT, t_s=np.arange(600.0), meta={"t_note": "t is the sample index"})
+    to = diagnose(indexed)["time_only"]
+    assert "counts samples" in to["time_axis"] and to["drift"]["drift_nT_per_h"] is None
+    to = diagnose(Dataset(d.raw_nT, f_ref_nT=d.f_ref_nT, t_s=np.arange(600.0)))["time_only"]  # control: 1 Hz seconds
+    assert to["time_axis"] == "the t column" and to["drift"]["drift_nT_per_h"] is not None
+
+
+def test_a_drift_over_a_tiny_time_span_keeps_its_standard_error():
+    """A t column spanning 1e-9 h had fallen below the pseudo-inverse's cutoff: a standard error of 0 and a
+    'significant' drift.  The drift and its error scale with the time unit together."""
+    d = fixed(seed=10, n=600)
+    base = diagnose(d)["time_only"]["drift"]
+    tiny = diagnose(Dataset(d.raw_nT, f_ref_nT=d.f_ref_nT, t_s=d.t_s / 1e11, temp_C=d.temp_C))["time_only"]["drift"]
+    assert tiny["drift_se_nT_per_h"] > 0
+    assert abs(tiny["drift_nT_per_h"] / tiny["drift_se_nT_per_h"] - base["drift_nT_per_h"] / base["drift_se_nT_per_h"]) < 0.05
+
+
+def test_a_glitched_timestamp_is_refused_and_a_gap_is_not(tmp_path, capsys):
+    """One row's time far from both neighbours' (0 among Unix seconds) had hidden a 20 nT/h drift ('not
+    significant', a span of 47,000 h) and, on a rotating record, failed the lag's derivatives (an internal error);
+    a record whose time jumps and stays (a gap) is diagnosed."""
+    d = fixed(seed=11, n=600)
+    t = 1.7e9 + d.t_s
+    glitched = t.copy()
+    glitched[100] = 0.0
+    path = tmp_path / "glitch.csv"
+    pd.DataFrame({"t": glitched, "bx": d.raw_nT[:, 0], "by": d.raw_nT[:, 1], "bz": d.raw_nT[:, 2],
+                  "f_ref": d.f_ref_nT}).to_csv(path, index=False)
+    assert main(["diagnose", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "glitched time: row 100 (line 102) reads 0 s" in err and err.count("\n") == 1
+    gap = t.copy()
+    gap[300:] += 1e7  # the logger paused for four months
+    assert diagnose(Dataset(d.raw_nT, f_ref_nT=d.f_ref_nT, t_s=gap))["kind"] == "time_only"
+
+
+def test_a_few_readings_written_again_in_turn_are_refused():
+    d = fixed(seed=12, n=600)
+    cycled = d.raw_nT[np.arange(600) % 3]  # three readings, never the same twice in a row
+    with pytest.raises(InputError, match="only 3 different values"):
+        diagnose(Dataset(cycled, f_ref_nT=d.f_ref_nT, t_s=d.t_s))

@@ -25,7 +25,7 @@ from magbench.calibrators.base import data_problem, one_blas_thread
 from magbench.calibrators.core.objective import ScalarObjective, identity_vector
 from magbench.calibrators.fisher import coverage
 from magbench.errors import MAX_SEED, InputError, check_int
-from magbench.numerics import time_column_note
+from magbench.numerics import time_column_note, timestamp_glitches
 from magbench.simulate.dataset import Dataset, ScalarSeries, read_columns, real_array
 from magbench.simulate.sensor import PARAM_NAMES
 
@@ -57,6 +57,9 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
     if gravity is not None and not isinstance(data, ScalarSeries):
         gravity = gravity_problem_free(gravity, len(data))
     check_folds(folds, len(data))  # on every path, also those that do not use them
+    glitch = timestamp_glitches(data.t_s)  # every path reads the times
+    if glitch:
+        raise InputError(glitch)
     with one_blas_thread():
         out = _diagnose(data, base, folds, seed, gravity, progress)
     note = time_column_note(data.t_s)
@@ -77,6 +80,7 @@ def _diagnose(data, base: str, folds: int, seed: int, gravity, progress: bool | 
     data, gravity, held = without_logger_holds(data, gravity)
     whole, whole_gravity = data, gravity
     data, gravity, clipped = without_rails(data, gravity)
+    check_folds(folds, len(data))  # on the readings left: the clipped record's fallback below must not take it
     try:
         out = Diagnosis(data, base, folds, seed, gravity=gravity, progress=progress, degenerate=refusal).run()
     except InputError as exc:

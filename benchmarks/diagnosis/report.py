@@ -10,6 +10,7 @@ from magbench.simulate.dataset import ScalarSeries
 from magbench.simulate.sensor import MODELS, PARAM_NAMES, ErrorParams
 
 from .scalar import scalar_residual, together_columns
+from .timeonly import has_clock, t_is_sample_index
 from .vector import Diagnosis
 
 FIGURE_SIZE_IN = (8, 4.5)
@@ -224,9 +225,10 @@ def diagnosis_figure(data, result: dict, path) -> None:
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(111)
     if result.get("kind") == "time_only":  # a fixed sensor: |B| - F against time
-        t = np.arange(len(data)) if data.t_s is None else np.asarray(data.t_s) / 3600.0
+        clock = has_clock(data.t_s) and not t_is_sample_index(data)  # as the answer's own time axis
+        t = np.asarray(data.t_s) / 3600.0 if clock else np.arange(len(data))
         ax.plot(t, np.linalg.norm(np.asarray(data.raw_nT), axis=1) - np.asarray(data.f_ref_nT), ".", ms=2)
-        ax.set_xlabel("time (h)" if data.t_s is not None else "sample")
+        ax.set_xlabel("time (h)" if clock else "row")
         ax.set_ylabel(r"$|B| - F$ (nT)")
         ax.set_title("fixed sensor: the time question only")
         fig.tight_layout()

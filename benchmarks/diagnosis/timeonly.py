@@ -3,7 +3,8 @@
 A fixed instrument (an observatory variometer beside its scalar magnetometer) cannot be rotated, so no
 calibration model can be fitted; its time question still has an answer.  With the readings' magnitude
 ``|B|`` and the reference ``F``: the constant ``|B| - F`` (its median), its drift (a straight line in time,
-in nT per hour, with its standard error, and a smooth trend), its temperature dependence beyond what time
+in nT per hour, with its standard error, and a smooth trend; per row where the t column is no clock: absent, one or
+a few different times, or a sample index), its temperature dependence beyond what time
 predicts (when ``temp`` is logged), the noise floor from time neighbours (on the distinct samples when a logger
 held its value: exact repeats of the previous reading), and a verdict on the time part; the attitude part is stated
 as ``insufficient_data``.  A record of almost nothing but repeats (a stuck sensor) is refused.
@@ -151,14 +152,45 @@ def _bartlett_n(resid: np.ndarray, regressor: np.ndarray) -> float:
 
 
 def _linear(design: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Least squares with standard errors inflated for autocorrelation: (coef, se, residual)."""
-    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
-    resid = y - design @ coef
+    """Least squares with standard errors inflated for autocorrelation: (coef, se, residual).  The columns are
+    scaled to unit size first (and the coefficients back): a column of hours spanning 1e-9 h had fallen below the
+    pseudo-inverse's cutoff beside the column of ones, and a drift came with a standard error of 0."""
+    size = np.max(np.abs(design), axis=0)
+    size[size == 0] = 1.0
+    scaled = design / size
+    coef, *_ = np.linalg.lstsq(scaled, y, rcond=None)
+    resid = y - scaled @ coef
     n_eff = _effective_n(resid)
     dof = max(n_eff - design.shape[1], 1.0)
     sigma2 = float(resid @ resid) / len(y) * len(y) / dof
-    cov = sigma2 * np.linalg.pinv(design.T @ design) * (len(y) / n_eff)
-    return coef, np.sqrt(np.clip(np.diag(cov), 0, None)), resid
+    cov = sigma2 * np.linalg.pinv(scaled.T @ scaled) * (len(y) / n_eff)
+    return coef / size, np.sqrt(np.clip(np.diag(cov), 0, None)) / size, resid
+
+
+def has_clock(t_s) -> bool:
+    """Whether a t column can serve as a clock for the time question: present, with at least MIN_DISTINCT
+    different times (one time on every row, or two, says nothing of how the readings move in time: a 'drift' from
+    two time points had been called significant).  Without one the rows' order is the time axis."""
+    return t_s is not None and len(np.unique(np.asarray(t_s, dtype=float))) >= MIN_DISTINCT
+
+
+def t_is_sample_index(data) -> bool:
+    """Whether the file says (a ``# t_note:`` line naming an index) that its t column counts samples, not seconds:
+    a drift per hour would then be a drift per 3600 rows, said as such."""
+    return "index" in " ".join(str(v) for k, v in (getattr(data, "meta", None) or {}).items()
+                               if k.startswith("t_note")).lower()
+
+
+def _time_axis(t_s, indexed: bool = False) -> str:
+    if indexed and t_s is not None:
+        return "the rows' order (the file's t_note says its t counts samples: a drift is per row, not per hour)"
+    if has_clock(t_s):
+        return "the t column"
+    if t_s is None:
+        return "the rows' order (no t column: a drift is per row, not per hour)"
+    k = len(np.unique(np.asarray(t_s, dtype=float)))
+    held = "one time for every row" if k == 1 else f"only {k} different times"
+    return f"the rows' order (the t column holds {held}: no clock; a drift is per row, not per hour)"
 
 
 def time_only(data: Dataset, reason: str) -> dict:
@@ -170,7 +202,8 @@ def time_only(data: Dataset, reason: str) -> dict:
     # a clock: a t column that changes (one time on every row is no clock, as on the vector path's 'no informative t
     # column'); without one the rows' order is the time axis, and a drift is per row, not per hour (it had been
     # reported in nT/h as if the rows were one second apart)
-    clock = data.t_s is not None and float(np.ptp(np.asarray(data.t_s, dtype=float))) > 0
+    indexed = t_is_sample_index(data)
+    clock = has_clock(data.t_s) and not indexed
     t = np.asarray(data.t_s, dtype=float) if clock else np.arange(n, dtype=float)
     order = np.argsort(t, kind="stable")
     t, r = t[order], r[order]
@@ -189,6 +222,10 @@ def time_only(data: Dataset, reason: str) -> dict:
         raise InputError(f"{n - distinct} of {n} readings repeat the one before them exactly ({distinct} distinct): a "
                          "stuck sensor, a logger that holds its value, or a resolution far coarser than the changes; "
                          "nothing to diagnose")
+    unique = len(np.unique(raw, axis=0))
+    if unique < MIN_DISTINCT:  # a few readings written again in turn: no more samples than they are (CONTRACT: distinct)
+        raise InputError(f"the {n} readings hold only {unique} different values, written again in turn: a logger "
+                         "replaying a few samples, or a resolution far coarser than the changes; nothing to diagnose")
     spikes, spike_info = _spikes(r, trend_design, t, raw[order])
     keep = ~spikes
     held_share = float(held.mean())
@@ -214,9 +251,7 @@ def time_only(data: Dataset, reason: str) -> dict:
         "constant_nT": float(np.median(r)), "mean_nT": float(np.mean(r[keep])), "rms_nT": rms(r[keep]),
         "spikes": spike_info,
         "span_h": float(np.ptp(hours)) if clock else None, **({} if clock else {"span_rows": n - 1}),
-        "time_axis": "the t column" if clock else (
-            "the rows' order (no t column: a drift is per row, not per hour)" if data.t_s is None else
-            "the rows' order (the t column holds one time for every row: no clock; a drift is per row, not per hour)"),
+        "time_axis": _time_axis(data.t_s, indexed),
         "drift": drift, "noise_floor_nT": floor["noise_floor_nT"],
         "floor_method": floor["floor_method"], "held_sample_fraction": held_share,
         "statement": "|B| - F of the uncalibrated readings: a constant is a scale or offset error along the one "
@@ -366,7 +401,8 @@ def _drift_direction(raw: np.ndarray, t: np.ndarray, keep: np.ndarray, temp: np.
     n = int(keep.sum())
     span = float(np.ptp(t))
     if not timed or span <= 0 or n <= 3 * TREND_DEGREE:
-        return {"named": None, "why": "no time column, or too few samples"}
+        return {"named": None, "why": "no clock (no t column, too few different times, or a sample index), or too few "
+                                      "samples"}
     x, tk = raw[keep], t[keep]
     m = x.mean(axis=0)
     m = m / np.linalg.norm(m)

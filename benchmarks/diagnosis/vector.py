@@ -197,8 +197,8 @@ def check_folds(folds: int, n: int) -> None:
         raise InputError(f"--folds must be at least 2, not {folds}")
     most = max(DEFAULT_FOLDS, min(MAX_FOLDS, n // MIN_FOLD_ROWS))
     if folds > most:
-        raise InputError(f"--folds must be at most {most} for {n} readings (each fold holds at least "
-                         f"{MIN_FOLD_ROWS} out, and every fold is a fit of every candidate), not {folds}")
+        raise InputError(f"--folds must be at most {most} for {n} readings (a fold per {MIN_FOLD_ROWS} readings, "
+                         f"{DEFAULT_FOLDS} to {MAX_FOLDS}: every fold is a fit of every candidate), not {folds}")
 
 
 def plausible_base(x9: np.ndarray) -> bool:
