@@ -369,9 +369,12 @@ def timestamp_glitches(t_s: np.ndarray | None) -> str | None:
     readings (a fixed sensor's 20 nT/h drift had come back 'not significant', the time span 277,778 h; the lag's
     derivatives had failed with a singular matrix).  A gap in a record (its time jumps and stays) is no glitch,
     nor rows in no time order (their steps are all large)."""
-    if t_s is None or len(t_s) < 5:
+    try:
+        t = np.asarray(t_s, dtype=float)
+    except (TypeError, ValueError):  # not numbers: the columns' own checks say so
         return None
-    t = np.asarray(t_s, dtype=float)
+    if t.ndim != 1 or len(t) < 5 or not np.all(np.isfinite(t)):
+        return None
     steps = np.abs(np.diff(t))
     moving = steps[steps > 0]
     if not len(moving):

@@ -211,6 +211,8 @@ def test_a_scalar_series_is_checked_before_it_is_diagnosed():
     assert magbench.diagnose(ScalarSeries(f_meas_nT=fm, heading_deg=hd, f_ref_nT=ref))["verdict"] == "offset"
     with pytest.raises(InputError, match="--folds must be at most 8 for 24 readings"):  # had been taken silently
         magbench.diagnose(ScalarSeries(f_meas_nT=fm, heading_deg=hd, f_ref_nT=ref), folds=9)
+    with pytest.raises(InputError, match="t_s"):  # the glitch check leaves text to the columns' own check
+        magbench.diagnose(ScalarSeries(f_meas_nT=fm, heading_deg=hd, f_ref_nT=ref, t_s=["a"] * 24))
 
 
 @pytest.mark.parametrize("readings", [np.ones((4, 3, 1)), None, 5.0, np.ones((4, 2)), np.ones(2), "abc",
