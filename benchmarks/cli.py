@@ -153,6 +153,10 @@ def load_dataset(args, require_vector: bool = True, file_bytes=None):
             flag = "--field" if args.field is not None else "--igrf"
             source += f" (it takes precedence over {flag})"
             ignored = f"{flag} was not used: the file's f_ref column comes first (CONTRACT section 2)"
+        elif _field_line_apart(data):  # the file says two fields: which one is used is said
+            median = float(np.median(data.f_ref_nT))
+            ignored = (f"the file's '# field_nT: {data.meta['field_nT']}' line was not used: its f_ref column (median "
+                       f"{median:.6g} nT) comes first (CONTRACT section 2)")
     else:
         ref, source = cli_ref, (f"--field {args.field:g}" if args.field is not None else
                                 f"--igrf {args.igrf} (IGRF-14)" if args.igrf else None)
@@ -164,6 +168,20 @@ def load_dataset(args, require_vector: bool = True, file_bytes=None):
         data = replace(data, meta={**data.meta, "reference_source": source,
                                    **({"reference_ignored": ignored} if ignored else {})})
     return data
+
+
+FIELD_LINE_APART = 0.01
+"""A file's '# field_nT:' line beside its f_ref column is reported as not used when it differs from the column's median
+by more than this share (a simulated file writes both, the column varying with the field by a few per mille)."""
+
+
+def _field_line_apart(data) -> bool:
+    try:
+        line = float(data.meta.get("field_nT", "nan"))
+    except (TypeError, ValueError):
+        return False
+    median = float(np.median(data.f_ref_nT))
+    return bool(np.isfinite(line) and line > 0 and abs(median - line) > FIELD_LINE_APART * line)
 
 
 def _positive_int(text: str) -> int:

@@ -94,3 +94,21 @@ def test_compare_refuses_figure_options_with_no_figures(tmp_path, capsys):
     assert "--format sets the figures, which --no-figures leaves out" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "c").exists()  # refused before the campaign's folder is made
     assert main(args) == 0  # negative control
+
+
+def test_a_field_line_that_disagrees_with_the_f_ref_column_is_said_not_used(tmp_path, capsys, sphere9_csv):
+    """A file that says two fields ('# field_nT: 60000' beside an f_ref column of 50,000 nT) had its line ignored
+    without a word; calibrate and diagnose now say which one they used.  The control: the simulated file's own line,
+    which agrees with its column, is not mentioned."""
+    text = sphere9_csv.read_text()
+    assert "# field_nT: 50000" in text
+    path = tmp_path / "two_fields.csv"
+    path.write_text(text.replace("# field_nT: 50000", "# field_nT: 60000"))
+    for cmd in (["calibrate", str(path), "--method", "lsq"], ["diagnose", str(path)]):
+        assert main(cmd) in (0, 3)
+        assert "'# field_nT: 60000.00' line was not used: its f_ref column (median 50000 nT) comes first" in \
+            capsys.readouterr().out
+    assert main(["calibrate", str(path), "--method", "lsq", "--json"]) in (0, 3)
+    assert "field_nT: 60000" in json.loads(capsys.readouterr().out)["reference"]["ignored"]
+    assert main(["calibrate", str(sphere9_csv), "--method", "lsq", "--json"]) == 0
+    assert "ignored" not in json.loads(capsys.readouterr().out)["reference"]
