@@ -420,3 +420,11 @@ def test_a_few_readings_written_again_in_turn_are_refused():
     cycled = d.raw_nT[np.arange(600) % 3]  # three readings, never the same twice in a row
     with pytest.raises(InputError, match="only 3 different values"):
         diagnose(Dataset(cycled, f_ref_nT=d.f_ref_nT, t_s=d.t_s))
+
+
+def test_too_few_readings_of_a_fixed_sensor_are_refused_with_the_fixed_sensors_minimum():
+    """Nine readings had been told a rotating sensor's minimum ('need at least 19') while ten get an answer."""
+    d = fixed(seed=13, n=10)
+    with pytest.raises(InputError, match="9 readings of a fixed sensor are too few: its time-only answer needs at least 10"):
+        diagnose(Dataset(d.raw_nT[:9], f_ref_nT=d.f_ref_nT[:9], t_s=d.t_s[:9]))
+    assert diagnose(d)["kind"] == "time_only"  # the control: ten

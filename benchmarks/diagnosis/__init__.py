@@ -34,8 +34,8 @@ from .floor import rail_rows, stale_copies
 from .report import diagnosis_figure, diagnosis_text
 from .scalar import diagnose_scalar
 from .scoring import candidate_effects
-from .timeonly import time_only
-from .vector import DEFAULT_FOLDS, Diagnosis, check_folds
+from .timeonly import MIN_DISTINCT, time_only
+from .vector import DEFAULT_FOLDS, MIN_POINTS_BEYOND_PARAMETERS, Diagnosis, check_folds
 
 __all__ = ["read_gravity", "Diagnosis", "blind_dataset", "blind_kinds", "candidate_effects", "diagnose", "diagnose_scalar",
            "diagnosed_rows", "diagnosis_figure", "diagnosis_text"]
@@ -77,6 +77,12 @@ def _diagnose(data, base: str, folds: int, seed: int, gravity, progress: bool | 
     refusal = attitude_refusal(data, base)
     if refusal is not None and not turned(data):  # a fixed sensor: the time question still has an answer
         return time_only(data, refusal)
+    if refusal is None and base in PARAM_NAMES and len(data) <= len(PARAM_NAMES[base]) and not turned(data):
+        # too few for the coverage check, and fixed: the rotating sensor's minimum was said ('need at least 19'),
+        # while 10 readings get a fixed sensor's answer
+        raise InputError(f"{len(data)} readings of a fixed sensor are too few: its time-only answer needs at least "
+                         f"{MIN_DISTINCT} different readings (a rotating sensor "
+                         f"{len(PARAM_NAMES[base]) + MIN_POINTS_BEYOND_PARAMETERS} with the {base} model)")
     data, gravity, held = without_logger_holds(data, gravity)
     whole, whole_gravity = data, gravity
     data, gravity, clipped = without_rails(data, gravity)
