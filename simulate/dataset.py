@@ -195,6 +195,7 @@ class ScalarSeries:
     def __len__(self) -> int:
         return len(self.f_meas_nT)
 
+    @property
     def has_reference(self) -> bool:
         return self.f_ref_nT is not None
 
