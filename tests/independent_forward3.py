@@ -415,13 +415,31 @@ ROTOR_HZ = {"ship": (2.0, 5.0), "quad_hover": (60.0, 150.0), "car_circuit": (5.0
             "tumble": (20.0, 100.0), "buoy": (2.0, 10.0)}
 
 
+def _remembered(att, keep: int = 6):
+    """``att``, remembering its last ``keep`` answers by the exact times asked (a record's readings, its effects'
+    signatures and their scaling ask for the attitude at the same times many times over): the same arrays, computed
+    once.  Each answer is a copy, as a fresh call's would be."""
+    cache: dict[bytes, np.ndarray] = {}
+
+    def at(tt: np.ndarray) -> np.ndarray:
+        key = np.ascontiguousarray(tt, dtype=float).tobytes()
+        if key not in cache:
+            if len(cache) >= keep:
+                del cache[next(iter(cache))]
+            cache[key] = att(tt)
+        return cache[key].copy()
+
+    return at
+
+
 # --------------------------------------------------------------------------------------- one record's physics
 class _Record:
     """The field, the platform, the sensor and the effects of one record; readings at any times."""
 
     def __init__(self, rng: np.random.Generator, schedule: str, n: int):
         self.rng, self.schedule, self.fixed = rng, schedule, schedule == "fixed"
-        self.fs, self.att, self.dur = SCHEDULE_FUNCTIONS[schedule](rng, n)
+        self.fs, att, self.dur = SCHEDULE_FUNCTIONS[schedule](rng, n)
+        self.att = _remembered(att)
         self.n = n
         self.F0 = rng.uniform(20000.0, 65000.0)
         self.inc = rng.choice([-1.0, 1.0]) * rng.uniform(5.0, 75.0) * DEG

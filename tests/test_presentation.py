@@ -212,19 +212,24 @@ def test_traces_kept_for_every_trial(campaign):
     assert traces.groupby(["scenario", "configuration", "trial"]).size().max() <= 100
 
 
-@pytest.mark.parametrize("fmt", FORMATS)
-def test_figures_in_each_format(campaign, tmp_path, fmt):
-    written = make_figures(campaign, tmp_path, formats=(fmt,), dpi=40)
-    assert written and all(p.suffix == f".{fmt}" and p.stat().st_size > 0 for p in written)
-    magic = {"png": b"\x89PNG", "pdf": b"%PDF", "svg": b"<?xml"}[fmt]
-    assert all(p.read_bytes().startswith(magic) for p in written)
+def test_figures_in_each_format(campaign, tmp_path):
+    """Every figure in each format, drawn once and saved in all three (one call: each figure is built once)."""
+    written = make_figures(campaign, tmp_path, formats=FORMATS, dpi=40)
+    for fmt in FORMATS:
+        mine = [p for p in written if p.suffix == f".{fmt}"]
+        assert mine and all(p.stat().st_size > 0 for p in mine)
+        magic = {"png": b"\x89PNG", "pdf": b"%PDF", "svg": b"<?xml"}[fmt]
+        assert all(p.read_bytes().startswith(magic) for p in mine), fmt
+    assert {p.stem for p in written if p.suffix == ".png"} == {p.stem for p in written if p.suffix == ".pdf"} \
+        == {p.stem for p in written if p.suffix == ".svg"}
 
 
 def test_png_resolution_follows_dpi(campaign, tmp_path):
     from PIL import Image  # matplotlib's own dependency
 
-    a = make_figures(campaign, tmp_path / "a", formats=("png",), dpi=50)[0]
-    b = make_figures(campaign, tmp_path / "b", formats=("png",), dpi=100)[0]
+    a = make_figures(campaign, tmp_path / "a", formats=("png",), dpi=50, kinds=("errors",))[0]
+    b = make_figures(campaign, tmp_path / "b", formats=("png",), dpi=100, kinds=("errors",))[0]
+    assert a.name == b.name and a.name.startswith("errors_")
     assert Image.open(b).size[0] == pytest.approx(2 * Image.open(a).size[0], abs=2)
 
 
