@@ -192,6 +192,21 @@ class ScalarSeries:
     extra: dict = field(default_factory=dict)
     meta: dict = field(default_factory=dict)
 
+    def __post_init__(self):
+        """What ``len`` and the readers need, as ``Dataset``'s: f_meas_nT given with rows, ``extra`` and ``meta`` dicts
+        (they had been internal errors: TypeError, AttributeError); the values and shapes are checked where they are
+        read (``diagnose_scalar``)."""
+        try:
+            ndim = None if self.f_meas_nT is None else np.ndim(self.f_meas_nT)
+        except ValueError:  # rows of different lengths
+            ndim = -1
+        if ndim is None or ndim < 1:  # more dimensions: the columns' own check says the shape (diagnose_scalar)
+            raise InputError("f_meas_nT must be one value per row (a 1-D array, nT), got "
+                             + {None: "None", -1: "rows of different lengths"}.get(ndim, "one number"))
+        for name in ("extra", "meta"):
+            if not isinstance(getattr(self, name), dict):
+                raise InputError(f"{name} must be a dict, got {type(getattr(self, name)).__name__}")
+
     def __len__(self) -> int:
         return len(self.f_meas_nT)
 

@@ -396,3 +396,22 @@ def test_a_budget_of_the_wrong_type_is_refused_where_it_is_made(kw):
     with pytest.raises(InputError, match="must be"):
         Budget(**kw)
     assert Budget(max_evaluations=np.int64(5)).max_evaluations == 5 and Budget(max_time_s=2).max_time_s == 2
+
+
+@pytest.mark.parametrize("columns, message", [
+    (dict(f_meas_nT=None), "f_meas_nT must be one value per row.*got None"),
+    (dict(f_meas_nT=5e4), "got one number"),
+    (dict(f_meas_nT=[[5e4, 5e4], [5e4]]), "rows of different lengths"),
+    (dict(f_meas_nT=np.full(24, 5e4), extra=[1, 2]), "extra must be a dict, got list"),
+    (dict(f_meas_nT=np.full(24, 5e4), meta=None), "meta must be a dict, got NoneType")])
+def test_a_scalar_series_without_rows_or_with_odd_side_tables_is_refused_in_one_line(columns, message):
+    """Each had been an internal error (TypeError: len of None; AttributeError: a list's .get).  Control: the same
+    series with its rows and dicts is diagnosed."""
+    from magbench.simulate.dataset import ScalarSeries
+
+    with pytest.raises(InputError, match=message):
+        ScalarSeries(heading_deg=np.arange(0, 360, 15.0), f_ref_nT=np.full(24, 5e4), **columns)
+    hd = np.arange(0, 360, 15.0)
+    ok = ScalarSeries(f_meas_nT=5e4 + 30 * np.cos(np.radians(hd)), heading_deg=hd, f_ref_nT=np.full(24, 5e4),
+                      extra={}, meta={})
+    assert magbench.diagnose(ok)["verdict"] == "offset"

@@ -12,12 +12,14 @@ import numpy as np
 from magbench import paper
 from magbench.calibrators.acceptance import GLITCH_FACTOR, MIN_REFERENCE_NT, reference_jumps, units_apart
 from magbench.errors import InputError
+from magbench.numerics import MAD_TO_SIGMA
 from magbench.simulate.dataset import MAX_ABS_OTHER, ScalarSeries, temperature_problem
 from magbench.simulate.effects import EFFECTS, OutlierEffect, library_effects
 from magbench.simulate.sensor import paper_matrix
 
 from .floor import second_difference_floor
 from .localize import harmonics, heading_design
+from .naming import FAMILY_ALPHA
 from .scoring import MIN_SIGNIFICANT_SHRINK_PCT, Z_SIGNIFICANT, paired_z, rms, shrink_pct
 from .timeonly import has_clock
 
@@ -226,13 +228,70 @@ def score_scalar_effects(s: ScalarFit, rms_base: float, floor: float) -> list[di
     return sorted(effects, key=lambda e: e["rms_heldout_nT"])
 
 
-def _verdict(effects: list[dict], rms_base: float, floor: float, n: int) -> str:
-    """Significant effects, best first; ``+unexplained`` when the best of them leaves more than twice the floor."""
+UNEXPLAINED_SIZE = 1.5
+"""``_verdict``: a series with no significant effect is ``unexplained`` when its residual exceeds the floor by at least
+this factor and by the ratio that white noise exceeds with probability SCALAR_FALSE_ALARM (``null_limit``)."""
+LEFT_SIZE = 2.0
+"""... and ``+unexplained`` beside an effect when what the effect leaves exceeds the floor by this factor and by that
+ratio for the effect's own columns."""
+SCALAR_FALSE_ALARM = FAMILY_ALPHA
+"""The level at which a clean series (white noise about the file's calibration) is called ``unexplained``: the floor
+of a short series is itself uncertain (second differences of 24 rows: the ratio of the residual to it exceeded 1.5
+in 7.5 % of clean series, 12.5 % of 2 x 12-row ones), so the fixed factors alone had said ``unexplained`` of 25
+clean series in 200."""
+NULL_DRAWS = 2000
+"""White-noise series drawn (a fixed seed: the same series, the same verdict) for ``null_limit``."""
+NULL_MAX_ROWS = 500
+"""Above this many rows the null ratio's 1 - SCALAR_FALSE_ALARM quantile is below 1.3 (1.22 at 200 rows), under
+the size factors, and is not drawn."""
+
+
+def _floors(r: np.ndarray, s: ScalarFit, clock: bool) -> np.ndarray:
+    """``_floor`` of each row of ``r`` (draws, n) in the series' orders, vectorized (for ``null_limit``)."""
+    def by(order: np.ndarray) -> np.ndarray:
+        x = r[:, order]
+        d2 = x[:, 1:-1] - 0.5 * (x[:, :-2] + x[:, 2:])
+        dev = np.abs(d2 - np.median(d2, axis=1, keepdims=True))
+        return MAD_TO_SIGMA * np.median(dev, axis=1) / np.sqrt(1.5)
+
+    if clock:
+        return by(s.order)
+    by_row = by(np.arange(r.shape[1]))
+    by_heading = by(np.argsort(s.heading_rad % (2 * np.pi), kind="stable"))
+    return np.where(by_heading < HEADING_ORDER_SHARE * by_row, by_heading, by_row)
+
+
+def null_limit(s: ScalarFit, cols: list[np.ndarray], clock: bool, size: float) -> float:
+    """The larger of ``size`` and the 1 - SCALAR_FALSE_ALARM quantile of rms(leave-one-out residuals of constant +
+    ``cols``) / floor over NULL_DRAWS series of white Gaussian noise with the series' rows, headings and times, the
+    floor taken as ``_floor`` takes it (``clock``: in time order).  Its ratio to the floor is what a clean series
+    of this length reaches by chance."""
+    n = len(s.r)
+    if n > NULL_MAX_ROWS:
+        return size
+    x = np.column_stack([np.ones(n)] + list(cols))
+    pinv = np.linalg.pinv(x)
+    h = np.einsum("ij,ji->i", x, pinv)
+    noise = np.random.default_rng(n).standard_normal((NULL_DRAWS, n))
+    loo = (noise - (noise @ pinv.T) @ x.T) / (1.0 - h)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.sqrt(np.mean(loo * loo, axis=1)) / _floors(noise, s, clock)
+    return max(size, float(np.quantile(ratio, 1.0 - SCALAR_FALSE_ALARM)))
+
+
+def _verdict(effects: list[dict], rms_base: float, floor: float, s: ScalarFit, clock: bool) -> tuple[str, dict]:
+    """Significant effects, best first; ``+unexplained`` when the best of them leaves more than ``null_limit`` times
+    the floor (at least LEFT_SIZE); without one, ``unexplained`` when the residual does (at least UNEXPLAINED_SIZE).
+    Returns the verdict and its limits."""
     sig = [e for e in effects if e["significant"]]
     if not sig:
-        return "none" if rms_base <= 1.5 * floor else "unexplained"
-    left = min(e["rms_heldout_nT"] for e in sig)
-    return "+".join(e["name"] for e in sig[:1]) + ("+unexplained" if left > 2 * floor else "")
+        limit = null_limit(s, [], clock, UNEXPLAINED_SIZE) if rms_base > UNEXPLAINED_SIZE * floor else UNEXPLAINED_SIZE
+        return ("none" if rms_base <= limit * floor else "unexplained"), {"base_over_floor": limit}
+    best, left = sig[0], sig[0]["rms_heldout_nT"]
+    cls = EFFECTS[best["name"]]
+    cols = [] if cls.robust else cls.scalar_columns(s.heading_rad, s.tau)
+    limit = null_limit(s, list(cols or []), clock, LEFT_SIZE) if left > LEFT_SIZE * floor else LEFT_SIZE
+    return best["name"] + ("+unexplained" if left > limit * floor else ""), {"left_over_floor": limit}
 
 
 def _harm(series, col):
@@ -275,10 +334,11 @@ def diagnose_scalar(series: ScalarSeries, folds: int = 0, seed: int = 0) -> dict
     rms_base = rms(s.base_cv)  # type: ignore[arg-type]
     floor, floor_method = _floor(s, series)
     effects = score_scalar_effects(s, rms_base, floor)
+    verdict, limits = _verdict(effects, rms_base, floor, s, has_clock(series.t_s))
     rms_both = rms(s.loo(together_columns(s.heading_rad, s.tau)))
     return {"kind": "scalar_series", "base_model": "as given (the file's calibration)", "n_points": n,
             "rms_fit_nT": rms(s.r), "rms_base_nT": rms_base, "noise_floor_nT": float(floor), "floor_method": floor_method,
-            "verdict": _verdict(effects, rms_base, floor, n), "effects": effects,
+            "verdict": verdict, "unexplained_limits": {**limits, "false_alarm": SCALAR_FALSE_ALARM}, "effects": effects,
             "localization": {"heading_harmonics": harmonics(series.heading_deg, s.r)},
             "geometry": fit_geometry(series),
             "series": {"before": _harm(series, "f_meas_before"), "after": _harm(series, "f_meas_after")},
