@@ -192,3 +192,16 @@ def test_local_derivatives_take_a_time_far_from_the_rest():
     d1, d2 = local_derivatives(t, x)
     away = slice(3, 16)  # windows that do not reach the odd one (last in time order): the usual derivative
     assert np.allclose(d1[away], np.cos(t[away] / 5.0) / 5.0, rtol=0.06, atol=2e-3)
+
+
+def test_a_scalar_series_says_which_measured_column_its_residual_is_of():
+    """A file with f_meas beside f_meas_after diagnosed f_meas_after without a word; control: f_meas alone."""
+    from magbench.simulate.dataset import ScalarSeries
+
+    hd = np.arange(0, 360, 15.0)
+    before = 5e4 + 30 * np.cos(np.radians(hd))
+    both = ScalarSeries(f_meas_nT=before, heading_deg=hd, f_ref_nT=np.full(24, 5e4),
+                        extra={"f_meas_after": np.full(24, 5e4) + 0.01 * np.sin(np.radians(hd))})
+    assert diagnose(both)["residual_of"] == "f_meas_after - f_ref"
+    assert diagnose(ScalarSeries(f_meas_nT=before, heading_deg=hd, f_ref_nT=np.full(24, 5e4)))["residual_of"] == \
+        "f_meas - f_ref"

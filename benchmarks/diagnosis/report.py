@@ -23,7 +23,8 @@ def _measure_note(result: dict) -> str:
     return "" if measure == "mean square" else "; " + measure
 
 def _table(result: dict, source: str) -> list[str]:
-    lines = [f"diagnosis of {source} ({result['n_points']} points, base model: {result['base_model']})",
+    of = f", residual {result['residual_of']}" if "residual_of" in result else ""  # a scalar series: which column
+    lines = [f"diagnosis of {source} ({result['n_points']} points, base model: {result['base_model']}{of})",
              f"  residual RMS {result['rms_fit_nT']:.3f} nT on the fit, {result['rms_base_nT']:.3f} nT held out; "
              f"noise floor {result['noise_floor_nT']:.3f} nT"]
     if "floor_interval_nT" in result:

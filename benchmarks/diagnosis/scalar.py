@@ -336,7 +336,9 @@ def diagnose_scalar(series: ScalarSeries, folds: int = 0, seed: int = 0) -> dict
     effects = score_scalar_effects(s, rms_base, floor)
     verdict, limits = _verdict(effects, rms_base, floor, s, has_clock(series.t_s))
     rms_both = rms(s.loo(together_columns(s.heading_rad, s.tau)))
+    used = "f_meas_after" if series.extra.get("f_meas_after") is not None else "f_meas"
     return {"kind": "scalar_series", "base_model": "as given (the file's calibration)", "n_points": n,
+            "residual_of": f"{used} - f_ref",
             "rms_fit_nT": rms(s.r), "rms_base_nT": rms_base, "noise_floor_nT": float(floor), "floor_method": floor_method,
             "verdict": verdict, "unexplained_limits": {**limits, "false_alarm": SCALAR_FALSE_ALARM}, "effects": effects,
             "localization": {"heading_harmonics": harmonics(series.heading_deg, s.r)},
