@@ -460,7 +460,8 @@ def _holds_in_order(unit: np.ndarray) -> np.ndarray | None:
     mean /= np.maximum(np.linalg.norm(mean, axis=1), 1e-300)[:, None]
     angle = np.arccos(np.clip(np.einsum("ij,ij->i", unit, mean[labels]), -1.0, 1.0))
     spread = np.zeros(len(counts))
-    np.maximum.at(spread, labels, angle)
+    with np.errstate(invalid="ignore"):  # a NaN reading's angle is NaN: its hold is no hold (NaN <= limit is False)
+        np.maximum.at(spread, labels, angle)
     inside = ((counts >= HOLD_MIN_SAMPLES) & (spread <= HOLD_SPREAD_RAD))[labels]
     if inside.sum() < HOLD_SHARE * n:
         return None

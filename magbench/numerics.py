@@ -317,7 +317,8 @@ def median_and_sigma(x: np.ndarray) -> tuple[float, float]:
         return float("nan"), 0.0
     m = median(x)
     if not math.isfinite(m):  # NaN among the values, or infinite ones in the middle
-        return m, MAD_TO_SIGMA * median(np.abs(x - m))
+        with np.errstate(invalid="ignore"):  # inf - inf: NaN, as the answer is
+            return m, MAD_TO_SIGMA * median(np.abs(x - m))
     # about a finite median the deviations are NaN only where a value is, and there is none (the median would
     # be NaN): they are partitioned in place, a new array of their own
     deviation = np.abs(x - m).ravel()

@@ -210,7 +210,8 @@ def time_derivative(t_s: np.ndarray, x: np.ndarray) -> np.ndarray:
     if len(ts) < 3 or np.ptp(ts) <= 0:
         return np.zeros_like(xs)
     ts = ts + np.arange(len(ts)) * 1e-12 * max(np.ptp(ts), 1.0)  # repeated times: a tiny spacing
-    g = np.gradient(xs, ts, axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):  # times at the float resolution (1e9 s + 1e-7 s steps) stay tied
+        g = np.gradient(xs, ts, axis=0)
     out = np.empty_like(g)
     out[order] = g
     return out

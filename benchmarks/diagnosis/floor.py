@@ -117,14 +117,15 @@ def _interpolation_errors(r: np.ndarray, t: np.ndarray | None, order: int) -> np
     i = np.arange(lo, hi)
     nodes = [t[i + o] for o in offs]
     weights = []
-    for a, ta in enumerate(nodes):
-        w = np.ones(len(i))
-        for b, tb in enumerate(nodes):
-            if a != b:
-                w = w * (t[i] - tb) / (ta - tb)
-        weights.append(w)
-    pred = sum(w * r[i + o] for w, o in zip(weights, offs))
-    return (r[i] - pred) / np.sqrt(1.0 + sum(w * w for w in weights))
+    with np.errstate(divide="ignore", invalid="ignore"):  # times tied at the float resolution (1e9 s + 1e-7 s steps)
+        for a, ta in enumerate(nodes):
+            w = np.ones(len(i))
+            for b, tb in enumerate(nodes):
+                if a != b:
+                    w = w * (t[i] - tb) / (ta - tb)
+            weights.append(w)
+        pred = sum(w * r[i + o] for w, o in zip(weights, offs))
+        return (r[i] - pred) / np.sqrt(1.0 + sum(w * w for w in weights))
 
 
 def time_difference_floor(r_in_order: np.ndarray, t_in_order: np.ndarray | None = None, grid: bool = False) -> dict:
