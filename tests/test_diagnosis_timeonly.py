@@ -349,6 +349,7 @@ def test_without_a_clock_the_drift_is_per_row_not_per_hour():
     timed = fixed(seed=7)  # 4 nT a day over 2000 rows
     per_h = diagnose(timed)["time_only"]
     assert per_h["time_axis"] == "the t column" and abs(per_h["drift"]["drift_nT_per_h"] * 24 - 4.0) < 0.2
+    assert per_h["drift"]["drift_nT_per_row"] is None and per_h["span_rows"] is None  # the same keys either way
     for t, said in ((None, "no t column"), (np.zeros(len(timed)), "one time for every row")):
         to = diagnose(Dataset(timed.raw_nT, f_ref_nT=timed.f_ref_nT, t_s=t, temp_C=timed.temp_C))["time_only"]
         assert said in to["time_axis"] and to["span_h"] is None and to["span_rows"] == len(timed) - 1

@@ -238,8 +238,10 @@ def time_only(data: Dataset, reason: str) -> dict:
     unit = "h" if clock else "row"
     drift: dict = {f"drift_nT_per_{unit}": float(coef[1]), f"drift_se_nT_per_{unit}": float(se[1]),
                    "significant": bool(abs(coef[1]) > DRIFT_Z * se[1]) if np.ptp(hours) > 0 else False}
-    if not clock:  # the keys a clock gives, said empty rather than left out
+    if not clock:  # the keys of the other time axis, said empty rather than left out (either way)
         drift.update(drift_nT_per_h=None, drift_se_nT_per_h=None)
+    else:
+        drift.update(drift_nT_per_row=None, drift_se_nT_per_row=None)
     left = None  # what the smooth trend of |B| - F leaves on the kept samples
     if trend_design is not None and n > 3 * TREND_DEGREE:
         trend = trend_design @ np.linalg.lstsq(trend_design[keep], r[keep], rcond=None)[0]
@@ -250,7 +252,7 @@ def time_only(data: Dataset, reason: str) -> dict:
     out["time_only"] = {
         "constant_nT": float(np.median(r)), "mean_nT": float(np.mean(r[keep])), "rms_nT": rms(r[keep]),
         "spikes": spike_info,
-        "span_h": float(np.ptp(hours)) if clock else None, **({} if clock else {"span_rows": n - 1}),
+        "span_h": float(np.ptp(hours)) if clock else None, "span_rows": None if clock else n - 1,
         "time_axis": _time_axis(data.t_s, indexed),
         "drift": drift, "noise_floor_nT": floor["noise_floor_nT"],
         "floor_method": floor["floor_method"], "held_sample_fraction": held_share,
