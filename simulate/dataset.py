@@ -201,8 +201,9 @@ class ScalarSeries:
         except ValueError:  # rows of different lengths
             ndim = -1
         if ndim is None or ndim < 1:  # more dimensions: the columns' own check says the shape (diagnose_scalar)
+            one = "one number" if isinstance(self.f_meas_nT, (int, float, np.number)) else type(self.f_meas_nT).__name__
             raise InputError("f_meas_nT must be one value per row (a 1-D array, nT), got "
-                             + {None: "None", -1: "rows of different lengths"}.get(ndim, "one number"))
+                             + {None: "None", -1: "rows of different lengths"}.get(ndim, one))
         for name in ("extra", "meta"):
             if not isinstance(getattr(self, name), dict):
                 raise InputError(f"{name} must be a dict, got {type(getattr(self, name)).__name__}")
@@ -779,7 +780,8 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
         return Dataset(raw * factor, f_ref_nT=f_ref, meta=meta, **common)
     check_units(float(np.median(column(scalar_col))), units, expected_field_nT, where=str(path))
     others = {c: column(c) * factor for c in FIELD_COLUMNS if c in names and c not in ("f_ref",)}
-    return ScalarSeries(column(scalar_col) * factor, f_ref_nT=f_ref, extra=others, meta=meta, **common)
+    return ScalarSeries(column(scalar_col) * factor, f_ref_nT=f_ref, extra=others, meta={**meta, "f_meas_column": scalar_col},
+                        **common)
 
 
 def _opened(path: Path, source: InputBytes | None) -> tuple[InputBytes, bytes, _Head, str, list[str]]:

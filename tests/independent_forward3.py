@@ -419,10 +419,11 @@ def _remembered(att, keep: int = 6):
     """``att``, remembering its last ``keep`` answers by the exact times asked (a record's readings, its effects'
     signatures and their scaling ask for the attitude at the same times many times over): the same arrays, computed
     once.  Each answer is a copy, as a fresh call's would be."""
-    cache: dict[bytes, np.ndarray] = {}
+    cache: dict[tuple, np.ndarray] = {}
 
     def at(tt: np.ndarray) -> np.ndarray:
-        key = np.ascontiguousarray(tt, dtype=float).tobytes()
+        arr = np.asarray(tt)
+        key = (arr.shape, arr.dtype.str, np.ascontiguousarray(arr).tobytes())
         if key not in cache:
             if len(cache) >= keep:
                 del cache[next(iter(cache))]

@@ -402,6 +402,7 @@ def test_a_budget_of_the_wrong_type_is_refused_where_it_is_made(kw):
     (dict(f_meas_nT=None), "f_meas_nT must be one value per row.*got None"),
     (dict(f_meas_nT=5e4), "got one number"),
     (dict(f_meas_nT=[[5e4, 5e4], [5e4]]), "rows of different lengths"),
+    (dict(f_meas_nT="50000"), "got str"),
     (dict(f_meas_nT=np.full(24, 5e4), extra=[1, 2]), "extra must be a dict, got list"),
     (dict(f_meas_nT=np.full(24, 5e4), meta=None), "meta must be a dict, got NoneType")])
 def test_a_scalar_series_without_rows_or_with_odd_side_tables_is_refused_in_one_line(columns, message):

@@ -205,3 +205,16 @@ def test_a_scalar_series_says_which_measured_column_its_residual_is_of():
     assert diagnose(both)["residual_of"] == "f_meas_after - f_ref"
     assert diagnose(ScalarSeries(f_meas_nT=before, heading_deg=hd, f_ref_nT=np.full(24, 5e4)))["residual_of"] == \
         "f_meas - f_ref"
+
+
+def test_a_scalar_file_of_f_meas_before_alone_names_that_column(tmp_path):
+    """A file whose only measured column is f_meas_before had its residual called 'f_meas - f_ref' (a column it lacks)."""
+    from magbench.simulate.dataset import read_csv
+
+    hd = np.arange(0, 360, 15.0)
+    path = tmp_path / "before.csv"
+    rows = "\n".join(f"{h:g},{5e4 + 30 * np.cos(np.radians(h)):.3f},50000" for h in hd)
+    path.write_text("heading_deg,f_meas_before,f_ref\n" + rows + "\n")
+    assert diagnose(read_csv(path, require_vector=False))["residual_of"] == "f_meas_before - f_ref"
+    path.write_text("heading_deg,f_meas,f_ref\n" + rows + "\n")  # control
+    assert diagnose(read_csv(path, require_vector=False))["residual_of"] == "f_meas - f_ref"
