@@ -32,3 +32,14 @@ def test_structure_well_above_the_floor_is_still_unexplained_and_the_limit_is_in
     limits = outs[0]["unexplained_limits"]
     assert limits["false_alarm"] == SCALAR_FALSE_ALARM == 0.01
     assert 1.8 < limits["base_over_floor"] < 2.5 and limits["base_over_floor"] >= UNEXPLAINED_SIZE  # 24 rows: 2.06
+
+
+def test_an_exactly_constant_residual_names_nothing():
+    """f_meas 3 nT above f_ref on every row: the floor had been 0 and the rounding of the leave-one-out residuals
+    (1e-16 nT) had named an offset (z 3e16).  Control: the same with a real once-per-turn offset names it."""
+    heading = np.arange(0.0, 360.0, 15.0)
+    ref = np.full(24, 5e4)
+    flat = diagnose(ScalarSeries(f_meas_nT=ref + 3.0, heading_deg=heading, f_ref_nT=ref))
+    assert flat["verdict"] == "none" and "rounding" in flat["floor_method"]
+    turning = ref + 3.0 + 30.0 * np.cos(np.radians(heading))
+    assert diagnose(ScalarSeries(f_meas_nT=turning, heading_deg=heading, f_ref_nT=ref))["verdict"].startswith("offset")

@@ -228,6 +228,10 @@ def score_scalar_effects(s: ScalarFit, rms_base: float, floor: float) -> list[di
     return sorted(effects, key=lambda e: e["rms_heldout_nT"])
 
 
+ARITHMETIC_FLOOR = 1e-9
+"""The least noise floor of a scalar series, as a share of the field (5e-5 nT at 50,000 nT: far below any
+magnetometer's resolution): a residual that is exactly constant (f_meas 3 nT above f_ref on every row) had a floor of 0,
+and the rounding of its leave-one-out residuals (1e-16 nT) had named an ``offset``, z 3e16."""
 UNEXPLAINED_SIZE = 1.5
 """``_verdict``: a series with no significant effect is ``unexplained`` when its residual exceeds the floor by at least
 this factor and by the ratio that white noise exceeds with probability SCALAR_FALSE_ALARM (``null_limit``)."""
@@ -341,6 +345,9 @@ def diagnose_scalar(series: ScalarSeries, folds: int = 0, seed: int = 0) -> dict
     n = len(s.r)
     rms_base = rms(s.base_cv)  # type: ignore[arg-type]
     floor, floor_method = _floor(s, series)
+    least = ARITHMETIC_FLOOR * float(np.median(np.abs(np.asarray(series.f_ref_nT, dtype=float))))
+    if not floor >= least:  # exact (or rounding-level) residuals: no effect is seen in the arithmetic's rounding
+        floor, floor_method = least, floor_method + f" (raised to {ARITHMETIC_FLOOR:g} of the field: the arithmetic's rounding)"
     effects = score_scalar_effects(s, rms_base, floor)
     verdict, limits = _verdict(effects, rms_base, floor, s, has_clock(series.t_s))
     rms_both = rms(s.loo(together_columns(s.heading_rad, s.tau)))
