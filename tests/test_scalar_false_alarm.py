@@ -43,3 +43,22 @@ def test_an_exactly_constant_residual_names_nothing():
     assert flat["verdict"] == "none" and "rounding" in flat["floor_method"]
     turning = ref + 3.0 + 30.0 * np.cos(np.radians(heading))
     assert diagnose(ScalarSeries(f_meas_nT=turning, heading_deg=heading, f_ref_nT=ref))["verdict"].startswith("offset")
+
+
+def test_headings_a_thousandth_of_a_degree_apart_count_as_one():
+    """Four headings taken three times each, 0.001 degree apart, had counted as 12 different headings and been
+    diagnosed with a floor of 48 nT from the jumps between them (a 40 nT twice-per-turn error: none).  Control: twelve
+    headings 30 degrees apart."""
+    import pytest
+
+    from magbench.errors import InputError
+
+    clustered = np.concatenate([q + 1e-3 * np.arange(3) for q in (0.0, 90.0, 180.0, 270.0)])
+    f = 5e4 + 40 * np.cos(np.radians(2 * clustered))
+    with pytest.raises(InputError, match="only 4 different heading"):
+        diagnose(ScalarSeries(f_meas_nT=f, heading_deg=clustered, f_ref_nT=np.full(12, 5e4)))
+    spread = np.arange(0.0, 360.0, 30.0)
+    noise = np.random.default_rng(0).normal(0, 0.5, 12)
+    out = diagnose(ScalarSeries(f_meas_nT=5e4 + 40 * np.cos(np.radians(2 * spread)) + noise, heading_deg=spread,
+                                f_ref_nT=np.full(12, 5e4)))
+    assert out["verdict"].startswith("scale")

@@ -24,6 +24,10 @@ from .scoring import MIN_SIGNIFICANT_SHRINK_PCT, Z_SIGNIFICANT, paired_z, rms, s
 from .timeonly import has_clock
 
 MIN_HEADINGS = 12
+HEADING_APART_DEG = 1.0
+"""Headings are counted as different in steps of this width (0-1, 1-2, ... degrees): four headings taken three times each
+at 0.001 degree apart had counted as 12 and been diagnosed, their floor 48 nT from the jumps between them, and a 40 nT
+twice-per-turn error came back ``none``; the fourth harmonic changes by 4 degrees of phase within one step."""
 MAX_HEADING_GAP_DEG = 90.0
 """The widest gap between neighbouring headings (around the circle) a scalar turntable series may leave: the 1..4
 cycles-per-revolution harmonics the diagnosis separates are confounded over a wider one."""
@@ -190,10 +194,10 @@ def _checked(series: ScalarSeries) -> ScalarFit:
     if n < MIN_HEADINGS:
         raise InputError(f"{n} headings are too few to diagnose (need at least {MIN_HEADINGS})")
     heading = np.mod(np.asarray(series.heading_deg, dtype=float), 360.0)
-    distinct = len(np.unique(np.round(heading, 6)))
+    distinct = len(np.unique(np.floor(heading / HEADING_APART_DEG)))
     if distinct < MIN_HEADINGS:  # the harmonics of the heading need that many different headings, not rows
-        raise InputError(f"the {n} readings have only {distinct} different heading(s) (need at least {MIN_HEADINGS} "
-                         "around the turntable)")
+        raise InputError(f"the {n} readings have only {distinct} different heading(s) (in {HEADING_APART_DEG:g}-degree "
+                         f"steps; need at least {MIN_HEADINGS} around the turntable)")
     gap = float(np.max(np.diff(np.concatenate([np.sort(heading), [np.min(heading) + 360.0]]))))
     if gap > MAX_HEADING_GAP_DEG:
         raise InputError(f"the headings leave a gap of {gap:.0f} degrees (at most {MAX_HEADING_GAP_DEG:g} for the "
