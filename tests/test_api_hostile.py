@@ -416,3 +416,20 @@ def test_a_scalar_series_without_rows_or_with_odd_side_tables_is_refused_in_one_
     ok = ScalarSeries(f_meas_nT=5e4 + 30 * np.cos(np.radians(hd)), heading_deg=hd, f_ref_nT=np.full(24, 5e4),
                       extra={}, meta={})
     assert magbench.diagnose(ok)["verdict"] == "offset"
+
+
+def test_a_scalar_row_far_from_its_reference_is_refused_by_row():
+    """A dropout row at 1/520 of the field passed the 1/1000 glitch check and was diagnosed; now refused by row.
+    Control: a spike of 20,000 nT (0.4 of the field) is a reading, diagnosed."""
+    from magbench.simulate.dataset import ScalarSeries
+
+    hd = np.arange(0, 360, 15.0)
+    ref = np.full(24, 5e4)
+    fm = 5e4 + 30 * np.cos(np.radians(hd))
+    dropout = fm.copy()
+    dropout[5] = 5e4 / 520
+    with pytest.raises(InputError, match=r"f_meas_nT in row\(s\) 5 is outside 0.5-2 times its reference"):
+        magbench.diagnose(ScalarSeries(f_meas_nT=dropout, heading_deg=hd, f_ref_nT=ref))
+    spike = fm.copy()
+    spike[5] += 2e4
+    assert magbench.diagnose(ScalarSeries(f_meas_nT=spike, heading_deg=hd, f_ref_nT=ref))["verdict"]

@@ -135,6 +135,15 @@ def series_problem(series: ScalarSeries) -> str | None:
             return (f"the measured magnitude {name} (median {np.median(meas):.4g}) is {ratio:.3g} times the reference "
                     f"(median {np.median(ref):.6g} nT): " + (units_apart(ratio) or "wrong units (every magnitude "
                                                               "column is read in one unit, units=), or a wrong reference"))
+        # row by row too: a row at 1/520 of the field (a dropout) had passed the 1/1000 glitch check and been diagnosed
+        row_ratio = meas / np.broadcast_to(ref, meas.shape)
+        off = np.flatnonzero((row_ratio < SCALAR_RATIO_RANGE[0]) | (row_ratio > SCALAR_RATIO_RANGE[1]))
+        if len(off):
+            i = int(off[0])
+            return (f"{name} in row(s) {', '.join(map(str, off[:5]))}{', ...' if len(off) > 5 else ''} is outside "
+                    f"{SCALAR_RATIO_RANGE[0]:g}-{SCALAR_RATIO_RANGE[1]:g} times its reference (row {i}: {meas[i]:.4g} "
+                    f"against {float(np.broadcast_to(ref, meas.shape)[i]):.6g} nT): no reading of this field (a dropout, "
+                    "a corrupt row); remove those rows")
     return None
 
 
@@ -165,7 +174,7 @@ def _magnitude_rows(name: str, meas: np.ndarray) -> str | None:
 SCALAR_RATIO_RANGE = (0.5, 2.0)
 """The median measured magnitude over the reference's that a scalar series of one instrument in one field can have
 (its own calibration applied, or not: scales and offsets of a few per cent); outside it the units or the reference
-are wrong."""
+are wrong.  Each row's ratio too: outside it a row is a dropout or a corrupt row (a spike of 20,000 nT is inside)."""
 
 
 def _as_numbers(series: ScalarSeries) -> ScalarSeries:
