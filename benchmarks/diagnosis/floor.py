@@ -18,7 +18,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from magbench.lightstats import normal_isf, one_pole_lowpass, spearman_rho
-from magbench.numerics import drift_columns, drift_degree, repeated_rows, residual_sum_of_squares, systematic_rows
+from magbench.numerics import MAD_TO_SIGMA, drift_columns, drift_degree, repeated_rows, residual_sum_of_squares, systematic_rows
 from magbench.simulate.effects import SPIKE_SIGMA, Columns, f_test_p, robust_sigma
 
 KNN_NEIGHBOURS = 6
@@ -367,10 +367,21 @@ def vector_floor(unit: np.ndarray, d: Columns, r: np.ndarray, rows_in_time_order
             "floor_method": method, "floor_is_upper_bound": True}
 
 
+def _second_differences(r_in_order: np.ndarray) -> np.ndarray:
+    """r_i - (r_{i-1} + r_{i+1}) / 2 along the last axis."""
+    return r_in_order[..., 1:-1] - 0.5 * (r_in_order[..., :-2] + r_in_order[..., 2:])
+
+
 def second_difference_floor(r_in_order: np.ndarray) -> float:
     """The floor of a series from its second differences r_i - (r_{i-1} + r_{i+1}) / 2, robustly."""
-    d2 = r_in_order[1:-1] - 0.5 * (r_in_order[:-2] + r_in_order[2:])
-    return robust_sigma(d2) / np.sqrt(1.5)
+    return robust_sigma(_second_differences(r_in_order)) / np.sqrt(1.5)
+
+
+def second_difference_floors(rows_in_order: np.ndarray) -> np.ndarray:
+    """``second_difference_floor`` of each row of a (k, n) array in one pass (the same MAD, by numpy's median along
+    the rows: the scalar diagnosis's null draws)."""
+    d2 = _second_differences(rows_in_order)
+    return MAD_TO_SIGMA * np.median(np.abs(d2 - np.median(d2, axis=1, keepdims=True)), axis=1) / np.sqrt(1.5)
 
 
 MOTION_Z = LEAK_Z

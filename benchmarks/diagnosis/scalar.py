@@ -12,12 +12,11 @@ import numpy as np
 from magbench import paper
 from magbench.calibrators.acceptance import GLITCH_FACTOR, MIN_REFERENCE_NT, reference_jumps, units_apart
 from magbench.errors import InputError
-from magbench.numerics import MAD_TO_SIGMA
 from magbench.simulate.dataset import MAX_ABS_OTHER, ScalarSeries, temperature_problem
 from magbench.simulate.effects import EFFECTS, OutlierEffect, library_effects
 from magbench.simulate.sensor import paper_matrix
 
-from .floor import second_difference_floor
+from .floor import second_difference_floor, second_difference_floors
 from .localize import harmonics, heading_design
 from .naming import FAMILY_ALPHA
 from .scoring import MIN_SIGNIFICANT_SHRINK_PCT, Z_SIGNIFICANT, paired_z, rms, shrink_pct
@@ -136,14 +135,15 @@ def series_problem(series: ScalarSeries) -> str | None:
                     f"(median {np.median(ref):.6g} nT): " + (units_apart(ratio) or "wrong units (every magnitude "
                                                               "column is read in one unit, units=), or a wrong reference"))
         # row by row too: a row at 1/520 of the field (a dropout) had passed the 1/1000 glitch check and been diagnosed
-        row_ratio = meas / np.broadcast_to(ref, meas.shape)
+        row_ref = np.broadcast_to(ref, meas.shape)
+        row_ratio = meas / row_ref
         off = np.flatnonzero((row_ratio < SCALAR_RATIO_RANGE[0]) | (row_ratio > SCALAR_RATIO_RANGE[1]))
         if len(off):
             i = int(off[0])
             return (f"{name} in row(s) {', '.join(map(str, off[:5]))}{', ...' if len(off) > 5 else ''} is outside "
                     f"{SCALAR_RATIO_RANGE[0]:g}-{SCALAR_RATIO_RANGE[1]:g} times its reference (row {i}: {meas[i]:.4g} "
-                    f"against {float(np.broadcast_to(ref, meas.shape)[i]):.6g} nT): no reading of this field (a dropout, "
-                    "a corrupt row); remove those rows")
+                    f"against {float(row_ref[i]):.6g} nT): no reading of this field (a dropout, a corrupt row); remove "
+                    "those rows")
     return None
 
 
@@ -267,17 +267,11 @@ drawn.  At 24 rows it is 2.02 (2.20 without a clock, the floor then the lower of
 
 
 def _floors(r: np.ndarray, s: ScalarFit, clock: bool) -> np.ndarray:
-    """``_floor`` of each row of ``r`` (draws, n) in the series' orders, vectorized (for ``null_limit``)."""
-    def by(order: np.ndarray) -> np.ndarray:
-        x = r[:, order]
-        d2 = x[:, 1:-1] - 0.5 * (x[:, :-2] + x[:, 2:])
-        dev = np.abs(d2 - np.median(d2, axis=1, keepdims=True))
-        return MAD_TO_SIGMA * np.median(dev, axis=1) / np.sqrt(1.5)
-
+    """``_floor`` of each row of ``r`` (draws, n) in the series' orders, in one pass (for ``null_limit``)."""
     if clock:
-        return by(s.order)
-    by_row = by(np.arange(r.shape[1]))
-    by_heading = by(np.argsort(s.heading_rad % (2 * np.pi), kind="stable"))
+        return second_difference_floors(r[:, s.order])
+    by_row = second_difference_floors(r)
+    by_heading = second_difference_floors(r[:, _heading_order(s)])
     return np.where(by_heading < HEADING_ORDER_SHARE * by_row, by_heading, by_row)
 
 
@@ -333,18 +327,23 @@ other) the lower of two noisy estimates had biased the floor low (0.86 of the no
 in 300 called unexplained against 35)."""
 
 
-def _floor(s: ScalarFit, series: ScalarSeries) -> tuple[float, str]:
+def _heading_order(s: ScalarFit) -> np.ndarray:
+    """The rows in heading order around the circle (the floor's second order without a clock)."""
+    return np.argsort(s.heading_rad % (2 * np.pi), kind="stable")
+
+
+def _floor(s: ScalarFit, clock: bool) -> tuple[float, str]:
     """The noise floor from second differences of neighbouring samples: in time order with a ``t`` column; without
     one, the lower of file order and heading order (rows written in another order than they were taken, sorted or
     shuffled, had made neighbours of unrelated headings: a floor of 4.3 nT for noise of 0.5 nT, and an offset of 5 nT
     came back ``none``; heading order alone interleaves the turns of a record of several, which a drift between them
     separates).  Structure raises second differences, so the lower is the nearer bound of the noise, when it is
-    clearly lower (``HEADING_ORDER_SHARE``): two noisy estimates differ by chance.  A t column with fewer than
-    ``timeonly.MIN_DISTINCT`` different times is no clock (``has_clock``)."""
-    if has_clock(series.t_s):
+    clearly lower (``HEADING_ORDER_SHARE``): two noisy estimates differ by chance.  ``clock``: ``has_clock`` of the t
+    column (fewer than ``timeonly.MIN_DISTINCT`` different times is no clock), taken once by the caller."""
+    if clock:
         return second_difference_floor(s.r[s.order]), "second differences in time order"
     by_row = second_difference_floor(s.r)
-    by_heading = second_difference_floor(s.r[np.argsort(s.heading_rad % (2 * np.pi), kind="stable")])
+    by_heading = second_difference_floor(s.r[_heading_order(s)])
     if by_heading < HEADING_ORDER_SHARE * by_row:
         return by_heading, ("second differences in heading order (no clock in a t column; less than "
                             f"{HEADING_ORDER_SHARE:g} of file order's)")
@@ -357,12 +356,13 @@ def diagnose_scalar(series: ScalarSeries, folds: int = 0, seed: int = 0) -> dict
     s = _checked(series)
     n = len(s.r)
     rms_base = rms(s.base_cv)  # type: ignore[arg-type]
-    floor, floor_method = _floor(s, series)
+    clock = has_clock(series.t_s)
+    floor, floor_method = _floor(s, clock)
     least = ARITHMETIC_FLOOR * float(np.median(np.abs(np.asarray(series.f_ref_nT, dtype=float))))
     if not floor >= least:  # exact (or rounding-level) residuals: no effect is seen in the arithmetic's rounding
         floor, floor_method = least, floor_method + f" (raised to {ARITHMETIC_FLOOR:g} of the field: the arithmetic's rounding)"
     effects = score_scalar_effects(s, rms_base, floor)
-    verdict, limits = _verdict(effects, rms_base, floor, s, has_clock(series.t_s))
+    verdict, limits = _verdict(effects, rms_base, floor, s, clock)
     rms_both = rms(s.loo(together_columns(s.heading_rad, s.tau)))
     used = "f_meas_after" if series.extra.get("f_meas_after") is not None else series.meta.get("f_meas_column", "f_meas")
     return {"kind": "scalar_series", "base_model": "as given (the file's calibration)", "n_points": n,

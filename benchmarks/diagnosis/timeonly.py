@@ -167,11 +167,15 @@ def _linear(design: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
     return coef / size, np.sqrt(np.clip(np.diag(cov), 0, None)) / size, resid
 
 
+def _distinct_times(t_s) -> int:
+    return 0 if t_s is None else len(np.unique(np.asarray(t_s, dtype=float)))
+
+
 def has_clock(t_s) -> bool:
     """Whether a t column can serve as a clock for the time question: present, with at least MIN_DISTINCT
     different times (one time on every row, or two, says nothing of how the readings move in time: a 'drift' from
     two time points had been called significant).  Without one the rows' order is the time axis."""
-    return t_s is not None and len(np.unique(np.asarray(t_s, dtype=float))) >= MIN_DISTINCT
+    return _distinct_times(t_s) >= MIN_DISTINCT
 
 
 def t_is_sample_index(data) -> bool:
@@ -184,11 +188,11 @@ def t_is_sample_index(data) -> bool:
 def _time_axis(t_s, indexed: bool = False) -> str:
     if indexed and t_s is not None:
         return "the rows' order (the file's t_note says its t counts samples: a drift is per row, not per hour)"
-    if has_clock(t_s):
-        return "the t column"
     if t_s is None:
         return "the rows' order (no t column: a drift is per row, not per hour)"
-    k = len(np.unique(np.asarray(t_s, dtype=float)))
+    k = _distinct_times(t_s)  # has_clock's count, taken once
+    if k >= MIN_DISTINCT:
+        return "the t column"
     held = "one time for every row" if k == 1 else f"only {k} different times"
     return f"the rows' order (the t column holds {held}: no clock; a drift is per row, not per hour)"
 
