@@ -45,6 +45,7 @@ from magbench.numerics import (
     LSTSQ_FULL_RANK,
     Basis,
     at_optimum,
+    copied_runs,
     drift_columns,
     drift_degree,
     lm_normal,
@@ -58,7 +59,7 @@ from magbench.numerics import (
     roughness,
     systematic_rows,
 )
-from magbench.simulate.dataset import UNIT_FACTORS_NT
+from magbench.simulate.dataset import UNIT_FACTORS_NT, units_apart  # noqa: F401  (units_apart re-exported)
 from magbench.simulate.effects import COLUMNS, HOLD_ANGLE_RAD, HOLD_MIN_SAMPLES, HOLD_SHARE, Columns
 from magbench.simulate.sensor import PARAM_NAMES, embed
 
@@ -648,7 +649,8 @@ def _noise_geometry(raw_nT: np.ndarray, t_s: np.ndarray | None, field_nT: float)
         order = np.argsort(t_s, kind="stable")
         # a reading that repeats the one before it exactly (a logger holding its last value) is no new sample:
         # the noise is judged on the distinct ones (with many repeats the neighbours' differences are mostly 0)
-        distinct = ~repeated_rows(raw_nT, order)[order]  # in time order
+        # and rows that copy an earlier stretch of different readings (a file written twice under new times)
+        distinct = ~repeated_rows(raw_nT, order)[order] & ~copied_runs(raw_nT, order)  # in time order
         share = float(distinct.mean())
         if share < 1.0 and distinct.sum() >= 3 and np.ptp(t_s[order[distinct]]) > 0:
             order = order[distinct]
@@ -1886,25 +1888,6 @@ def time_key(t_s: np.ndarray | None) -> str | None:
     and reference alone, keeps what depends on the times too (the noise geometry, the drift basis, the reference's
     jump check)."""
     return None if t_s is None else hashlib.sha256(np.ascontiguousarray(t_s, dtype="<f8").data).hexdigest()
-
-
-def units_apart(ratio: float) -> str | None:
-    """What to say when the readings are ``ratio`` times the reference and that ratio is the factor between two units
-    (1000 between uT and nT): the two columns were written in different units, and one ``units`` reads both (a file of
-    readings in uT beside an f_ref in nT had been told to use units='uT', and then refused again)."""
-    if not 0 < ratio < math.inf:
-        return None
-    exponent = round(math.log10(ratio))
-    if exponent == 0 or abs(math.log10(ratio) - exponent) > 0.05:
-        return None
-    factor = 10.0 ** abs(exponent)
-    pairs = [f"{a} and {b}" for a, b in (("uT", "nT"), ("mG", "nT"), ("G", "nT"), ("uT", "mG"), ("G", "uT"), ("G", "mG"))
-             if UNIT_FACTORS_NT[a] / UNIT_FACTORS_NT[b] == factor]
-    if not pairs:  # 10^4, 10^6: no two units are that far apart
-        return None
-    return (f"a factor of {factor:,.0f}, as between {' or '.join(pairs)}: the readings and f_ref "
-            "were written in different units, and the units they are read in (units=) apply to both: write f_ref "
-            "in the readings' unit (or the readings in f_ref's)")
 
 
 def reference_problems(raw_nT: np.ndarray, f_ref_nT: np.ndarray, t_s: np.ndarray | None = None) -> str | None:

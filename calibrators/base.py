@@ -374,6 +374,9 @@ class Calibrator(metaclass=_Sealed):
         bad = data_problem(dataset, known)
         if bad:
             raise InputError(bad)
+        dead = known.get("dead_axis", lambda: dead_axis(dataset.raw_nT))
+        if dead:
+            raise InputError(dead)
         field_nT = known.get("field_nT", lambda: median(dataset.f_ref_nT))
         report = known.get(("coverage", model), lambda: coverage(
             ScalarObjective(dataset.raw_nT, dataset.f_ref_nT, model), identity_vector(model), field_nT))
@@ -414,6 +417,8 @@ class Calibrator(metaclass=_Sealed):
         field_nT = known.get("field_nT", lambda: median(dataset.f_ref_nT))
         if dataset.meta.get("reference_ignored") and "reference_estimated" not in dataset.meta:
             warnings.append(dataset.meta["reference_ignored"])
+        if dataset.meta.get("input_notes"):  # the reader's (``simulate.dataset.column_notes``)
+            warnings.append(str(dataset.meta["input_notes"]))
         model = self.model
         objective = ScalarObjective(dataset.raw_nT, dataset.f_ref_nT, model)
         budget = as_budget(self.budget)
@@ -584,6 +589,20 @@ def data_problem(dataset: Dataset, known: _DatasetCache | None = None) -> str | 
     return get("input_problems", lambda: input_problems(dataset)) or get(  # the jump check reads the times too
         ("reference_problems", time_key(dataset.t_s)), lambda: reference_problems(dataset.raw_nT, dataset.f_ref_nT,
                                                                                   dataset.t_s))
+
+
+def dead_axis(raw_nT: np.ndarray) -> str | None:
+    """Why the readings cannot be calibrated whatever the attitudes, or None: an axis that reads one value on every row
+    (a dead, disconnected or stuck axis; the coverage check had called it 'degenerate attitude coverage' and asked for
+    more rotation of a sensor that had rotated)."""
+    constant = np.flatnonzero(np.ptp(raw_nT, axis=0) == 0) if len(raw_nT) > 1 else np.zeros(0, dtype=int)
+    if not len(constant):
+        return None
+    if len(constant) == 3:
+        return f"every reading is the same ({', '.join(f'{v:.6g}' for v in raw_nT[0])}): a stuck sensor"
+    what = " and ".join(f"b{'xyz'[a]} reads {raw_nT[0, a]:.6g}" for a in constant)
+    return (f"{what} on every row: a dead, disconnected or stuck axis, along which nothing can be calibrated "
+            "(the other axes varied)")
 
 
 def input_problems(dataset: Dataset) -> str | None:

@@ -103,6 +103,58 @@ def repeated_rows(x: np.ndarray, order: np.ndarray | None = None) -> np.ndarray:
     return out
 
 
+def _row_keys(x: np.ndarray) -> np.ndarray:
+    """One 64-bit key per row of a float array (n, k), k <= 3: the rows' bits multiplied by odd constants and mixed.
+    Equal rows have equal keys; unequal rows rarely do (callers compare the rows of equal keys)."""
+    bits = np.ascontiguousarray(x, dtype=float).view(np.uint64)
+    key = bits[:, 0] * np.uint64(0x9E3779B97F4A7C15)
+    for axis, mix in zip(range(1, bits.shape[1]), (0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9)):
+        key ^= bits[:, axis] * np.uint64(mix) + np.uint64(axis)
+    return key
+
+
+def copied_runs(x: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Mask, in ``order`` (time order), of the rows that copy an earlier stretch: row i equals an earlier row j exactly,
+    and its neighbour in order equals j's neighbour on the same side, the two readings of the pair being different
+    (rows written twice under new times: a file appended to itself, its t renumbered).  A logger holding its last
+    value repeats one reading in consecutive rows (``repeated_rows``), and a coarse converter at one attitude repeats
+    a reading anywhere, neither a run of different readings."""
+    n = len(order)
+    out = np.zeros(n, dtype=bool)
+    if n < 4:
+        return out
+    key = _row_keys(x)[order]  # each row hashed to one integer (sorting rows as rows is 50 times slower)
+    sorted_key = np.sort(key)
+    if not np.any(sorted_key[1:] == sorted_key[:-1]):  # no reading repeats (a fifth of the time of the rest)
+        return out
+    xo = np.asarray(x, dtype=float)[order]
+    by_key = np.argsort(key, kind="stable")  # equal keys in their order: each group's first is its earliest row
+    sorted_key = key[by_key]
+    start = np.ones(n, dtype=bool)
+    start[1:] = sorted_key[1:] != sorted_key[:-1]
+    first = np.empty(n, dtype=np.int64)
+    first[by_key] = by_key[start][np.cumsum(start) - 1]  # each row's first occurrence (of its key), in order
+    earlier = first < np.arange(n)
+    earlier[earlier] = np.all(xo[earlier] == xo[first[earlier]], axis=1)  # the same readings, not a collision
+    differs = np.any(xo[1:] != xo[:-1], axis=1)
+    pair = earlier[1:] & earlier[:-1] & (first[1:] == first[:-1] + 1) & differs  # rows k, k+1 copy j, j+1
+    # runs of at least COPY_RUN_MIN rows (COPY_RUN_MIN - 1 pairs in a row): a coarse converter at one attitude, whose
+    # rows take a few values, repeats a pair of them by chance, eight in a row practically never
+    edges = np.diff(np.concatenate([[0], pair.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # pairs starts..ends-1
+    long = ends - starts >= COPY_RUN_MIN - 1
+    if long.any():
+        mark = np.zeros(n + 1, dtype=np.int64)
+        np.add.at(mark, starts[long], 1)
+        np.add.at(mark, ends[long] + 1, -1)  # rows starts..ends (the last pair's second row)
+        out = np.cumsum(mark[:n]) > 0
+    return out
+
+
+COPY_RUN_MIN = 8
+"""``copied_runs``: the fewest consecutive rows that copy an earlier stretch before they count as copies."""
+
+
 BRUTE_NEAREST_ROWS = 2048
 """Up to this many points ``nearest_other`` compares every pair itself; above, SciPy's k-d tree (whose import,
 with scipy.sparse behind it, costs about 0.1 s: half of a one-off ``calibrate`` of a few hundred readings)."""

@@ -230,6 +230,26 @@ def guess_unit(median_magnitude: float, expected_nT: float) -> str:
     return best
 
 
+def units_apart(ratio: float, tolerance: float = 0.05, min_exponent: int = 1) -> str | None:
+    """What to say when the readings are ``ratio`` times the reference and that ratio is the factor between two units
+    (1000 between uT and nT) within ``tolerance`` in log10 and at least 10^``min_exponent``: the two columns were
+    written in different units, and one ``units`` reads both (a file of readings in uT beside an f_ref in nT had been
+    told to use units='uT', and then refused again)."""
+    if not 0 < ratio < math.inf:
+        return None
+    exponent = round(math.log10(ratio))
+    if abs(exponent) < max(min_exponent, 1) or abs(math.log10(ratio) - exponent) > tolerance:
+        return None
+    factor = 10.0 ** abs(exponent)
+    pairs = [f"{a} and {b}" for a, b in (("uT", "nT"), ("mG", "nT"), ("G", "nT"), ("uT", "mG"), ("G", "uT"), ("G", "mG"))
+             if UNIT_FACTORS_NT[a] / UNIT_FACTORS_NT[b] == factor]
+    if not pairs:  # 10^4, 10^6: no two units are that far apart
+        return None
+    return (f"a factor of {factor:,.0f}, as between {' or '.join(pairs)}: the readings and f_ref "
+            "were written in different units, and the units they are read in (units=) apply to both: write f_ref "
+            "in the readings' unit (or the readings in f_ref's)")
+
+
 MAX_ABS_NT = 1.0e9
 """No reading or reference exceeds 1 T (1e9 nT) in magnitude: a larger number is a broken row, not a field."""
 NUMERIC_COLUMNS = FIELD_COLUMNS + ("t", "temp", "heading_deg", "ax", "ay", "az")
@@ -425,13 +445,30 @@ def _check_rows(where, data: bytes, offset: int, sep: str, n_names: int, first_l
         wrong = np.flatnonzero((fields != n_names) & ~blank)
     if wrong.size:
         i = int(wrong[0])
-        comment = bytes(arr[starts[i]:ends[i]]).lstrip().startswith(b"#")
+        line = bytes(arr[starts[i]:ends[i]])
+        comment = line.lstrip().startswith(b"#")
+        split = sep == "," and int(fields[i]) > n_names and _split_numbers(line.decode("utf-8", "replace"), n_names)
         raise InputError(f"{where} is not a readable CSV file: line {first_line + i} has {int(fields[i])} "
                          f"field(s) but the header names {n_names} column(s)"
                          + (f" (and {wrong.size - 1} more such lines)" if wrong.size > 1 else "")
                          + ("; it is a '#' comment: comment and metadata lines go before the header"
-                            if comment else ""))
+                            if comment else "")
+                         + ("; its numbers look split at a decimal comma or a thousands comma: write numbers with a "
+                            "decimal point and no thousands separators (or separate the columns by semicolons)"
+                            if split else ""))
     return _consecutive(blank)
+
+
+def _split_numbers(line: str, n_names: int) -> bool:
+    """Whether a comma-separated ``line`` with more fields than ``n_names`` is numbers written with a decimal comma
+    (50000,0 read as two fields) or commas between thousands: every field is digits, and pairs (or groups of three-digit
+    fields) joined by commas give ``n_names`` numbers."""
+    cells = [c.strip() for c in line.strip().split(",")]
+    if not all(re.fullmatch(r"[+-]?\d+(\.\d+)?", c) for c in cells):
+        return False
+    if len(cells) == 2 * n_names:  # each number split once at its decimal comma
+        return True
+    return sum(1 for c in cells if not re.fullmatch(r"\d{3}(\.\d+)?", c)) == n_names  # 50,000.0: groups of three
 
 
 def _consecutive(blank: np.ndarray) -> tuple[int, bool]:
@@ -634,8 +671,11 @@ def _as_floats(values: np.ndarray) -> np.ndarray:
     return out
 
 
-DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+$")
-"""A number written with a decimal comma (a spreadsheet's export in many locales)."""
+DECIMAL_COMMA = re.compile(r"^[+-]?(\d+|\d{1,3}(\.\d{3})+),\d+$")
+"""A number written with a decimal comma (a spreadsheet's export in many locales), with or without dots between its
+thousands (50.000,0)."""
+THOUSANDS_COMMA = re.compile(r"^[+-]?\d{1,3}(,\d{3})+(\.\d+)?$")
+"""A number written with commas between its thousands (50,000.0, quoted in a comma-separated file)."""
 
 
 def _numeric(path: Path, table: dict[str, np.ndarray], name: str, first_line: int) -> np.ndarray:
@@ -653,8 +693,11 @@ def _numeric(path: Path, table: dict[str, np.ndarray], name: str, first_line: in
         raw_value = raw_value.item() if isinstance(raw_value, np.generic) else raw_value
         absurd = "beyond any magnetic field (1e9 nT)" if is_field else f"beyond any plausible value ({limit:g})"
         why = absurd if np.isfinite(values[bad[0]]) else "missing, non-numeric or non-finite"
-        hint = ("; it has a decimal comma: write numbers with decimal points (and separate columns by commas, "
-                "semicolons or tabs)" if isinstance(raw_value, str) and DECIMAL_COMMA.match(raw_value.strip()) else "")
+        text_value = raw_value.strip() if isinstance(raw_value, str) else ""
+        hint = ("; it has a decimal comma: write numbers with decimal points and no thousands separators (and separate "
+                "columns by commas, semicolons or tabs)" if DECIMAL_COMMA.match(text_value) else
+                "; it has commas between thousands: write numbers without thousands separators"
+                if THOUSANDS_COMMA.match(text_value) else "")
         hint = hint or (_epoch_hint(values[bad[0]]) if name == "t" else "") or _line_hint(table, int(bad[0]))
         raise InputError(f"{path}: column {name} has a value {why} ({raw_value!r}) on line {rows}{more}{hint}")
     hot = temperature_problem(values) if name == "temp" else None
@@ -687,7 +730,27 @@ def _line_hint(table: dict[str, np.ndarray], i: int) -> str:
         return "; that line repeats the header (files joined end to end?): keep one header line"
     if any(v.startswith("#") for v in text.values()):
         return "; it is a '#' comment: comment and metadata lines go before the header"
+    if text and all(v.strip("[]()").lower() in UNIT_WORDS for v in text.values()):
+        return ("; that line is a row of units: units go in --units (or a '# units:' line), temperatures in deg C, "
+                "times in s; remove the row")
     return ""
+
+
+UNIT_WORDS = frozenset({"nt", "ut", "µt", "mg", "g", "gauss", "t", "tesla", "s", "sec", "ms", "c", "degc", "°c", "k",
+                        "f", "degf", "°f", "deg", "°", "degrees", "rad", "g0", "m/s2", "m/s^2", "counts", ""})
+"""Cells of a units row under the header (``_line_hint``)."""
+
+
+def _header_hint(names: list[str], missing: list[str]) -> str:
+    """What a header without the wanted columns is, when it is something else: names separated by spaces (one column
+    read), or numbers (a file without a header row)."""
+    if len(names) == 1 and all(m in names[0].lower().split() for m in missing):
+        return "; its columns are separated by spaces: separate them by commas, semicolons or tabs"
+    try:
+        [float(n) for n in names]
+    except ValueError:
+        return ""
+    return "; its first line is numbers: the file needs a header row naming its columns (t,bx,by,bz,f_ref, ...)"
 
 
 def _non_ascii(names: list[str], missing: list[str]) -> str:
@@ -749,7 +812,8 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
         extra = " (it is a scalar-only series: use 'magbench diagnose')" if scalar_col else ""
         raise InputError(f"{path} lacks column(s) {', '.join(missing)}{extra} (its columns: "
                          f"{', '.join(names[:12])}{', ...' if len(names) > 12 else ''}; units go in --units or a "
-                         f"'# units:' line, not in the column names){_non_ascii(names, missing)}")
+                         f"'# units:' line, not in the column names){_non_ascii(names, missing)}"
+                         f"{_header_hint(names, missing)}")
     frame, consecutive = _table(path, data, head, sep, names, numeric)
     first_line = head.skipped + 2
     meta = head.meta
@@ -767,21 +831,85 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
     field_meta = _meta_field_nT(path, meta)
     if expected_field_nT is None:
         expected_field_nT = field_meta
+    raw = np.column_stack([column(c) for c in ("bx", "by", "bz")]) if has_vector else None
+    magnitude = float(np.median(np.sqrt(np.einsum("ij,ij->i", raw, raw)) if raw is not None
+                                else np.abs(column(scalar_col))))
+    if raw is not None:
+        check_thousands_dots(raw, str(path))
+    if f_ref is not None:  # the two columns against each other first: each alone can look like another unit
+        check_columns_agree(magnitude, float(np.median(f_ref)), str(path))
     if f_ref is not None and not expected_field_nT:
         check_reference_units(float(np.median(f_ref)), units, where=str(path))
     f_ref = f_ref * factor if f_ref is not None else None
 
-    common = dict(t_s=column("t"), temp_C=column("temp"), heading_deg=column("heading_deg"))
+    temp_C = _temperature_C(path, meta, column("temp"))
+    common = dict(t_s=column("t"), temp_C=temp_C, heading_deg=column("heading_deg"))
     meta = {**meta, "source_file": str(path), "units_read": units, "file_sha256": src.sha256}
-    if has_vector:
-        raw = np.column_stack([column(c) for c in ("bx", "by", "bz")])
-        check_units(float(np.median(np.sqrt(np.einsum("ij,ij->i", raw, raw)))), units, expected_field_nT,
-                    where=str(path))
+    if "temp_unit" in meta:  # the temperatures are in deg C now (a file written from this dataset says so)
+        meta["temp_unit_read"], meta["temp_unit"] = meta["temp_unit"], "C"
+    notes = column_notes(names, meta, temp_C)
+    if notes:
+        meta["input_notes"] = notes
+    check_units(magnitude, units, expected_field_nT, where=str(path))
+    if raw is not None:
         return Dataset(raw * factor, f_ref_nT=f_ref, meta=meta, **common)
-    check_units(float(np.median(column(scalar_col))), units, expected_field_nT, where=str(path))
     others = {c: column(c) * factor for c in FIELD_COLUMNS if c in names and c not in ("f_ref",)}
     return ScalarSeries(column(scalar_col) * factor, f_ref_nT=f_ref, extra=others, meta={**meta, "f_meas_column": scalar_col},
                         **common)
+
+
+TEMP_UNITS = {"c": 0, "degc": 0, "celsius": 0, "k": 1, "kelvin": 1, "f": 2, "degf": 2, "fahrenheit": 2}
+"""``# temp_unit:`` values: the temp column in deg C (the contract's unit), kelvin or deg F (converted to deg C)."""
+TEMP_MAYBE_F_C = (45.0, 200.0)
+"""A temp column read as deg C whose median lies between these is hot for a magnetometer in deg C and room to desert
+temperatures in deg F: ``column_notes`` says how to declare deg F (the per-degree coefficients are per deg C)."""
+TIME_LIKE = ("time", "time_s", "t_s", "t_ms", "time_ms", "t_us", "timestamp", "time_stamp", "seconds", "secs",
+             "elapsed", "elapsed_s", "datetime", "date_time", "epoch", "unix_time", "millis", "ms")
+TEMP_LIKE = ("temperature", "temp_c", "temp_f", "temp_k", "t_c", "t_degc", "temperature_c", "temperature_f",
+             "sensor_temp", "temp_sensor")
+
+
+def _temperature_C(path: Path, meta: dict, values: np.ndarray | None) -> np.ndarray | None:
+    """The temp column in deg C: as written, or converted from the unit of a ``# temp_unit:`` line (K, F)."""
+    stated = meta.get("temp_unit")
+    if stated is None:
+        return values
+    kind = TEMP_UNITS.get(stated.strip().lower().replace("°", "").replace(" ", ""))
+    if kind is None:
+        raise InputError(f"{path}: metadata line '# temp_unit: {stated}' names no temperature unit (C, K or F)")
+    if values is None or kind == 0:
+        return values
+    converted = values - 273.15 if kind == 1 else (values - 32.0) * (5.0 / 9.0)
+    hot = temperature_problem(converted)
+    if hot is not None:
+        raise InputError(f"{path}: column temp (in {stated.strip()}) on data row {hot[0]} is {hot[1]}")
+    return converted
+
+
+def column_notes(names: list[str], meta: dict, temp_C: np.ndarray | None) -> str:
+    """What a reader of this file should know that no refusal says (``meta['input_notes']``; calibrate warns,
+    diagnose says it in ``input_notes``): a time or temperature column under another name than ``t`` or ``temp``
+    (not read: a fixed sensor's drift had been given per row, and a verdict changed, without a word), and a temp column
+    read as deg C whose median could be deg F."""
+    notes = []
+    lower = [n.lower() for n in names]
+    if "t" not in lower:
+        timeish = [n for n in names if n.lower() in TIME_LIKE]
+        if timeish:
+            notes.append(f"column {timeish[0]!r} is not read: the time column is named t, in seconds (rename it, "
+                         "converted to seconds, for the time-based checks)")
+    if "temp" not in lower:
+        tempish = [n for n in names if n.lower() in TEMP_LIKE]
+        if tempish:
+            notes.append(f"column {tempish[0]!r} is not read: the temperature column is named temp, in deg C (a "
+                         "'# temp_unit: K' or '# temp_unit: F' line converts)")
+    if temp_C is not None and meta.get("temp_unit") is None and len(temp_C):
+        middle = float(np.median(temp_C))
+        if TEMP_MAYBE_F_C[0] < middle < TEMP_MAYBE_F_C[1]:
+            notes.append(f"the temp column's median is {middle:.4g}, read as deg C: if it is in deg F, say so with a "
+                         "'# temp_unit: F' line (per-degree temperature coefficients are per deg C, 1.8 times those "
+                         "per deg F)")
+    return "; ".join(notes)
 
 
 def _opened(path: Path, source: InputBytes | None) -> tuple[InputBytes, bytes, _Head, str, list[str]]:
@@ -810,6 +938,57 @@ def read_columns(path, wanted, source: InputBytes | None = None) -> dict[str, np
 GEOMAGNETIC_NT = (20000.0, 70000.0)
 """The geomagnetic field's magnitude, widened a little (22,000 to 67,000 nT at the surface): without a known field, an
 f_ref whose median lies outside it and another unit brings inside it is refused (``check_reference_units``)."""
+
+
+THOUSANDS_INT_OVER_FRACTION = 5.0
+"""``check_thousands_dots``: readings written with a dot as the thousands separator (47.717 for 47,717 nT; -295 with no
+dot) read as whole numbers of hundreds where the field's components are small and as fractions of 1 to 999 elsewhere,
+so the whole numbers' median magnitude is many times the fractions' (about 500 against 30); in a file of decimals
+(uT written to 0.1) the two share one distribution."""
+
+
+def check_thousands_dots(raw: np.ndarray, where: str = "input") -> None:
+    """Refuse readings that a dot as thousands separator explains (a spreadsheet in a European locale wrote 47.717 for
+    47,717 nT and -295 for -295 nT: read as they stand they look like uT, and read so, the rows of small components are
+    1000 times too large): every value has at most three decimals, at least half are fractions, none of them below 1 in
+    magnitude (a thousands group follows a digit from 1 to 999), at least two whole numbers lie between 100 and 999 in
+    magnitude, and the whole numbers' median magnitude is THOUSANDS_INT_OVER_FRACTION times the fractions'."""
+    v = np.abs(raw[np.isfinite(raw)])
+    if v.size < 6:
+        return
+    milli = v * 1000.0
+    if not np.all(np.abs(milli - np.round(milli)) <= 1e-6 * np.maximum(milli, 1.0)):
+        return
+    whole = v == np.round(v)
+    fractions, wholes = v[~whole], v[whole]
+    if (2 * fractions.size < v.size or np.any(fractions < 1.0)
+            or np.count_nonzero((wholes >= 100) & (wholes <= 999)) < 2
+            or np.median(wholes) < THOUSANDS_INT_OVER_FRACTION * np.median(fractions)):
+        return
+    big = float(fractions[np.argmax(fractions)])
+    small = float(wholes[(wholes >= 100) & (wholes <= 999)][0])
+    raise InputError(f"{where}: the readings look written with a dot as the thousands separator ({big:.3f} beside {small:.0f}: "
+                     f"{big:.3f} for {big * 1000:,.0f}, while readings below 1,000 have no dot): write the numbers "
+                     "without thousands separators, with a decimal point")
+
+
+COLUMNS_APART_TOLERANCE = 0.3
+"""Readings whose median magnitude is a power of ten of at least 100 times f_ref's (or its inverse) within this much in
+log10 (a factor of 2 either way: an uncalibrated sensor's scale errors and hard iron move its magnitude by tens of
+per cent) were written in another unit than f_ref (``check_columns_agree``)."""
+
+
+def check_columns_agree(readings_median: float, f_ref_median: float, where: str = "input") -> None:
+    """Refuse a file whose readings and f_ref columns are written in two units (readings in nT beside f_ref in uT):
+    ``units`` reads both, so no unit given can make them agree.  Asked before each column's own unit check, which had
+    sent such a file from units='uT' to units='nT' and back."""
+    if not (readings_median > 0 and f_ref_median > 0):
+        return
+    ratio = readings_median / f_ref_median
+    apart = units_apart(ratio, tolerance=COLUMNS_APART_TOLERANCE, min_exponent=2)
+    if apart:
+        raise InputError(f"{where}: the readings' magnitude (median {readings_median:.4g}) is {ratio:.4g} times f_ref's "
+                         f"(median {f_ref_median:.4g}), about {apart}")
 
 
 def check_reference_units(f_ref_median: float, units: str, where: str = "input") -> None:
@@ -858,6 +1037,8 @@ def check_units(magnitude: float, units: str, expected_field_nT: float | None = 
                     if ref_unit != "nT" and 0.2 <= in_nt / nt <= 5.0 else
                     f"the reference is no geomagnetic or laboratory field (plausible: {1.0e3:g} to {1.0e7:g} nT): "
                     "check it")
+        elif 1.0e3 <= nt * 1.0e9 / UNIT_FACTORS_NT[units] <= 1.0e7:
+            hint = "they look like tesla: convert them to nT (x 1e9) and read with units='nT'"
         else:
             hint = "check the file and the reference"
         ref = f" against a reference of {expected_field_nT:.6g} nT" if expected_field_nT else ""

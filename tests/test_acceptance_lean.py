@@ -247,7 +247,8 @@ def test_a_dataset_changed_in_place_is_judged_on_its_new_numbers():
         planar = Dataset(np.array(d.raw_nT), f_ref_nT=d.f_ref_nT, t_s=d.t_s)
         assert make("lsq").fit(planar).accepted
         planar.raw_nT.setflags(write=True)  # a Dataset's arrays are read-only: forced, as a careless caller might
-        planar.raw_nT[:, 2] = 0.0  # in place: a level turntable's readings
+        planar.raw_nT[:, 2] = 1e-3 * np.arange(len(d))  # in place: a level turntable's readings (z not constant:
+        # a constant axis is refused as dead before the coverage is asked)
         with pytest.raises(InputError, match="degenerate attitude coverage"):
             make("lsq").fit(planar)
     finally:

@@ -211,7 +211,7 @@ def test_apply_refuses_readings_in_another_scale_and_a_reference_in_ut(tmp_path,
     (tmp_path / "ut.csv").write_text("\n".join(micro) + "\n")
     _apply_refused(capsys, tmp_path / "cal.json", tmp_path / "x3.csv", tmp_path / "o.csv", "are 3 times the file's")
     _apply_refused(capsys, tmp_path / "cal.json", tmp_path / "ut.csv", tmp_path / "o.csv",
-                   "the reference magnitude is 50 nT")
+                   "written in different units")  # f_ref in uT beside readings in nT: named as such
 
 
 def test_apply_of_the_calibration_to_its_own_record_still_writes(tmp_path, capsys, saved):

@@ -65,6 +65,8 @@ def diagnose(data, base: str = "nine", folds: int = DEFAULT_FOLDS, seed: int = 0
     note = time_column_note(data.t_s)
     if note:
         out["time_column"] = note
+    if data.meta.get("input_notes"):  # the reader's (``simulate.dataset.column_notes``)
+        out["input_notes"] = str(data.meta["input_notes"])
     return out
 
 

@@ -114,7 +114,8 @@ def time_only_text(result: dict, source: str = "") -> str:
 def diagnosis_text(result: dict, source: str = "") -> str:
     """The human table of a diagnosis (``magbench diagnose`` without ``--json``)."""
     note = ([f"  time column: {result['time_column']}"] if result.get("time_column") else []) + (
-        [f"  reference: {result['reference_ignored']}"] if result.get("reference_ignored") else [])
+        [f"  reference: {result['reference_ignored']}"] if result.get("reference_ignored") else []) + (
+        [f"  input: {result['input_notes']}"] if result.get("input_notes") else [])
     if result.get("kind") == "time_only":
         return time_only_text(result, source) + "".join("\n" + ln for ln in note)
     lines = _table(result, source) + note + _localization(result.get("localization", {}))

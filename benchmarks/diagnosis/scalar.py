@@ -191,6 +191,26 @@ def _as_numbers(series: ScalarSeries) -> ScalarSeries:
     return replace(series, **columns)
 
 
+def heading_glitch(heading_deg: np.ndarray, t_s: np.ndarray | None = None) -> str | None:
+    """Why a heading cannot be read, or None: a row whose heading differs by more than a full turn from the rows
+    before and after it (in time order, else file order) while those two lie within a turn of each other.  Headings are
+    read modulo 360 (a column counted on through several turns, or offset by -720, is read right), so one such row would
+    be taken at another heading without a word (1e6 as 280 degrees had moved the held-out residual from 1 to 105 nT)."""
+    n = len(heading_deg)
+    if n < 3:
+        return None
+    order = np.argsort(t_s, kind="stable") if t_s is not None and len(t_s) == n else np.arange(n)
+    h = heading_deg[order]
+    glitch = ((np.abs(h[1:-1] - h[:-2]) > 360.0) & (np.abs(h[1:-1] - h[2:]) > 360.0)
+              & (np.abs(h[2:] - h[:-2]) <= 360.0))
+    rows = order[np.flatnonzero(glitch) + 1]
+    if not len(rows):
+        return None
+    i = int(rows[0])
+    return (f"heading_deg has {len(rows)} glitched value{'s' if len(rows) > 1 else ''}: row {i} reads {heading_deg[i]:.6g} "
+            "degrees, more than a full turn from the rows before and after it; correct or remove such rows")
+
+
 def _checked(series: ScalarSeries) -> ScalarFit:
     """The series' fit after ``_as_numbers`` (its columns checked and float): the headings and reference present,
     enough distinct headings, no gap wider than MAX_HEADING_GAP_DEG."""
@@ -202,6 +222,9 @@ def _checked(series: ScalarSeries) -> ScalarFit:
     n = len(r)
     if n < MIN_HEADINGS:
         raise InputError(f"{n} headings are too few to diagnose (need at least {MIN_HEADINGS})")
+    glitch = heading_glitch(np.asarray(series.heading_deg, dtype=float), series.t_s)
+    if glitch:
+        raise InputError(glitch)
     heading = np.mod(np.asarray(series.heading_deg, dtype=float), 360.0)
     distinct = len(np.unique(np.floor(heading / HEADING_APART_DEG)))
     if distinct < MIN_HEADINGS:  # the harmonics of the heading need that many different headings, not rows
