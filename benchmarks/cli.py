@@ -13,6 +13,7 @@ import math
 import os
 import re
 import sys
+import threading
 from dataclasses import replace
 from pathlib import Path
 
@@ -618,11 +619,14 @@ def _compare_locked(args, campaign, out: Path, command: str) -> int:
     progress = not args.json and not args.quiet
     cluster = _local_dask_cluster(args.jobs, progress) if args.dask == "local" else None
     # a fresh campaign on local workers: they start (and warm up) now, while this process imports what its
-    # tables, figures and report need (pandas, matplotlib), which it would otherwise do on a core of its own
+    # tables, figures and report need (pandas, matplotlib), which it would otherwise do on a core of its own; the
+    # imports run in a thread beside the runs (this process only waits for the workers' results meanwhile): done
+    # before the runs, they had left the warmed workers idle for the second they outlasted the warm-ups
     pool = start_workers(campaign, args.jobs) if args.jobs > 1 and not args.dask and not args.resume else None
+    imports = threading.Thread(target=_output_tools, name="magbench-output-imports", daemon=True) if pool else None
     try:
-        if pool is not None:
-            _output_tools()
+        if imports is not None:
+            imports.start()
         runs = run_campaign(campaign, out, jobs=args.jobs, command=command, progress=progress, resume=args.resume,
                             dask_address=cluster.scheduler_address if cluster is not None else args.dask, pool=pool)
     except CampaignInterrupted as stop:
@@ -638,6 +642,8 @@ def _compare_locked(args, campaign, out: Path, command: str) -> int:
         stop_workers(pool)
         if cluster is not None:
             cluster.close()
+    if imports is not None:
+        imports.join()
     return _compare_outputs(args, runs, out, progress)
 
 
