@@ -623,7 +623,8 @@ def _compare_locked(args, campaign, out: Path, command: str) -> int:
     # imports run in a thread beside the runs (this process only waits for the workers' results meanwhile): done
     # before the runs, they had left the warmed workers idle for the second they outlasted the warm-ups
     pool = start_workers(campaign, args.jobs) if args.jobs > 1 and not args.dask and not args.resume else None
-    imports = threading.Thread(target=_output_tools, name="magbench-output-imports", daemon=True) if pool else None
+    imports = threading.Thread(target=_output_tools, args=(True,), name="magbench-output-imports",
+                               daemon=True) if pool else None
     try:
         if imports is not None:
             imports.start()
@@ -647,11 +648,17 @@ def _compare_locked(args, campaign, out: Path, command: str) -> int:
     return _compare_outputs(args, runs, out, progress)
 
 
-def _output_tools():
-    """The comparison's tables, the figures and the report: (write_comparison, make_figures, write_report)."""
+def _output_tools(warm: bool = False):
+    """The comparison's tables, the figures and the report: (write_comparison, make_figures, write_report);
+    ``warm``: the campaign tables' LaTeX templates compiled too (``tables.warm_latex``)."""
     from magbench.benchmarks.comparison import write_comparison
     from magbench.benchmarks.figures import make_figures
     from magbench.benchmarks.report import write_report
+
+    if warm:
+        from magbench.benchmarks.tables import warm_latex
+
+        warm_latex()
 
     return write_comparison, make_figures, write_report
 
