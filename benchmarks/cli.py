@@ -6,6 +6,7 @@ prints exactly one JSON object on stdout.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import copy
 import json
 import logging
@@ -623,8 +624,7 @@ def _compare_locked(args, campaign, out: Path, command: str) -> int:
     # imports run in a thread beside the runs (this process only waits for the workers' results meanwhile): done
     # before the runs, they had left the warmed workers idle for the second they outlasted the warm-ups
     pool = start_workers(campaign, args.jobs) if args.jobs > 1 and not args.dask and not args.resume else None
-    imports = threading.Thread(target=_output_tools, args=(True,), name="magbench-output-imports",
-                               daemon=True) if pool else None
+    imports = threading.Thread(target=_warm_output_tools, name="magbench-output-imports", daemon=True) if pool else None
     try:
         if imports is not None:
             imports.start()
@@ -646,6 +646,13 @@ def _compare_locked(args, campaign, out: Path, command: str) -> int:
     if imports is not None:
         imports.join()
     return _compare_outputs(args, runs, out, progress)
+
+
+def _warm_output_tools() -> None:
+    """``_output_tools(warm=True)`` in a thread beside the runs, best effort: what fails here fails again, and is
+    reported, where this process then imports and uses them (a thread's exception would print a traceback)."""
+    with contextlib.suppress(Exception):
+        _output_tools(warm=True)
 
 
 def _output_tools(warm: bool = False):

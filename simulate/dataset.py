@@ -953,11 +953,14 @@ def check_thousands_dots(raw: np.ndarray, where: str = "input") -> None:
     1000 times too large): every value has at most three decimals, at least half are fractions, none of them below 1 in
     magnitude (a thousands group follows a digit from 1 to 999), at least two whole numbers lie between 100 and 999 in
     magnitude, and the whole numbers' median magnitude is THOUSANDS_INT_OVER_FRACTION times the fractions'."""
-    v = np.abs(raw[np.isfinite(raw)])
-    if v.size < 6:
+    def three_decimals(a: np.ndarray) -> bool:
+        milli = a * 1000.0
+        return bool(np.all(np.abs(milli - np.round(milli)) <= 1e-6 * np.maximum(milli, 1.0)))
+
+    if not three_decimals(np.abs(raw[:1000][np.isfinite(raw[:1000])])):  # most files: decided on their first rows
         return
-    milli = v * 1000.0
-    if not np.all(np.abs(milli - np.round(milli)) <= 1e-6 * np.maximum(milli, 1.0)):
+    v = np.abs(raw[np.isfinite(raw)])
+    if v.size < 6 or not three_decimals(v):
         return
     whole = v == np.round(v)
     fractions, wholes = v[~whole], v[whole]
