@@ -42,7 +42,7 @@ from magbench.benchmarks.gradiometer_cli import add_gradiometer_command
 from magbench.benchmarks.metrics import evaluations_label
 from magbench.benchmarks.progress import slow_phase
 from magbench.benchmarks.runner import run_one
-from magbench.benchmarks.tables import to_terminal
+from magbench.benchmarks.tables import to_terminal, warm_latex
 from magbench.calibrators import available, make
 from magbench.calibrators.artifacts import EXTENSIONS as EXPORT_EXTENSIONS
 from magbench.calibrators.artifacts import apply_problems, apply_to_csv, export, export_path, load_calibration
@@ -663,8 +663,6 @@ def _output_tools(warm: bool = False):
     from magbench.benchmarks.report import write_report
 
     if warm:
-        from magbench.benchmarks.tables import warm_latex
-
         warm_latex()
 
     return write_comparison, make_figures, write_report

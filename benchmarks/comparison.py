@@ -28,7 +28,7 @@ import pandas as pd
 
 from magbench.benchmarks.comparison_figures import COMPARISON_KINDS
 from magbench.benchmarks.figures import make_figures
-from magbench.benchmarks.tables import md_escape
+from magbench.benchmarks.tables import md_escape, write_output
 
 RMS_TARGETS = (10.0, 2.0, 1.1, 1.01, 1.001)
 """Targets in residual RMS as multiples of the trial's optimum (COCO uses a ladder of precisions)."""
@@ -376,7 +376,7 @@ def write_comparison(campaign_dir, figures: bool = True, formats=("png",), dpi: 
     for name, frame in (("ert", ert), ("ecdf", curves), ("anytime", any_), ("profile", profile),
                         ("paired_tests", tests), ("win_rate", wins)):
         path = out / f"{name}.csv"
-        frame.to_csv(path, index=False, float_format="%.6g")
+        write_output(path, frame.to_csv(index=False, float_format="%.6g"))
         written.append(path)
     written.append(_write_markdown(d / "comparison.md", runs, ert, tests, wins))
     if figures:
@@ -438,5 +438,5 @@ def _write_markdown(path: Path, runs: pd.DataFrame, ert: pd.DataFrame, tests: pd
                                     columns=[o for o in order if o in matrix.columns]).reset_index()
             cols = [("row", "row beats column", "{}")] + [(c, c, "{:.2f}") for c in matrix.columns if c != "row"]
             lines += ["### Win rate (fraction of trials where the row's RMS is lower)", "", _md_table(matrix, cols), ""]
-    path.write_text("\n".join(lines) + "\n")
+    write_output(path, "\n".join(lines) + "\n")
     return path

@@ -43,6 +43,7 @@ from magbench.benchmarks.progress import BarSafeStream, progress_bar, slow_phase
 from magbench.benchmarks.styles import BOUND_GREY, RC, WARN_COLOUR, campaign_styles, log_scale
 from magbench.benchmarks.tables import MIN_TRIALS_EFFICIENCY, efficiency_interval
 from magbench.paper import ARCSEC_PER_RAD
+from magbench.safeio import atomic_output
 from magbench.simulate.scenarios import get_scenario
 
 ANGLES = ("alpha", "beta", "gamma")
@@ -136,7 +137,8 @@ def _save(fig: Figure, out_dir: Path, stem: str, formats=("png", "svg"), dpi: in
     paths = []
     for fmt in formats:
         path = out_dir / f"{stem}.{fmt}"
-        fig.savefig(path, format=fmt, dpi=dpi, metadata=METADATA[fmt])
+        with atomic_output(path, force=True) as tmp:  # a link at the name is replaced, not written through
+            fig.savefig(tmp, format=fmt, dpi=dpi, metadata=METADATA[fmt])
         paths.append(path)
         freeze_layout(fig)
     return paths

@@ -34,6 +34,7 @@ from magbench.benchmarks.tables import (
     add_intervals,
     efficiency_text,
     summarize,
+    write_output,
 )
 from magbench.simulate.scenarios import get_scenario
 
@@ -465,7 +466,5 @@ def write_report(campaign_dir: str | Path, out: str | Path | None = None, images
     out = Path(out) if out is not None else campaign_dir / "report.html"
     page = render_report(campaign_dir, images=images, progress=progress)
     out.parent.mkdir(parents=True, exist_ok=True)
-    with open(out, "w", encoding="utf-8", newline="\n") as fh:
-        fh.write(page)
-    return out
+    return write_output(out, page)  # a link at report.html is replaced, not written through
 

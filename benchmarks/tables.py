@@ -11,6 +11,7 @@ import numpy as np
 
 from magbench.benchmarks.metrics import evaluations_label
 from magbench.paper import ARCSEC_PER_RAD
+from magbench.safeio import atomic_write
 
 if TYPE_CHECKING:  # pandas is imported where it is used: a campaign's workers import this module without it
     import pandas as pd
@@ -445,15 +446,22 @@ def to_latex(summary: pd.DataFrame) -> str:
     return "\n".join(parts)
 
 
+def write_output(path: Path, text: str) -> Path:
+    """A campaign's output file written whole or not at all (``safeio.atomic_write``: a temporary file renamed onto
+    ``path``), so that a symbolic link already standing at ``path`` is replaced, never written through (a link named
+    report.html or summary.md had sent a rewritten table or report into the campaign's runs.csv, or outside it)."""
+    return atomic_write(path, text, force=True)
+
+
 def write_tables(runs: pd.DataFrame, traces: pd.DataFrame, fields: pd.DataFrame, manifest: dict, out: Path) -> None:
     out = Path(out)
-    runs.to_csv(out / "runs.csv", index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+    write_output(out / "runs.csv", runs.to_csv(index=False, float_format=FLOAT_FORMAT, lineterminator="\n"))
     summary = add_intervals(summarize(runs), runs) if len(runs) else summarize(runs)
-    summary.to_csv(out / "summary.csv", index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
-    (out / "summary.md").write_text(to_markdown(summary) + "\n" + MARKDOWN_NOTE, encoding="utf-8")
-    (out / "summary.tex").write_text(to_latex(summary), encoding="utf-8")
+    write_output(out / "summary.csv", summary.to_csv(index=False, float_format=FLOAT_FORMAT, lineterminator="\n"))
+    write_output(out / "summary.md", to_markdown(summary) + "\n" + MARKDOWN_NOTE)
+    write_output(out / "summary.tex", to_latex(summary))
     if len(traces):
-        traces.to_csv(out / "traces.csv", index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+        write_output(out / "traces.csv", traces.to_csv(index=False, float_format=FLOAT_FORMAT, lineterminator="\n"))
     if len(fields):
-        fields.to_csv(out / "fields.csv", index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
-    (out / "manifest.json").write_text(json.dumps(manifest, indent=2, default=str) + "\n", encoding="utf-8")
+        write_output(out / "fields.csv", fields.to_csv(index=False, float_format=FLOAT_FORMAT, lineterminator="\n"))
+    write_output(out / "manifest.json", json.dumps(manifest, indent=2, default=str) + "\n")

@@ -81,6 +81,7 @@ import numpy as np
 
 from magbench import __version__
 from magbench.calibrators.acceptance import reference_problems
+from magbench.calibrators.core.problem import PHYSICAL_BOX
 from magbench.errors import InputError, with_file_lines
 from magbench.safeio import InputBytes, as_path, atomic_output, atomic_write, check_output, read_input
 from magbench.simulate.dataset import UNIT_FACTORS_NT, _header, _parse_head, newline_lines, read_csv
@@ -534,6 +535,12 @@ DETERMINANT_RANGE = (1e-2, 1e2)
 """|det M| of a physical sensor lies in about 0.05..8 (scales 0.5..2): outside 0.01..100 it is not one."""
 
 
+def one_line(text) -> str:
+    """``text`` for a '#' comment line of a written file: its control characters (a line break in a calibration's
+    method name, or in its file's name, had written a metadata line of its own, '# units: uT') as escapes."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+
+
 def apply_problems(cal: Calibration) -> list[str]:
     """Why ``cal`` should not be applied: it was rejected when made, or M is ill-conditioned (condition
     number above ``MAX_CONDITION`` or determinant outside ``DETERMINANT_RANGE``)."""
@@ -543,11 +550,45 @@ def apply_problems(cal: Calibration) -> list[str]:
         out.append(f"the calibration was rejected by its acceptance checks when it was made ({first})")
     with np.errstate(all="ignore"):
         cond = float(np.linalg.cond(cal.matrix))
-        det = float(abs(np.linalg.det(cal.matrix)))
+        signed = float(np.linalg.det(cal.matrix))
+        det = abs(signed)
     if not cond <= MAX_CONDITION or not DETERMINANT_RANGE[0] <= det <= DETERMINANT_RANGE[1]:
         out.append(f"the calibration matrix is ill-conditioned (condition number {cond:.3g}, |determinant| "
                    f"{det:.3g}; the limits are a condition number of {MAX_CONDITION:g} and a determinant within "
                    f"{DETERMINANT_RANGE[0]:g}..{DETERMINANT_RANGE[1]:g})")
+    elif signed < 0:  # the magnitude is unchanged, so no check on the readings would say it
+        out.append(f"the calibration matrix has a negative determinant ({signed:.3g}): it mirrors the readings (an "
+                   "axis's sign flipped), which no sensor's calibration does")
+    else:
+        out += _unphysical(cal)
+    return out
+
+
+FRAME_ROTATION_MAX_RAD = 0.5
+"""The largest rotation ``apply`` takes beyond the sensor model's own matrix (M times the inverse of the matrix its
+parameters give): none for magbench's files, a few degrees for a magcal file's symmetric A; a 90-degree turn of the
+axes had been applied without a word (the magnitude is unchanged)."""
+
+
+def _unphysical(cal: Calibration) -> list[str]:
+    """Why ``cal``'s matrix is no sensor's correction: it turns the axes by more than FRAME_ROTATION_MAX_RAD beyond
+    its parameters' matrix, or its angles lie outside the box every calibrator's answer must lie in (within 0.5 rad,
+    ``PHYSICAL_BOX``; the scales are judged by the corrected magnitudes against the data's reference, which says by
+    how much, and by DETERMINANT_RANGE; offsets are not limited here, a phone's hard iron is several fields)."""
+    p = cal.params
+    out = []
+    with np.errstate(all="ignore"):
+        turn = cal.matrix @ np.linalg.inv(p.matrix)
+    angle = float(np.arccos(np.clip((np.trace(turn) - 1.0) / 2.0, -1.0, 1.0)))
+    if not angle <= FRAME_ROTATION_MAX_RAD:
+        out.append(f"the calibration matrix turns the axes by {np.degrees(angle):.3g} degrees beyond its own angles and "
+                   "scales (axes swapped or rotated: no sensor's calibration)")
+    limit = PHYSICAL_BOX["angle_range_rad"]
+    angles = {"alpha_rad": p.alpha_rad, "beta_rad": p.beta_rad, "gamma_rad": p.gamma_rad}
+    wild = [f"{k} {v:.3g}" for k, v in angles.items() if not abs(v) <= limit]
+    if wild:
+        out.append(f"the calibration's {', '.join(wild)} lie outside what a sensor can have (angles within {limit:g} "
+                   "rad, the box every calibrator's answer must lie in)")
     return out
 
 
@@ -716,8 +757,8 @@ def apply_to_csv(cal: Calibration, src, out, units: str = "nT", force: bool = Fa
         k += 1
     if k != len(values):
         raise InputError(f"{src}: {k} data lines but {len(values)} rows read: quoted line breaks are not supported")
-    note = [f"# calibration: {cal_name or 'calibration'} ({cal.method or cal.origin}, {cal.model} model, "
-            f"data {cal.data_digest or 'unknown'}){eol}", f"# cal_units: {units}{eol}"]
+    note = [f"# calibration: {one_line(cal_name or 'calibration')} ({one_line(cal.method or cal.origin)}, "
+            f"{one_line(cal.model)} model, data {one_line(cal.data_digest or 'unknown')}){eol}", f"# cal_units: {units}{eol}"]
     if head_lines and not head_lines[-1].endswith(("\n", "\r")):
         head_lines[-1] += eol
     text = "".join(head_lines + note + [header.rstrip("\r\n") + sep + sep.join(CAL_COLUMNS) + eol] + written)
