@@ -100,7 +100,7 @@ class MethodSpec:
     def parse(cls, text: str) -> MethodSpec:
         """``name`` or ``name:key=value:key=value`` (values parsed as JSON where they can be)."""
         name, *items = text.split(":")
-        params = []
+        params: list[tuple[str, object]] = []
         for item in items:
             if "=" not in item or not item.split("=", 1)[0].strip():
                 raise InputError(f"method {text!r}: parameter {item!r} is not key=value")
@@ -108,6 +108,8 @@ class MethodSpec:
             if k.strip() in OWN_SETTINGS:
                 raise InputError(f"method {text!r}: {k.strip()} is not a method's parameter in a campaign: "
                                  f"{OWN_SETTINGS[k.strip()]}")
+            if any(k.strip() == seen.strip() for seen, _ in params):  # the last had silently won, under both labels
+                raise InputError(f"method {text!r}: {k.strip()} is given twice: give each parameter once")
             with suppress(json.JSONDecodeError):
                 v = json.loads(v)
             params.append((k, v))
@@ -877,7 +879,19 @@ def runs_table_problem(path: Path) -> str | None:
         lines = (np.flatnonzero(bad.to_numpy()) + 2).tolist()
         where = ", ".join(map(str, lines[:5])) + (f" and {len(lines) - 5} more" if len(lines) > 5 else "")
         return f"{path}: line {where} has no scenario, configuration or whole trial number (a damaged or edited table)"
+    for column in FLAG_COLUMNS:  # the figures' masks read them as booleans (a 2 had been an internal error)
+        if column in runs.columns:
+            text = runs[column].astype(str).str.strip()
+            odd = ~text.isin(("True", "False", ""))
+            if odd.any():
+                line = int(np.flatnonzero(odd.to_numpy())[0]) + 2
+                return (f"{path}: column {column} holds {text[odd].iloc[0][:20]!r} on line {line}, not True or False "
+                        "(a damaged or edited table)")
     return None
+
+
+FLAG_COLUMNS = ("success", "accepted")
+"""Columns of runs.csv that hold True or False (``runs_table_problem``)."""
 
 
 def _complete_tables(out: Path) -> pd.DataFrame | None:

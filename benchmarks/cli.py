@@ -241,6 +241,8 @@ def _parse_params(items) -> dict:
             raise InputError(f"--param {item}: the name before '=' is empty (KEY=VALUE)")
         if key.strip() in OWN_SETTINGS:  # what a campaign sets itself has its own option here too
             raise InputError(f"--param {item}: {key.strip()} has its own option, --{key.strip()}")
+        if key.strip() in params:  # the last had silently won
+            raise InputError(f"--param {key.strip()} is given twice: give each hyper-parameter once")
         try:
             params[key.strip()] = json.loads(value)
         except json.JSONDecodeError:

@@ -56,6 +56,9 @@ DEFAULT_FLUCTUATION_NT = paper.GRADIOMETER_FLUCTUATION_NT
 DEFAULT_POINTS = paper.GRADIOMETER_POINTS
 DEFAULT_DURATION_S = paper.GRADIOMETER_DURATION_S
 MIN_POINTS = paper.GRADIOMETER_MIN_POINTS
+MAX_POINTS = 1_000_000
+"""The most attitudes a gradiometer record is simulated with: 1e6 take about 6 s and 0.4 GB; 1e8 would need about
+37 GB (``--points`` had no limit)."""
 
 ATTITUDES = ("tumble", "sphere")
 """Attitude sequences the simulator offers (see ``simulate_gradiometer``)."""
@@ -225,6 +228,8 @@ def simulate_gradiometer(params: GradiometerParams | None = None, n_points: int 
     defaults to the paper's (``GradiometerParams.paper``)."""
     params = GradiometerParams.paper() if params is None else params
     n = check_int(n_points, "n_points", MIN_POINTS)
+    if n > MAX_POINTS:  # a typed zero too many: refused before gigabytes of simulation
+        raise InputError(f"n_points must be at most {MAX_POINTS:,}, got {n:,}")
     fluct = check_nonneg(fluctuation_nT, "fluctuation_nT")
     noise = check_nonneg(noise_nT, "noise_nT")
     duration = check_nonneg(duration_s, "duration_s")

@@ -81,3 +81,27 @@ def test_a_link_at_an_outputs_name_is_replaced_not_written_through(tmp_path, cap
     assert (out / "runs.csv").read_bytes() == runs  # the campaign's own table kept
     assert victim.read_text() == "keep\n"
     assert not (out / "report.html").is_symlink() and (out / "report.html").read_text().startswith("<!DOCTYPE html>")
+
+
+def test_a_parameter_given_twice_is_refused_not_overridden(saved, capsys):
+    _refused(capsys, ["calibrate", saved / "s.csv", "--method", "ga", "--param", "budget=100", "--param",
+                      "budget=20000"], "budget is given twice")
+    _refused(capsys, ["compare", "--scenarios", "sphere9", "--methods", "ga:budget=10:budget=20", "--trials", "1",
+                      "--out", saved / "c2"], "budget is given twice")
+
+
+def test_gradiometer_points_have_a_limit(capsys):
+    _refused(capsys, ["gradiometer", "--points", "100000000"], "at most 1,000,000")
+
+
+def test_report_names_a_flag_column_that_holds_no_flag(tmp_path, capsys):
+    out = tmp_path / "c"
+    code, _, err = _run(capsys, ["compare", "--scenarios", "sphere9", "--methods", "lsq", "ellipsoid", "--trials",
+                                 "2", "--quiet", "--no-figures", "--out", out])
+    assert code == 0, err
+    assert _run(capsys, ["report", out, "--quiet"])[0] == 0  # control
+    lines = (out / "runs.csv").read_text().splitlines()
+    col = lines[0].split(",").index("success")
+    edited = [lines[0]] + [",".join("2" if i == col else c for i, c in enumerate(ln.split(","))) for ln in lines[1:]]
+    (out / "runs.csv").write_text("\n".join(edited) + "\n")
+    _refused(capsys, ["report", out, "--quiet"], "column success holds '2'")
