@@ -174,14 +174,11 @@ def _read_runs(campaign_dir: Path) -> pd.DataFrame:
 
 
 def _summary(campaign_dir: Path, runs: pd.DataFrame) -> pd.DataFrame:
-    """summary.csv, with the efficiency intervals added from runs.csv when it predates them."""
-    try:
-        summary = pd.read_csv(campaign_dir / "summary.csv", dtype={"configuration": str, "scenario": str})
-    except (OSError, pd.errors.EmptyDataError, pd.errors.ParserError):
-        summary = summarize(runs) if len(runs) else pd.DataFrame()
-    if len(summary) and len(runs) and "n_ok" not in summary:
-        summary = add_intervals(summary, runs)
-    return summary
+    """The summary of runs.csv, computed from it as the campaign computed summary.csv (``write_tables``): the report
+    states what the runs hold, and summary.csv is not taken on trust (an edited n_runs of 77 had been printed beside
+    '4 runs', a garbage summary.csv had given an empty table, both with exit 0; a runs.csv cut to its header had shown
+    '0 runs' above summary.csv's table of runs).  0.06 s for 40 runs."""
+    return add_intervals(summarize(runs), runs) if len(runs) else pd.DataFrame()
 
 
 def _scenario_description(name: str) -> str:

@@ -105,3 +105,21 @@ def test_report_names_a_flag_column_that_holds_no_flag(tmp_path, capsys):
     edited = [lines[0]] + [",".join("2" if i == col else c for i, c in enumerate(ln.split(","))) for ln in lines[1:]]
     (out / "runs.csv").write_text("\n".join(edited) + "\n")
     _refused(capsys, ["report", out, "--quiet"], "column success holds '2'")
+
+
+def test_report_states_the_runs_not_an_edited_summary(tmp_path, capsys):
+    out = tmp_path / "c"
+    code, _, err = _run(capsys, ["compare", "--scenarios", "sphere9", "--methods", "lsq", "ellipsoid", "--trials",
+                                 "2", "--quiet", "--no-figures", "--out", out])
+    assert code == 0, err
+    assert _run(capsys, ["report", out, "--quiet"])[0] == 0
+    honest = (out / "report.html").read_text()
+    lines = (out / "summary.csv").read_text().splitlines()
+    col = lines[0].split(",").index("n_runs")
+    lines[1:] = [",".join("77" if i == col else c for i, c in enumerate(ln.split(","))) for ln in lines[1:]]
+    (out / "summary.csv").write_text("\n".join(lines) + "\n")
+    assert _run(capsys, ["report", out, "--quiet"])[0] == 0
+    assert (out / "report.html").read_text() == honest  # the edit does not reach the report
+    (out / "summary.csv").write_text("garbage\n")
+    assert _run(capsys, ["report", out, "--quiet"])[0] == 0
+    assert (out / "report.html").read_text() == honest
