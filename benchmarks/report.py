@@ -35,6 +35,7 @@ from magbench.benchmarks.tables import (
     efficiency_text,
     summarize,
     write_output,
+    written_summary,
 )
 from magbench.simulate.scenarios import get_scenario
 
@@ -177,8 +178,12 @@ def _summary(campaign_dir: Path, runs: pd.DataFrame) -> pd.DataFrame:
     """The summary of runs.csv, computed from it as the campaign computed summary.csv (``write_tables``): the report
     states what the runs hold, and summary.csv is not taken on trust (an edited n_runs of 77 had been printed beside
     '4 runs', a garbage summary.csv had given an empty table, both with exit 0; a runs.csv cut to its header had shown
-    '0 runs' above summary.csv's table of runs).  0.06 s for 40 runs."""
-    return add_intervals(summarize(runs), runs) if len(runs) else pd.DataFrame()
+    '0 runs' above summary.csv's table of runs).  Where this process wrote that very runs.csv (a campaign's report),
+    the summary it computed then (``tables.written_summary``), not a second one (2.5 s for 2850 runs)."""
+    if not len(runs):
+        return pd.DataFrame()
+    written = written_summary(campaign_dir / "runs.csv")
+    return written if written is not None else add_intervals(summarize(runs), runs)
 
 
 def _scenario_description(name: str) -> str:

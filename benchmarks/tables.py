@@ -2,6 +2,7 @@
 efficiency against the Cramér-Rao bound) in CSV, Markdown and LaTeX, and the manifest."""
 from __future__ import annotations
 
+import hashlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -453,10 +454,29 @@ def write_output(path: Path, text: str) -> Path:
     return atomic_write(path, text, force=True)
 
 
+_WRITTEN_SUMMARY: dict[str, pd.DataFrame] = {}
+"""sha256 of the runs.csv this process last wrote -> the summary computed from those runs (``written_summary``)."""
+
+
+def written_summary(runs_csv: Path) -> pd.DataFrame | None:
+    """The summary ``write_tables`` computed when this process wrote ``runs_csv`` as it now is (its bytes' sha256),
+    else None: a campaign's report need not compute it again."""
+    if not _WRITTEN_SUMMARY:
+        return None
+    try:
+        key = hashlib.sha256(Path(runs_csv).read_bytes()).hexdigest()
+    except OSError:
+        return None
+    return _WRITTEN_SUMMARY.get(key)
+
+
 def write_tables(runs: pd.DataFrame, traces: pd.DataFrame, fields: pd.DataFrame, manifest: dict, out: Path) -> None:
     out = Path(out)
-    write_output(out / "runs.csv", runs.to_csv(index=False, float_format=FLOAT_FORMAT, lineterminator="\n"))
+    runs_text = runs.to_csv(index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+    write_output(out / "runs.csv", runs_text)
     summary = add_intervals(summarize(runs), runs) if len(runs) else summarize(runs)
+    _WRITTEN_SUMMARY.clear()
+    _WRITTEN_SUMMARY[hashlib.sha256(runs_text.encode("utf-8")).hexdigest()] = summary
     write_output(out / "summary.csv", summary.to_csv(index=False, float_format=FLOAT_FORMAT, lineterminator="\n"))
     write_output(out / "summary.md", to_markdown(summary) + "\n" + MARKDOWN_NOTE)
     write_output(out / "summary.tex", to_latex(summary))

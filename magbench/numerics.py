@@ -415,6 +415,13 @@ TIME_GLITCH_STEPS = 1000.0
 are within it of each other."""
 
 
+def lone_values(x: np.ndarray, far: float) -> np.ndarray:
+    """Positions (1 .. n-2) of the values of a sequence more than ``far`` from both neighbours while the neighbours lie
+    within ``far`` of each other: one glitched entry (a timestamp, a heading), not a jump that stays."""
+    return np.flatnonzero((np.abs(x[1:-1] - x[:-2]) > far) & (np.abs(x[1:-1] - x[2:]) > far)
+                          & (np.abs(x[2:] - x[:-2]) <= far)) + 1
+
+
 def timestamp_glitches(t_s: np.ndarray | None) -> str | None:
     """Why the t column cannot be used as it is, or None: rows (in file order) whose time lies far from both
     neighbours' (TIME_GLITCH_STEPS median steps) while the neighbours agree with each other: a glitched timestamp
@@ -432,9 +439,7 @@ def timestamp_glitches(t_s: np.ndarray | None) -> str | None:
     moving = steps[steps > 0]
     if not len(moving):
         return None
-    far = TIME_GLITCH_STEPS * float(np.median(moving))
-    glitch = (np.abs(t[1:-1] - t[:-2]) > far) & (np.abs(t[1:-1] - t[2:]) > far) & (np.abs(t[2:] - t[:-2]) <= far)
-    rows = np.flatnonzero(glitch) + 1
+    rows = lone_values(t, TIME_GLITCH_STEPS * float(np.median(moving)))
     if not len(rows):
         return None
     i = int(rows[0])

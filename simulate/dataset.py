@@ -831,9 +831,14 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
     field_meta = _meta_field_nT(path, meta)
     if expected_field_nT is None:
         expected_field_nT = field_meta
-    raw = np.column_stack([column(c) for c in ("bx", "by", "bz")]) if has_vector else None
-    magnitude = float(np.median(np.sqrt(np.einsum("ij,ij->i", raw, raw)) if raw is not None
-                                else np.abs(column(scalar_col))))
+    raw: np.ndarray | None = None
+    scalar: np.ndarray | None = None  # the scalar column, parsed once: the unit checks and the series read it
+    if has_vector:
+        raw = np.column_stack([column(c) for c in ("bx", "by", "bz")])
+        magnitude = float(np.median(np.sqrt(np.einsum("ij,ij->i", raw, raw))))
+    else:
+        scalar = _numeric(path, frame, str(scalar_col), first_line)
+        magnitude = float(np.median(np.abs(scalar)))
     if raw is not None:
         check_thousands_dots(raw, str(path))
     if f_ref is not None:  # the two columns against each other first: each alone can look like another unit
@@ -854,7 +859,8 @@ def read_csv(path, units: str = "nT", require_vector: bool = True, expected_fiel
     if raw is not None:
         return Dataset(raw * factor, f_ref_nT=f_ref, meta=meta, **common)
     others = {c: column(c) * factor for c in FIELD_COLUMNS if c in names and c not in ("f_ref",)}
-    return ScalarSeries(column(scalar_col) * factor, f_ref_nT=f_ref, extra=others, meta={**meta, "f_meas_column": scalar_col},
+    assert scalar is not None  # no vector readings: a scalar column (checked above)
+    return ScalarSeries(scalar * factor, f_ref_nT=f_ref, extra=others, meta={**meta, "f_meas_column": scalar_col},
                         **common)
 
 

@@ -12,6 +12,7 @@ import numpy as np
 from magbench import paper
 from magbench.calibrators.acceptance import GLITCH_FACTOR, MIN_REFERENCE_NT, reference_jumps, units_apart
 from magbench.errors import InputError
+from magbench.numerics import lone_values
 from magbench.simulate.dataset import MAX_ABS_OTHER, ScalarSeries, temperature_problem
 from magbench.simulate.effects import EFFECTS, OutlierEffect, library_effects
 from magbench.simulate.sensor import paper_matrix
@@ -200,10 +201,7 @@ def heading_glitch(heading_deg: np.ndarray, t_s: np.ndarray | None = None) -> st
     if n < 3:
         return None
     order = np.argsort(t_s, kind="stable") if t_s is not None and len(t_s) == n else np.arange(n)
-    h = heading_deg[order]
-    glitch = ((np.abs(h[1:-1] - h[:-2]) > 360.0) & (np.abs(h[1:-1] - h[2:]) > 360.0)
-              & (np.abs(h[2:] - h[:-2]) <= 360.0))
-    rows = order[np.flatnonzero(glitch) + 1]
+    rows = order[lone_values(heading_deg[order], 360.0)]
     if not len(rows):
         return None
     i = int(rows[0])
