@@ -58,6 +58,7 @@ from magbench.numerics import (
     residual_sum_of_squares_beside,
     roughness,
     systematic_rows,
+    triangular_factor,
 )
 from magbench.simulate.dataset import UNIT_FACTORS_NT, units_apart  # noqa: F401  (units_apart re-exported)
 from magbench.simulate.effects import COLUMNS, HOLD_ANGLE_RAD, HOLD_MIN_SAMPLES, HOLD_SHARE, Columns
@@ -1689,7 +1690,7 @@ def _fit_beside(tri_all: np.ndarray, p: int, kept: np.ndarray, width: int,
     the model fitted alone), in the columns' units; with ``check``, None when they nearly repeat the model's or each
     other's."""
     chosen = np.concatenate([np.arange(p), p + np.flatnonzero(kept), [p + width]])
-    tri = np.asarray(np.linalg.qr(tri_all[:, chosen], mode="r"))  # A[:, S] = Q R[:, S]: the subset's own factor
+    tri = triangular_factor(tri_all[:, chosen])  # A[:, S] = Q R[:, S]: the subset's own factor
     diag = np.abs(np.diagonal(tri)[:len(chosen) - 1])
     if check and not diag.min() > LSTSQ_FULL_RANK * diag.max():
         return None
@@ -1775,7 +1776,7 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     scale = np.maximum(np.sqrt(np.einsum("ij,ij->j", jac, jac)), 1e-300)
     # (at an optimum on the box's bound, or on a sample of the rows, r is not orthogonal to the model's columns, and
     # what they still take is not the nonlinearity's: each test fits them beside its own)
-    tri_all = np.asarray(np.linalg.qr(np.column_stack([jac / scale, cols, -r[rows]]), mode="r"))
+    tri_all = triangular_factor(np.column_stack([jac / scale, cols, -r[rows]]))
     within = tri_all[:p, p:p + width]  # Q_J^T of the response's columns
     testable = np.sqrt(np.maximum(1.0 - np.einsum("ij,ij->j", within, within), 0.0)) >= NONLINEARITY_OUTSIDE
     if unrelated is None and "previous-reading" in kinds_here:  # not asked for: its columns are 0

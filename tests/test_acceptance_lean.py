@@ -376,3 +376,24 @@ def test_hyper_parameters_found_valid_are_remembered_by_value_and_type():
         cls.check_param_values({**params, "max_nfev": 0})
     with pytest.raises(InputError, match="max_nfev"):  # refused again: a refusal is not remembered
         cls.check_param_values({**params, "max_nfev": 0})
+
+
+def test_the_triangular_factor_is_numpys_qr():
+    """``numerics.triangular_factor`` (LAPACK's dgeqrf through SciPy) gives np.linalg.qr(a, mode="r"): the same shape,
+    zeros below the diagonal, the same numbers to rounding (bit for bit where numpy and SciPy share a LAPACK build, as
+    here); input it does not take (integers, empty, non-finite) goes to numpy's own call."""
+    from magbench.numerics import triangular_factor
+
+    rng = np.random.default_rng(5)
+    for shape in ((300, 22), (300, 10), (2000, 3), (5, 5), (3, 7), (1, 1)):
+        a = rng.normal(size=shape) * 10.0 ** rng.uniform(-6, 6, size=shape[1])
+        got, want = triangular_factor(a), np.linalg.qr(a, mode="r")
+        assert got.shape == want.shape and not np.tril(got, -1).any()
+        assert np.allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+    view = rng.normal(size=(300, 10))[:, ::2]  # not contiguous
+    assert np.allclose(triangular_factor(view), np.linalg.qr(view, mode="r"), rtol=1e-12, atol=1e-12)
+    for odd in (np.arange(12).reshape(4, 3), np.empty((0, 3)), np.array([[1.0, np.nan], [2.0, 3.0], [4.0, 5.0]])):
+        with np.errstate(all="ignore"):
+            want = np.linalg.qr(odd, mode="r")
+            got = triangular_factor(odd)
+        assert got.shape == want.shape and np.array_equal(got, want, equal_nan=True)
