@@ -4,9 +4,10 @@ A verdict (docs/CONTRACT.md section 3) is ``none``, ``insufficient_data``, ``une
 joined by ``+`` (``a|b`` inside for two the data cannot tell apart), optionally ending in ``+unexplained``.
 A *wrong name* is a named effect that is not acceptable for the record, or an ``a|b`` of which neither is;
 any name on a clean record is wrong.  Per case: 0 with a wrong name; 1 when every present effect is named
-(an ``a|b`` holding it counts when the record cannot separate the pair), ``+unexplained`` is said exactly
-when an effect outside the library is present, a clean record is ``none`` and a too-short one
-``insufficient_data``; 0.5 otherwise (partly right).
+(an ``a|b`` holding it counts when the record cannot separate the pair; an ``a|b|c`` when the record can separate
+the present effect from none of the others, each of its pairs with the present effect confoundable),
+``+unexplained`` is said exactly when an effect outside the library is present, a clean record is ``none`` and a
+too-short one ``insufficient_data``; 0.5 otherwise (partly right).
 """
 from __future__ import annotations
 
@@ -48,7 +49,8 @@ def score(case: Case, verdict: str) -> Score:
         holding = [g for g in groups if effect in g]
         if not holding:
             continue
-        if any(len(g) == 1 for g in holding) or any(frozenset(g) in confoundable for g in holding if len(g) == 2):
+        if any(len(g) == 1 or all(frozenset((effect, other)) in confoundable for other in g if other != effect)
+               for g in holding):
             named += 1
         else:
             partial = True  # named only as an ambiguity the record does not have

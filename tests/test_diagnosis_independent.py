@@ -78,6 +78,24 @@ def test_scoring_counts_wrong_names_and_alternatives():
                                                                       True, None)
 
 
+def test_scoring_counts_an_ambiguity_of_three_only_where_each_pair_is_confoundable():
+    """``a|b|c`` holding the present effect counts as naming it when the record cannot separate it from either other
+    (each pair with it confoundable), as ``a|b`` counts for its one pair; else it is partly right, never wrong."""
+    from dataclasses import replace
+
+    case = replace(make_case(1), confoundable=(("offset_drift", "temperature"),))
+    assert case.present == ("temperature",)
+    three = "offset_drift|temperature|field_drift"
+    assert score(case, "offset_drift|temperature").score == 1.0
+    assert score(case, three).score == 0.5  # field_drift separable: partly right, as before
+    both = replace(case, confoundable=(("field_drift", "temperature"), ("offset_drift", "temperature")))
+    assert score(both, three).score == 1.0
+    assert score(both, three).wrong_names == ()
+    # a pair of the others alone does not make the present effect inseparable from them
+    others = replace(case, confoundable=(("field_drift", "offset_drift"), ("offset_drift", "temperature")))
+    assert score(others, three).score == 0.5
+
+
 def test_where_places_a_switch_on_in_time():
     """A current loop switching on mid-record (independent forward model): the diagnosis's 'where' finds a
     body-fixed step within 2 % of the record's length of the true time (7 of the first 8 such records;
