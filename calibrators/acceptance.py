@@ -1651,12 +1651,15 @@ def _columns_tests(tri_all: np.ndarray, p: int, masks: np.ndarray, m: int, effec
     gram = after.T @ after
     ss0 = float(gram[width, width])  # what the model's columns leave of r
     j_diag = np.abs(np.diagonal(tri_all)[:p])
-    sizes = masks.sum(axis=1)
+    j_top, j_low = j_diag.max(), j_diag.min()
+    sizes = masks.sum(axis=1).tolist()
     chi2_at = _CHI2_AT_PART_P.get(asked, _CHI2_AT_PART_P[4])
     out: list[float | None] = [None] * len(masks)
-    for k in sorted({int(v) for v in sizes if v}):
-        which = np.flatnonzero(sizes == k)
-        idx = np.column_stack([np.nonzero(masks[which])[1].reshape(len(which), k), np.full(len(which), width)])
+    for k in sorted(set(sizes) - {0}):
+        which = np.array([i for i, v in enumerate(sizes) if v == k])
+        idx = np.empty((len(which), k + 1), dtype=np.int64)
+        idx[:, :k] = np.nonzero(masks[which])[1].reshape(len(which), k)
+        idx[:, k] = width
         sub = gram[idx[:, :, None], idx[:, None, :]]
         try:
             factor = np.linalg.cholesky(sub)
@@ -1666,8 +1669,9 @@ def _columns_tests(tri_all: np.ndarray, p: int, masks: np.ndarray, m: int, effec
                 with contextlib.suppress(np.linalg.LinAlgError):
                     factor[i] = np.linalg.cholesky(sub[i])
         diag = np.diagonal(factor, axis1=1, axis2=2)
-        top = np.maximum(j_diag.max(), np.nanmax(np.abs(diag[:, :k]), axis=1, initial=0.0))
-        low = np.minimum(j_diag.min(), np.abs(diag[:, :k]).min(axis=1))
+        size = np.abs(diag[:, :k])
+        top = np.maximum(j_top, np.fmax.reduce(size, axis=1, initial=0.0))  # np.nanmax's numbers, without its wrapper
+        low = np.minimum(j_low, size.min(axis=1))
         ss1 = diag[:, k] ** 2
         dof = m - p - k
         with np.errstate(all="ignore"):
@@ -1744,7 +1748,8 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
     mat, o = correction_matrix_one(x, objective.model)
     d = raw - o
     c = d @ mat.T
-    u = c / np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), 1e-300)[:, None]
+    size = np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), 1e-300)  # |c|
+    u = c / size[:, None]
     g = u @ mat  # dr/d(raw_k)
     q2 = g * d * d
     before, after = neighbour_rows(t_s, n, rows) if unrelated is not None else (np.full(m, -1), np.full(m, -1))
@@ -1760,23 +1765,33 @@ def nonlinearity_shift(objective: ScalarObjective, x: np.ndarray, r: np.ndarray,
         # the reading before each, less this one's noise-free part: d - (M^-1 u) r is the reading the model gives for
         # the reference's magnitude along this direction (d itself would put the residual's own noise into the
         # column: on a smooth path, where consecutive readings differ by little more than the noise, that made it
-        # significant on clean records); the first row's column is 0
-        settled = d - np.linalg.solve(mat, u.T).T * r[rows][:, None]
+        # significant on clean records); the first row's column is 0.  M^-1 u = d / |c| (c = M d), so that reading is
+        # d (|c| - r) / |c|, without solving M
+        settled = d * ((size - r[rows]) / size)[:, None]
         moved = objective.raw_nT[np.maximum(before, 0)] - o - settled
         moved[before < 0] = 0.0
-    built = {"quadratic": q2, "cubic": q2 * d, "cross-axis": g * d[:, [1, 0, 0]] * d[:, [2, 2, 1]],
-             "previous-reading": g * moved}
+    # [J | the response's columns | -r], built in place in column order (the factorization's own layout: no copy)
+    design = np.empty((m, p + width + 1), order="F")
+    cols = design[:, p:p + width]
+    built = {"quadratic": lambda out: np.multiply(q2, 1.0, out=out),
+             "cubic": lambda out: np.multiply(q2, d, out=out),
+             "cross-axis": lambda out: np.multiply(g * d[:, [1, 0, 0]], d[:, [2, 2, 1]], out=out),
+             "previous-reading": lambda out: np.multiply(g, moved, out=out)}
     if thermal and warm.temp_C is not None:
         dt_c = (warm.temp_C - warm.temp_C.mean())[:, None]
-        built["temperature gain"], built["temperature offset"] = g * d * dt_c, g * dt_c
-    cols = np.column_stack([built[kind] for kind in kinds_here])
+        built["temperature gain"] = lambda out: np.multiply(g * d, dt_c, out=out)
+        built["temperature offset"] = lambda out: np.multiply(g, dt_c, out=out)
+    for j, kind in enumerate(kinds_here):
+        built[kind](cols[:, 3 * j:3 * j + 3])
     norms = np.maximum(np.sqrt(np.einsum("ij,ij->j", cols, cols)), 1e-300)
     cols /= norms
     jac = _jacobian_on(objective, x, jacobian, rows)
     scale = np.maximum(np.sqrt(np.einsum("ij,ij->j", jac, jac)), 1e-300)
+    np.divide(jac, scale, out=design[:, :p])
+    np.negative(r[rows], out=design[:, -1])
     # (at an optimum on the box's bound, or on a sample of the rows, r is not orthogonal to the model's columns, and
     # what they still take is not the nonlinearity's: each test fits them beside its own)
-    tri_all = triangular_factor(np.column_stack([jac / scale, cols, -r[rows]]))
+    tri_all = triangular_factor(design, scratch=True)
     within = tri_all[:p, p:p + width]  # Q_J^T of the response's columns
     testable = np.sqrt(np.maximum(1.0 - np.einsum("ij,ij->j", within, within), 0.0)) >= NONLINEARITY_OUTSIDE
     if unrelated is None and "previous-reading" in kinds_here:  # not asked for: its columns are 0

@@ -277,18 +277,20 @@ LSTSQ_FULL_RANK = 1e-6
 the design is taken as of full rank (the QR's residual); at or below it, ``np.linalg.lstsq``'s rank cut decides."""
 
 
-def triangular_factor(a: np.ndarray) -> np.ndarray:
+def triangular_factor(a: np.ndarray, scratch: bool = False) -> np.ndarray:
     """``np.linalg.qr(a, mode="r")`` of a float64 matrix (m, n): the upper triangular (min(m, n), n) factor, from one
     call of LAPACK's ``dgeqrf`` (SciPy's wrapper, loaded with every fit), the Householder reflections that numpy's
     ``qr`` makes too (the same numbers here, ``tests/test_acceptance_lean.py``), without numpy's wrapper, which took
     half of the call's time on the (300, 10-22) designs of every fit's checks (58 against 31 us on 300 x 10).  Empty
-    or non-finite input, or a failed call, goes to numpy's ``qr``."""
+    or non-finite input, or a failed call, goes to numpy's ``qr``.  ``scratch``: ``a`` may be overwritten (a design
+    built for this call in column order is then factored where it lies, not copied)."""
     if not (isinstance(a, np.ndarray) and a.ndim == 2 and a.dtype == np.float64 and a.size):
         return np.asarray(np.linalg.qr(a, mode="r"))
     from scipy.linalg.lapack import dgeqrf
 
-    factor, _, _, info = dgeqrf(a)
-    if info != 0 or not np.isfinite(factor[0, 0]):
+    scratch = scratch and a.flags.f_contiguous
+    factor, _, _, info = dgeqrf(a, overwrite_a=scratch)
+    if not scratch and (info != 0 or not np.isfinite(factor[0, 0])):  # (a scratch design is gone: its NaNs kept)
         return np.asarray(np.linalg.qr(a, mode="r"))
     return np.triu(factor[:min(a.shape)])
 
