@@ -2,8 +2,9 @@
 --out results/diagnosis/independent_blind.md`` diagnoses records from tests/independent_forward.py (a forward
 model that shares no code with magbench), ``--generator 2`` from tests/independent_forward2.py (a second one,
 written later by another hand with its own schedules, sampling, noise and effects, shared with neither),
-``--generator 3`` from tests/independent_forward3.py (a third one, written in round 5 the same way), and
-writes the table, wrong names first, and every verdict."""
+``--generator 3`` from tests/independent_forward3.py (a third one, written in round 5 the same way), ``--generator 4``
+and ``--generator 5`` from tests/independent_forward4.py and tests/independent_forward5.py (a fourth and a fifth, the
+fifth written in round 29 the same way), and writes the table, wrong names first, and every verdict."""
 from __future__ import annotations
 
 import argparse
@@ -19,6 +20,7 @@ import independent_forward  # noqa: E402
 import independent_forward2  # noqa: E402
 import independent_forward3  # noqa: E402
 import independent_forward4  # noqa: E402
+import independent_forward5  # noqa: E402
 from independent_scoring import parse, score  # noqa: E402
 
 from magbench.benchmarks.diagnosis import diagnose  # noqa: E402
@@ -26,7 +28,7 @@ from magbench.errors import InputError  # noqa: E402
 from magbench.simulate.dataset import Dataset  # noqa: E402
 
 GENERATORS = {1: independent_forward.make_case, 2: independent_forward2.make_case, 3: independent_forward3.make_case,
-              4: independent_forward4.make_case}
+              4: independent_forward4.make_case, 5: independent_forward5.make_case}
 
 
 def verdict_of(index: int, root: int = 2026, generator: int = 1) -> dict:
@@ -408,7 +410,15 @@ ROUNDS = ((ROUND16, {
 for _round, _per_generator in ROUNDS:
     for _g, (_aff, _changed) in _per_generator.items():
         HISTORY[_g] += _round.format(aff=_aff, changed=_changed)
-SPLITS = {1: "1440,2640,2880,3360,3840,4320", 2: "480,1440,2400,3360", 3: "480,1440,2400,3360", 4: "480"}
+HISTORY[5] = ("Written in round 29 by another hand, from the physics only (it read neither the diagnosis, the "
+              "simulator, the calibrators nor the code of the other generators, only their docstrings, so as not to "
+              "repeat their schedules and effects, and the first generator's `Case` record and the scoring). Nobody had "
+              "run the diagnosis on it, or looked at a verdict of it, before this table was written: this table is its "
+              "first run, with round 28's diagnosis (the code of commit d13f205), and the generator was not changed "
+              "after it. Its scores are round 29's: a verdict of three alternatives counts as naming the present effect "
+              "where each pair of it with that effect is confoundable (scored again with `--rescore`, no record "
+              "diagnosed again).")
+SPLITS = {1: "1440,2640,2880,3360,3840,4320", 2: "480,1440,2400,3360", 3: "480,1440,2400,3360", 4: "480", 5: ""}
 LABELS = {
     1: ["developed on in rounds 1-4 (rounds 2-3's development set); round 16 developed on the fixed records of 0-479",
         "developed on in rounds 1-4 (round 3 checked every change on it; 2400-2639 was round 2's held-out block)",
@@ -426,6 +436,7 @@ LABELS = {
         "held out for round 7: new, run once, with its final code; run once more in rounds 8-15",
         "held out for round 8: new, run once, with its final code; run once more in rounds 9-15 (its "
         "clean cases 3984 and 4140 were among the logger records round 9 compared)"],
+    5: ["its first run, blind: written from the physics in round 29, no verdict of it looked at before this table"],
     4: ["first run with round 14's final code; developed on in round 15, and its fixed records in round 16",
         "first run with round 14's final code (held out); run once more in round 15, not looked at case by case"],
     3: ["developed on in rounds 6-14 (written in round 5 from the physics only, and run once there); round 15 compared its "
@@ -476,9 +487,9 @@ def rescored(rows: list[dict], generator: int) -> list[dict]:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--generator", type=int, choices=(1, 2, 3, 4), default=1,
+    ap.add_argument("--generator", type=int, choices=(1, 2, 3, 4, 5), default=1,
                     help="1: tests/independent_forward.py; 2: tests/independent_forward2.py; 3: tests/independent_forward3.py; "
-                         "4: tests/independent_forward4.py")
+                         "4: tests/independent_forward4.py; 5: tests/independent_forward5.py")
     ap.add_argument("--cases", type=int, default=96)
     ap.add_argument("--start", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=2)
@@ -503,7 +514,7 @@ def main() -> None:
 def render(rows: list[dict], g: int, start: int, cases: int, split_arg: str | None = None) -> str:
     """The table's Markdown for ``rows`` (``verdict_of``'s dicts of cases ``start`` .. ``start + cases - 1``)."""
     source = {1: "tests/independent_forward.py", 2: "tests/independent_forward2.py", 3: "tests/independent_forward3.py",
-              4: "tests/independent_forward4.py"}[g]
+              4: "tests/independent_forward4.py", 5: "tests/independent_forward5.py"}[g]
     what = ("a forward model written from the physics, sharing no code with `simulate/` or the diagnosis, with effects "
             "outside the library that resemble library effects" if g == 1 else
             "a third forward model written from the physics in round 5, sharing no code with `simulate/`, the diagnosis "
@@ -513,10 +524,16 @@ def render(rows: list[dict], g: int, start: int, cases: int, split_arg: str | No
             "diagnosis, the calibrators or the first three generators, with its own sensor, schedules (a towed fish, a "
             "borehole probe, a pedestrian, a survey UAV, a robot arm, a satellite, an observatory pier), sampling and "
             "effect forms and eleven effects outside the library" if g == 4 else
+            "a fifth forward model written from the physics in round 29, sharing no code with `simulate/`, the "
+            "diagnosis, the calibrators or the first four generators, with its own sensor, schedules (a parafoil sonde, "
+            "a rough-terrain rover, a swimmer's laps, a wobbling turntable, a helicopter's sling load, a ship's "
+            "stabilised mast, a badly done hand-held figure-eight, a seafloor station), sampling and effect forms and "
+            "ten effects outside the library" if g == 5 else
             "a second forward model written from the physics, sharing no code with `simulate/`, the diagnosis or the "
             "first generator, with its own schedules, sampling, noise and effect parametrisations and its own effects "
             "outside the library")
-    title = {1: "", 2: ": the second generator", 3: ": the third generator", 4: ": the fourth generator"}[g]
+    title = {1: "", 2: ": the second generator", 3: ": the third generator", 4: ": the fourth generator",
+             5: ": the fifth generator"}[g]
     text = ["# Independent blind check of the diagnosis" + title, "",
             f"{len(rows)} records from `{source}` (cases {start}-{start + cases - 1}, root seed 2026): "
             f"{what}. Made by `python -P tests/independent_blind_table.py --generator {g} --cases {cases} "
