@@ -304,6 +304,8 @@ def cmd_simulate(args) -> int:
     scenario = get_scenario(args.scenario)
     check_output(args.out, force=args.force, what="--out file")  # the name as given: '' is no file (Path('') is '.')
     out = Path(args.out)
+    if args.truth is not None and not args.truth.strip():  # '' had written no truth, silently
+        raise InputError("the --truth file name is empty: give a file name, or leave --truth out")
     if args.truth and (Path(args.truth).resolve() == out.resolve()
                        or (out.exists() and Path(args.truth).exists() and os.path.samefile(out, args.truth))):
         raise InputError(f"--out and --truth name the same file ({out}, by inode): the truth would overwrite the data")

@@ -72,3 +72,14 @@ def test_resume_rewrites_a_manifest_that_is_not_an_object(campaign, capsys):
         assert code == 0, err
         assert json.loads((out / "manifest.json").read_text())["root_seed"] == 0
     (out / "manifest.json").write_text(good)
+
+
+def test_an_empty_truth_name_is_refused(tmp_path, capsys):
+    for name in ("", "  "):
+        _refused(capsys, ["simulate", "--scenario", "sphere9", "--seed", "0", "--out", tmp_path / "s.csv", "--truth",
+                          name], "the --truth file name is empty")
+        assert not (tmp_path / "s.csv").exists()  # refused before the data file is written
+    code, _, err = _run(capsys, ["simulate", "--scenario", "sphere9", "--seed", "0", "--out", tmp_path / "s.csv",
+                                 "--truth", tmp_path / "t.json"])  # control
+    assert code == 0, err
+    assert json.loads((tmp_path / "t.json").read_text())
