@@ -399,7 +399,10 @@ and slows several-fold on a busy one (2e6 rows on a loaded 2-core host: 8-15 s w
 def cmd_calibrate(args) -> int:
 
     params = _parse_params(args.param)
-    if args.algorithm:
+    if args.algorithm is not None:  # '' had been no algorithm at all, silently: the default one ran
+        if "algorithm" in params:  # --param algorithm=Y beside --algorithm X had silently run X
+            raise InputError(f"--algorithm {args.algorithm} and --param algorithm={params['algorithm']} both set the "
+                             "NLopt algorithm: give it once")
         params["algorithm"] = args.algorithm
     if args.blas_threads:
         from threadpoolctl import threadpool_limits

@@ -83,3 +83,29 @@ def test_an_empty_truth_name_is_refused(tmp_path, capsys):
                                  "--truth", tmp_path / "t.json"])  # control
     assert code == 0, err
     assert json.loads((tmp_path / "t.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    """A simulated file with its f_ref column, and the same readings without any reference (no f_ref, no field line)."""
+    from magbench.simulate import simulate
+
+    d = tmp_path_factory.mktemp("data")
+    simulate("sphere9", 0).to_csv(d / "s.csv")
+    lines = (d / "s.csv").read_text().splitlines()
+    head = next(i for i, ln in enumerate(lines) if not ln.startswith("#"))
+    keep = [i for i, c in enumerate(lines[head].split(",")) if c != "f_ref"]
+    (d / "bare.csv").write_text("\n".join([ln for ln in lines[:head] if not ln.startswith("# field_nT")]
+                                          + [",".join(ln.split(",")[i] for i in keep) for ln in lines[head:]]) + "\n")
+    return d
+
+
+def test_an_algorithm_given_twice_is_refused_not_overridden(data, capsys):
+    """--param algorithm=Y beside --algorithm X had silently run X; --algorithm '' had silently run the default."""
+    _refused(capsys, ["calibrate", data / "s.csv", "--method", "nlopt", "--algorithm", "LN_BOBYQA", "--param",
+                      "algorithm=LN_SBPLX"], "both set the NLopt algorithm")
+    _refused(capsys, ["calibrate", data / "s.csv", "--method", "nlopt", "--algorithm", ""], "unknown algorithm ''")
+    for args in (["--algorithm", "LN_SBPLX"], ["--param", "algorithm=LN_SBPLX"]):  # controls: either alone
+        code, out, err = _run(capsys, ["calibrate", data / "s.csv", "--method", "nlopt", "--json", *args])
+        assert code == 0, err
+        assert json.loads(out)["hyperparameters"]["algorithm"] == "LN_SBPLX"
