@@ -120,13 +120,19 @@ def _add_reference_options(p: argparse.ArgumentParser) -> None:
                    help="reference magnitude from the IGRF-14 model at this place and date")
 
 
+_BOTH_REFERENCES = "--field and --igrf both give the reference magnitude: give one of them"
+"""Both given is refused: --igrf had been ignored beside --field, unread (a malformed --igrf too)."""
+
+
 def _reference_from_args(args) -> float | None:
-    """--field, else --igrf (CONTRACT section 2 order, after the file's own f_ref column)."""
+    """--field, else --igrf (CONTRACT section 2 order, after the file's own f_ref column); both given is refused."""
+    if args.field is not None and args.igrf is not None:
+        raise InputError(_BOTH_REFERENCES)
     if args.field is not None:
         if not (math.isfinite(args.field) and args.field > 0):
             raise InputError(f"--field must be a positive number of nT, got {args.field}")
         return args.field
-    if args.igrf:
+    if args.igrf is not None:  # '' had been no --igrf, silently
         parts = args.igrf.split(",")
         if len(parts) != 4:
             raise InputError(f"--igrf wants LAT,LON,ALT_KM,YYYY-MM-DD, got {args.igrf!r}")
@@ -404,6 +410,8 @@ def cmd_calibrate(args) -> int:
             raise InputError(f"--algorithm {args.algorithm} and --param algorithm={params['algorithm']} both set the "
                              "NLopt algorithm: give it once")
         params["algorithm"] = args.algorithm
+    if args.field is not None and args.igrf is not None:  # before 'auto' is turned into no --field below
+        raise InputError(_BOTH_REFERENCES)
     if args.blas_threads:
         from threadpoolctl import threadpool_limits
 

@@ -109,3 +109,18 @@ def test_an_algorithm_given_twice_is_refused_not_overridden(data, capsys):
         code, out, err = _run(capsys, ["calibrate", data / "s.csv", "--method", "nlopt", "--json", *args])
         assert code == 0, err
         assert json.loads(out)["hyperparameters"]["algorithm"] == "LN_SBPLX"
+
+
+@pytest.mark.parametrize("field", ["50000", "auto"])
+def test_field_and_igrf_together_are_refused(data, capsys, field):
+    """--igrf beside --field had been ignored, unread (a malformed --igrf too)."""
+    for command in (["calibrate", data / "bare.csv", "--method", "lsq"], ["diagnose", data / "bare.csv"]):
+        if field == "auto" and command[0] == "diagnose":
+            continue  # diagnose's --field takes a number only
+        _refused(capsys, [*command, "--field", field, "--igrf", "45,7,0,2020-01-01"], "--field and --igrf both give")
+        _refused(capsys, [*command, "--field", field, "--igrf", "garbage"], "--field and --igrf both give")
+    _refused(capsys, ["calibrate", data / "bare.csv", "--method", "lsq", "--igrf", ""], "--igrf wants")
+    for ref in (["--field", field], ["--igrf", "45,7,0,2020-01-01"]):  # controls: either alone
+        code, _, err = _run(capsys, ["calibrate", data / "bare.csv", "--method", "lsq", "--accept-any", *ref])
+        assert code == 0, err
+        assert "--igrf" in err if ref[0] == "--igrf" else "--igrf" not in err
