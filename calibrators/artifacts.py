@@ -491,8 +491,29 @@ def _from_magcal(d: dict, where: str, field_nT=None) -> Calibration:
     except np.linalg.LinAlgError:
         raise InputError(f"{where}: A^T A is not positive definite") from None
     reference = {"median_nT": expmfs, "source": "magcal expmfs"} if expmfs is not None else {}
+    accepted, rejections = _magcal_verdict(d, where)
     return Calibration(model="nine", matrix=m, offset_nT=tuple(b), params=params, reference=reference,
-                       method="magcal", origin="matlab")
+                       method="magcal", origin="matlab", accepted=accepted, rejections=rejections)
+
+
+def _magcal_verdict(d: dict, where: str) -> tuple[bool, tuple]:
+    """(accepted, rejections) of a magcal-style file that says whether it was accepted (``"accepted": false`` and
+    its ``"rejections"``, as magbench's own JSON says it): ``apply`` then refuses it as it refuses magbench's own
+    rejected calibrations (it had been applied silently).  Without the entry it is accepted (MATLAB's magcal
+    says nothing of it); one that is not true or false is refused, as the schema's own ``accepted`` is."""
+    value = d.get("accepted", True)
+    if isinstance(value, np.ndarray) and value.size == 1 and value.dtype.kind in "biu" and value.item() in (0, 1):
+        value = bool(value.item())  # a .mat file's logical (or 0/1) scalar
+    if not isinstance(value, bool):
+        raise InputError(f"{where}: entry 'accepted' must be true or false, got {str(value)[:40]!r}")
+    reasons = d.get("rejections") or ()
+    if isinstance(reasons, str):
+        reasons = (reasons,)
+    elif isinstance(reasons, np.ndarray) and reasons.dtype.kind in "US":  # a .mat file's char array
+        reasons = tuple(str(r).strip() for r in reasons.ravel())
+    if not isinstance(reasons, (list, tuple)) or not all(isinstance(r, str) for r in reasons):
+        raise InputError(f"{where}: entry 'rejections' must be a list of strings")
+    return value, tuple(reasons)
 
 
 def load_calibration(path, source: InputBytes | None = None) -> Calibration:

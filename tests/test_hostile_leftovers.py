@@ -124,3 +124,40 @@ def test_field_and_igrf_together_are_refused(data, capsys, field):
         code, _, err = _run(capsys, ["calibrate", data / "bare.csv", "--method", "lsq", "--accept-any", *ref])
         assert code == 0, err
         assert "--igrf" in err if ref[0] == "--igrf" else "--igrf" not in err
+
+
+def _magcal(path, **extra):
+    path.write_text(json.dumps({"A": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "b": [152.0, -218.0, 85.0], **extra}))
+    return path
+
+
+def test_apply_refuses_a_magcal_file_that_says_it_was_rejected(data, tmp_path, capsys):
+    """A magcal-style JSON with "accepted": false had been applied silently; magbench's own rejected JSON is refused
+    unless --accept-any, and so is it now."""
+    out = tmp_path / "o.csv"
+    bad = _magcal(tmp_path / "rejected.json", accepted=False, rejections=["residual 40 times the noise"])
+    _refused(capsys, ["apply", bad, data / "s.csv", "--out", out], "rejected by its acceptance checks when it was made "
+                                                                    "(residual 40 times the noise)")
+    assert not out.exists()
+    _refused(capsys, ["apply", _magcal(tmp_path / "odd.json", accepted="no"), data / "s.csv", "--out", out],
+             "entry 'accepted' must be true or false")
+    code, _, err = _run(capsys, ["apply", bad, data / "s.csv", "--out", out, "--accept-any"])  # the override
+    assert code == 0, err
+    code, stdout, err = _run(capsys, ["apply", bad, data / "s.csv", "--out", out, "--accept-any", "--force", "--json"])
+    assert any("applied by --accept-any" in w for w in json.loads(stdout)["warnings"])
+    for ok in (_magcal(tmp_path / "plain.json"), _magcal(tmp_path / "accepted.json", accepted=True)):  # controls
+        code, _, err = _run(capsys, ["apply", ok, data / "s.csv", "--out", out, "--force"])
+        assert code == 0, err
+
+
+def test_a_mat_magcal_file_says_it_was_rejected_too(tmp_path):
+    import numpy as np
+    from scipy.io import savemat
+
+    from magbench.calibrators.artifacts import apply_problems, load_calibration
+
+    savemat(tmp_path / "r.mat", {"A": np.eye(3), "b": np.array([[152.0, -218.0, 85.0]]), "accepted": False,
+                                 "rejections": ["residual 40 times the noise"]})
+    savemat(tmp_path / "ok.mat", {"A": np.eye(3), "b": np.array([[152.0, -218.0, 85.0]])})
+    assert "residual 40 times the noise" in apply_problems(load_calibration(tmp_path / "r.mat"))[0]
+    assert apply_problems(load_calibration(tmp_path / "ok.mat")) == []
