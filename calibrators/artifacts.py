@@ -83,7 +83,7 @@ from magbench import __version__
 from magbench.calibrators.acceptance import reference_problems
 from magbench.calibrators.core.problem import PHYSICAL_BOX
 from magbench.errors import InputError, with_file_lines
-from magbench.safeio import InputBytes, as_path, atomic_output, atomic_write, check_output, read_input
+from magbench.safeio import InputBytes, as_path, atomic_output, atomic_write, check_output, one_line, read_input
 from magbench.simulate.dataset import UNIT_FACTORS_NT, _header, _parse_head, newline_lines, read_csv
 from magbench.simulate.sensor import FREE, MODELS, NEUTRAL, NINE_NAMES, ErrorParams, readings_array
 
@@ -554,12 +554,6 @@ MAX_CONDITION = 100.0
 0.5 rad) has at most about 8; beyond 100 the calibration collapses a direction."""
 DETERMINANT_RANGE = (1e-2, 1e2)
 """|det M| of a physical sensor lies in about 0.05..8 (scales 0.5..2): outside 0.01..100 it is not one."""
-
-
-def one_line(text) -> str:
-    """``text`` for a '#' comment line of a written file: its control characters (a line break in a calibration's
-    method name, or in its file's name, had written a metadata line of its own, '# units: uT') as escapes."""
-    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
 
 
 def apply_problems(cal: Calibration) -> list[str]:

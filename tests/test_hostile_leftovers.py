@@ -161,3 +161,30 @@ def test_a_mat_magcal_file_says_it_was_rejected_too(tmp_path):
     savemat(tmp_path / "ok.mat", {"A": np.eye(3), "b": np.array([[152.0, -218.0, 85.0]])})
     assert "residual 40 times the noise" in apply_problems(load_calibration(tmp_path / "r.mat"))[0]
     assert apply_problems(load_calibration(tmp_path / "ok.mat")) == []
+
+
+@pytest.mark.parametrize("value", ["x\n# units: uT", "x\r# field_nT: 60000", "x\u2028# temp_unit: F", "x\x1b[2J"])
+def test_dataset_metadata_stays_on_its_comment_line(tmp_path, value):
+    """A line break in a meta value (or key) had written a metadata line of its own, read back as the file's."""
+    from dataclasses import replace
+
+    from magbench.simulate import simulate
+    from magbench.simulate.dataset import read_csv
+
+    data = simulate("sphere9", 0)
+    replace(data, meta={**data.meta, "note": value, f"k{value}": 1}).to_csv(tmp_path / "m.csv")
+    text = (tmp_path / "m.csv").read_text()
+    comments = [ln for ln in text.split("\n") if ln.startswith("#")]
+    assert len(comments) == len(data.meta) + 2  # one line per entry: none forged
+    assert not any(ln.startswith(("# units", "# field_nT: 6", "# temp_unit")) for ln in comments)
+    assert "\r" not in text and "\u2028" not in text and "\x1b" not in text
+    back = read_csv(tmp_path / "m.csv")
+    assert back.meta["note"] == value.encode("unicode_escape").decode("ascii").replace("\\\\", "\\")
+    assert (back.raw_nT == read_csv(_control(tmp_path, data)).raw_nT).all()
+
+
+def _control(tmp_path, data):
+    """The same dataset with printable metadata, written as it always was."""
+    data.to_csv(tmp_path / "plain.csv")
+    assert (tmp_path / "plain.csv").read_text().startswith("".join(f"# {k}: {v}\n" for k, v in data.meta.items()))
+    return tmp_path / "plain.csv"
