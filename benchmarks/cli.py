@@ -616,10 +616,17 @@ def cmd_compare(args) -> int:
                          "the figures, which --no-figures leaves out: give one or the other")
     campaign, out = _campaign_from_args(args)
     command = "magbench " + shlex.join(args._argv)
-    with campaign_lock(out, command):  # one campaign per folder; held until the report is written
-        if not (args.force or args.resume) and any(p.name != LOCK for p in out.iterdir()):
-            raise InputError(f"{out} was filled by another process meanwhile; refusing to overwrite it")
-        return _compare_locked(args, campaign, out, command)
+    created = not out.exists()
+    try:
+        with campaign_lock(out, command):  # one campaign per folder; held until the report is written
+            if not (args.force or args.resume) and any(p.name != LOCK for p in out.iterdir()):
+                raise InputError(f"{out} was filled by another process meanwhile; refusing to overwrite it")
+            return _compare_locked(args, campaign, out, command)
+    except BaseException:
+        if created:  # the folder the lock made, left empty (a Dask scheduler out of reach): not left behind
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only an empty one
+        raise
 
 
 def _campaign_complete(out: Path) -> bool:

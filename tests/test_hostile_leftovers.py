@@ -188,3 +188,29 @@ def _control(tmp_path, data):
     data.to_csv(tmp_path / "plain.csv")
     assert (tmp_path / "plain.csv").read_text().startswith("".join(f"# {k}: {v}\n" for k, v in data.meta.items()))
     return tmp_path / "plain.csv"
+
+
+def test_an_unreachable_dask_scheduler_leaves_nothing_behind(tmp_path, capsys, monkeypatch):
+    """It had left a folder holding a checkpoint of no runs, which the same command without --dask then refused ('it
+    holds an interrupted campaign'); the scheduler is now reached before anything is written."""
+    from magbench.benchmarks import campaign as campaign_module
+
+    monkeypatch.setattr(campaign_module, "DASK_CONNECT_S", 1)
+    out = tmp_path / "c"
+    argv = ["compare", "--scenarios", "sphere9", "--methods", "lsq", "--trials", "1", "--quiet", "--no-figures",
+            "--out", out]
+    _refused(capsys, [*argv, "--dask", "tcp://127.0.0.1:9"], "nothing was run or written")
+    assert not out.exists()
+    out.mkdir()  # a folder that was there stays, empty
+    _refused(capsys, [*argv, "--dask", "tcp://127.0.0.1:9"], "cannot reach the Dask scheduler")
+    assert out.is_dir() and not any(out.iterdir())
+    code, _, err = _run(capsys, argv)  # control: the same campaign without --dask, in that folder
+    assert code == 0, err
+    checkpoint = (out / "runs.partial.jsonl").read_bytes()
+    grown = ["compare", "--scenarios", "sphere9", "--methods", "lsq", "ellipsoid", "--trials", "1", "--quiet",
+             "--no-figures", "--out", out, "--resume"]
+    _refused(capsys, [*grown, "--dask", "tcp://127.0.0.1:9"], "nothing was run or written")
+    assert (out / "runs.partial.jsonl").read_bytes() == checkpoint  # the campaign as it was
+    code, stdout, err = _run(capsys, [*grown, "--json"])  # and it grows without --dask
+    assert code == 0, err
+    assert json.loads(stdout)["n_resumed"] == 1 and json.loads(stdout)["n_new"] == 1
