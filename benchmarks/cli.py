@@ -45,7 +45,14 @@ from magbench.benchmarks.runner import run_one
 from magbench.benchmarks.tables import to_terminal, warm_latex
 from magbench.calibrators import available, make
 from magbench.calibrators.artifacts import EXTENSIONS as EXPORT_EXTENSIONS
-from magbench.calibrators.artifacts import apply_problems, apply_to_csv, export, export_path, load_calibration
+from magbench.calibrators.artifacts import (
+    apply_problems,
+    apply_to_csv,
+    export,
+    export_offset_problem,
+    export_path,
+    load_calibration,
+)
 from magbench.calibrators.registry import plugin_errors
 from magbench.errors import InputError, with_file_lines
 from magbench.paper import ARCSEC_PER_RAD
@@ -437,6 +444,9 @@ def cmd_calibrate(args) -> int:
         raise InputError(f"calibration rejected ({cli_words(result.rejections[0])}); not saved to {target}: a {fmt} "
                          "file cannot say it was rejected, and whatever reads it would take it for a good one; save it "
                          "as magbench JSON (--export json), which keeps the rejection")
+    beyond = export_offset_problem(result.calibration(), fmt) if target is not None else None
+    if beyond is not None and beyond[0] and (result.accepted or args.accept_any):  # before any line: exit 2 is one
+        raise InputError(f"{beyond[1]}; not saved to {target} (--export json or matlab keeps it)")
     obj = result.as_dict()
     obj["input_sha256"] = data.meta.get("file_sha256")  # the bytes the readings were parsed from
     ref = result.reference
@@ -451,8 +461,12 @@ def cmd_calibrate(args) -> int:
     lines = _calibration_lines(result, len(data))
     saved = None
     if target is not None and (result.accepted or args.accept_any):
-        saved = export(result.calibration(), target, fmt, force=args.force, inputs=[args.file])
+        saved = export(result.calibration(), target, fmt, force=args.force, inputs=[args.file], warn=False)
         lines.append(f"  saved {fmt} calibration to {saved}")
+        if beyond is not None:  # offsets the flight controller takes with a setting changed, or a warning of its own
+            sys.stderr.write(f"magbench: warning: {beyond[1]}\n")
+            obj["warnings"] = obj["warnings"] + [beyond[1]]
+            lines.append(f"  warning: {beyond[1]}")
     obj["saved"] = str(saved) if saved else None
     if result.accepted:
         _emit(args, obj, "\n".join(lines))

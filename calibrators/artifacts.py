@@ -607,6 +607,50 @@ def _unphysical(cal: Calibration) -> list[str]:
     return out
 
 
+ARDUPILOT_OFFS_MAX_DEFAULT_MG = 1800.0
+"""ArduPilot's default COMPASS_OFFS_MAX (``AP_COMPASS_OFFSETS_MAX_DEFAULT``, libraries/AP_Compass/AP_Compass.cpp):
+the pre-arm check (``AP_Arming::compass_checks``: ``offsets.length() > _compass.get_offsets_max()``, 'Compass
+offsets too high') refuses to arm with a COMPASS_OFS vector longer than it, and the onboard calibrator
+(``CompassCalibrator::fit_acceptable``) refuses a fit with an axis beyond it.  (COMPASS_OFS_X/Y/Z's own
+``@Range: -400 400`` is the ground station's advice, not enforced.)"""
+ARDUPILOT_OFFS_MAX_LIMIT_MG = 3000.0
+"""The largest COMPASS_OFFS_MAX can be set to (its ``@Range: 500 3000``, AP_Compass.cpp): offsets longer than this
+fail the pre-arm check whatever the setting."""
+PX4_MAG_MAX_OFFSET_G = 1.3
+"""PX4's ``MAG_MAX_OFFSET_LEN`` (src/modules/commander/mag_calibration.cpp): an offset beyond 1.3 G on an axis gets
+'Warning: mag with large offsets' from PX4's own calibration ('the maximum measurement range is ~1.9 Ga, the earth
+field is ~0.6 Ga, so an offset larger than ~1.3 Ga means the mag will saturate in some directions'); PX4 stores
+it all the same."""
+
+
+def export_offset_problem(cal: Calibration, fmt: str) -> tuple[bool, str] | None:
+    """(refused, why) when ``cal``'s offsets lie beyond what the flight controller of ``fmt`` takes, else None:
+    ArduPilot's COMPASS_OFS longer than the largest COMPASS_OFFS_MAX (refused: no setting lets the vehicle arm)
+    or than its default (a warning: COMPASS_OFFS_MAX must be raised); a PX4 CAL_MAG0_*OFF beyond
+    ``PX4_MAG_MAX_OFFSET_G`` (a warning, as PX4's own calibration gives).  They had been written without a word."""
+    if fmt == "ardupilot":
+        ofs = np.array([cal.ardupilot()[f"COMPASS_OFS_{a}"] for a in "XYZ"])
+        length = float(np.linalg.norm(ofs))
+        axes = ", ".join(f"{a} {v:.0f}" for a, v in zip("XYZ", ofs))
+        if length > ARDUPILOT_OFFS_MAX_LIMIT_MG:
+            return True, (f"COMPASS_OFS would be {length:.0f} mG long ({axes}), beyond the largest COMPASS_OFFS_MAX "
+                          f"ArduPilot takes ({ARDUPILOT_OFFS_MAX_LIMIT_MG:.0f} mG): its pre-arm check ('Compass offsets "
+                          "too high') refuses it whatever the setting")
+        if length > ARDUPILOT_OFFS_MAX_DEFAULT_MG:
+            return False, (f"COMPASS_OFS is {length:.0f} mG long ({axes}), beyond ArduPilot's default "
+                           f"COMPASS_OFFS_MAX of {ARDUPILOT_OFFS_MAX_DEFAULT_MG:.0f} mG: its pre-arm check ('Compass "
+                           f"offsets too high') refuses to arm until COMPASS_OFFS_MAX (at most "
+                           f"{ARDUPILOT_OFFS_MAX_LIMIT_MG:.0f}) is raised")
+    elif fmt == "px4":
+        off = np.array(cal.offset_nT) / NT_PER_GAUSS
+        wide = [f"CAL_MAG0_{a}OFF {v:.3g} G" for a, v in zip("XYZ", off) if abs(v) > PX4_MAG_MAX_OFFSET_G]
+        if wide:
+            verb = "is" if len(wide) == 1 else "are"
+            return False, (f"{', '.join(wide)} {verb} beyond the {PX4_MAG_MAX_OFFSET_G:g} G at which PX4's own "
+                           "calibration warns of large offsets (the sensor saturates in some directions)")
+    return None
+
+
 def export_path(path, fmt: str) -> Path:
     """PATH with the format's extension added when it has none (json .json, matlab .mat, ardupilot .param,
     px4 .params)."""
@@ -652,11 +696,21 @@ def export_text(cal: Calibration, fmt: str, path: Path) -> str | None:
     return "\n".join(lines) + "\n"
 
 
-def export(cal: Calibration, path, fmt: str = "json", force: bool = False, inputs=()) -> Path:
+def export(cal: Calibration, path, fmt: str = "json", force: bool = False, inputs=(), warn: bool = True) -> Path:
     """Write ``cal`` to PATH (extension added when it has none) in ``fmt``, atomically (a temporary file in
     the same folder, renamed); refuses to overwrite an existing file unless ``force``, and any of
-    ``inputs`` (paths or ``InputBytes``, compared by inode) even with it.  Returns the path written."""
+    ``inputs`` (paths or ``InputBytes``, compared by inode) even with it.  Offsets beyond what the flight
+    controller takes (``export_offset_problem``) are refused, or, when it takes them with a setting changed or a
+    warning of its own, warned of (``warnings.warn``; not with ``warn=False``, whose caller says it).  Returns the
+    path written."""
     path = check_output(export_path(path, fmt), inputs, force)
+    problem = export_offset_problem(cal, fmt)
+    if problem is not None and problem[0]:
+        raise InputError(f"{problem[1]}; not saved to {path} (--export json or matlab keeps it)")
+    if problem is not None and warn:
+        import warnings
+
+        warnings.warn(problem[1], UserWarning, stacklevel=2)
     text = export_text(cal, fmt, path)
     if text is not None:
         return atomic_write(path, text, inputs, force)

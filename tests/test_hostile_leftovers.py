@@ -214,3 +214,66 @@ def test_an_unreachable_dask_scheduler_leaves_nothing_behind(tmp_path, capsys, m
     code, stdout, err = _run(capsys, [*grown, "--json"])  # and it grows without --dask
     assert code == 0, err
     assert json.loads(stdout)["n_resumed"] == 1 and json.loads(stdout)["n_new"] == 1
+
+
+def _offset_record(path, offset_nT, field_nT=100000.0):
+    """A laboratory record (a coil's 100,000 nT, its '# field_nT:' line) of a sensor with these offsets."""
+    import numpy as np
+
+    from magbench.simulate import attitude
+    from magbench.simulate.field import ConstantField
+    from magbench.simulate.sensor import ErrorParams, SensorModel
+
+    rng = np.random.default_rng(0)
+    b = attitude.full_sphere(300, rng).body_field(np.asarray(ConstantField.from_angles(field_nT, 55.0, 3.0).vector_nT))
+    raw = SensorModel(ErrorParams(0.012, -0.008, 0.015, (1.021, 0.984, 1.008), offset_nT), noise_nT=1.0).measure(b, rng)
+    path.write_text(f"# field_nT: {field_nT}\nbx,by,bz\n" + "".join(",".join(f"{v:.4f}" for v in r) + "\n" for r in raw))
+    return path
+
+
+def test_exports_say_when_the_flight_controller_would_not_take_the_offsets(tmp_path, capsys):
+    """Offsets beyond ArduPilot's COMPASS_OFFS_MAX or PX4's large-offset limit had been exported without a word."""
+    wide = _offset_record(tmp_path / "wide.csv", (150000.0, 150000.0, 0.0))  # 2121 mG long, 1.5 G an axis
+    huge = _offset_record(tmp_path / "huge.csv", (180000.0, 180000.0, 180000.0))  # 3118 mG long
+    usual = _offset_record(tmp_path / "usual.csv", (1520.0, -2180.0, 850.0))
+    out = tmp_path / "cal"
+
+    err = _refused(capsys, ["calibrate", huge, "--method", "lsq", "--save", f"{out}.param"], "COMPASS_OFS would be 3118 mG")
+    assert "largest COMPASS_OFFS_MAX" in err and not (tmp_path / "cal.param").exists()
+    for save, fragment in (("cal.param", "beyond ArduPilot's default COMPASS_OFFS_MAX of 1800 mG"),
+                           ("cal.params", "CAL_MAG0_XOFF 1.5 G, CAL_MAG0_YOFF 1.5 G are beyond the 1.3 G")):
+        code, stdout, err = _run(capsys, ["calibrate", wide, "--method", "lsq", "--save", tmp_path / save, "--json"])
+        assert code == 0 and (tmp_path / save).is_file(), err
+        warned = [ln for ln in err.splitlines() if "warning:" in ln]
+        assert len(warned) == 1 and fragment in warned[0], err
+        assert any(fragment in w for w in json.loads(stdout)["warnings"])
+    code, _, err = _run(capsys, ["calibrate", huge, "--method", "lsq", "--save", tmp_path / "huge.json"])
+    assert code == 0 and "warning:" not in err, err  # magbench's JSON keeps what no flight controller takes
+    for save in ("usual.param", "usual.params"):  # controls: a sensor's usual offsets, no word
+        code, _, err = _run(capsys, ["calibrate", usual, "--method", "lsq", "--save", tmp_path / save])
+        assert code == 0 and "warning:" not in err and (tmp_path / save).is_file(), err
+
+
+def test_the_python_export_refuses_or_warns_too(tmp_path):
+    import numpy as np
+
+    from magbench.calibrators.artifacts import Calibration, export
+    from magbench.errors import InputError
+    from magbench.simulate.sensor import ErrorParams
+
+    def cal(offset):
+        p = ErrorParams(0.0, 0.0, 0.0, (1.0, 1.0, 1.0), offset)
+        return Calibration(model="nine", matrix=p.matrix, offset_nT=offset, params=p)
+
+    with pytest.raises(InputError, match="largest COMPASS_OFFS_MAX"):
+        export(cal((180000.0, 180000.0, 180000.0)), tmp_path / "a", "ardupilot")
+    with pytest.warns(UserWarning, match="default COMPASS_OFFS_MAX"):
+        export(cal((150000.0, 150000.0, 0.0)), tmp_path / "b", "ardupilot")
+    with pytest.warns(UserWarning, match="CAL_MAG0_ZOFF -1.4 G is beyond"):
+        export(cal((0.0, 0.0, -140000.0)), tmp_path / "c", "px4")
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        export(cal((1520.0, -2180.0, 850.0)), tmp_path / "d", "ardupilot")  # control
+        assert np.isfinite(float((tmp_path / "d.param").read_text().split("COMPASS_OFS_X,")[1].split()[0]))
