@@ -433,15 +433,26 @@ DASK_CONNECT_S = 20
 """How long a campaign waits for ``--dask ADDRESS``'s scheduler before it gives up (exit 2)."""
 
 
-def _run_dask(tasks: list[dict], address: str, finish) -> None:
-    from distributed import Client, as_completed
+def connect_dask(address: str):
+    """A ``distributed.Client`` of the scheduler at ``address``, or an ``InputError`` (one line) when it cannot be
+    reached within ``DASK_CONNECT_S``.  ``run_campaign`` connects before it writes anything: an unreachable
+    scheduler had left a checkpoint of no runs behind, which a rerun without --resume then refused."""
+    from distributed import Client
 
     try:
-        client = Client(address, timeout=f"{DASK_CONNECT_S}s")
+        return Client(address, timeout=f"{DASK_CONNECT_S}s")
     except (OSError, TimeoutError, ValueError) as exc:  # distributed says "Timed out trying to connect to ..."
         raise InputError(f"cannot reach the Dask scheduler at {address} within {DASK_CONNECT_S} s "
-                         f"({type(exc).__name__}: {str(exc).splitlines()[0][:160] if str(exc) else 'no reason given'})"
-                         ) from None
+                         f"({type(exc).__name__}: {str(exc).splitlines()[0][:160] if str(exc) else 'no reason given'}); "
+                         "nothing was run or written") from None
+
+
+def _run_dask(tasks: list[dict], address, finish) -> None:
+    """The tasks on the Dask scheduler at ``address``, or on ``address`` itself when it is a connected client
+    (``connect_dask``'s), which is closed at the end either way."""
+    from distributed import as_completed
+
+    client = connect_dask(address) if isinstance(address, str) else address
     try:
         chunks = _chunks(list(range(len(tasks))), 8)
         futures = client.map(run_chunk, [[tasks[i] for i in idx] for idx in chunks], pure=False)
@@ -458,7 +469,7 @@ def _run_dask(tasks: list[dict], address: str, finish) -> None:
             client.close(timeout=5)
 
 
-def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, progress: bool = True,
+def execute(tasks: list[dict], jobs: int = 1, dask_address=None, progress: bool = True,
             on_row=None, n_done: int = 0, pool=None) -> list[dict]:
     """Run the tasks serially, on ``jobs`` local processes, or on a Dask cluster; rows in task order.
 
@@ -466,7 +477,9 @@ def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, p
     None, replaces the row); ``n_done`` runs done earlier start the progress bar.  Every configuration is
     warmed (``warm_up``) before its first timed run in each process, the workers in parallel.  On Ctrl-C
     or SIGTERM the pending work is cancelled, local workers terminated, and ``KeyboardInterrupt``
-    re-raised.  ``pool``: local workers started already (``start_workers``), used when ``jobs`` > 1."""
+    re-raised.  ``pool``: local workers started already (``start_workers``), used when ``jobs`` > 1.
+    ``dask_address``: a Dask scheduler's address, or a client connected to one (``connect_dask``; closed at the
+    end)."""
     bar = progress_bar(n_done + len(tasks), "runs", "run", enabled=progress, initial=n_done, leave=True)
     results: list[dict | None] = [None] * len(tasks)
 
@@ -481,7 +494,7 @@ def execute(tasks: list[dict], jobs: int = 1, dask_address: str | None = None, p
         with _sigterm_as_interrupt():
             if not tasks:
                 pass
-            elif dask_address:
+            elif dask_address is not None:  # an address, or a client connected already (``connect_dask``)
                 _run_dask(tasks, dask_address, finish)
             elif jobs > 1:
                 _run_pool(tasks, jobs, finish, pool)
@@ -610,6 +623,8 @@ def stored_definition(out: Path) -> tuple[dict | None, str]:
         try:
             man = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
         except ValueError:
+            return None, "manifest.json"
+        if not isinstance(man, dict):  # a list or a number: no campaign (``"campaign" in 5`` had been a TypeError)
             return None, "manifest.json"
         if "campaign" in man:
             return man["campaign"], "manifest.json"
@@ -821,21 +836,30 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
                              "use --force to start over")
         elif out.is_dir() and any(out.iterdir()):
             raise InputError(f"cannot resume: {out} holds no campaign (no readable {CHECKPOINT} or manifest.json)")
-    out.mkdir(parents=True, exist_ok=True)
-    header = {"magbench_checkpoint": CHECKPOINT_VERSION, "campaign": campaign.definition(), "command": command}
-    if growing:  # the stored runs, signed again under the grown campaign's definition
-        checkpoint = Checkpoint(ckpt_path, header)
-        by_key = {task_key(t): t for t in tasks}
-        for key, row in (done or {}).items():
-            checkpoint.add(by_key[key], row)
-    else:
-        checkpoint = Checkpoint(ckpt_path, header, done)
+    pending = [t for t in tasks if task_key(t) not in (done or {})]
+    # the scheduler is reached before anything is written (an unreachable one had left a checkpoint of no runs behind)
+    client = connect_dask(dask_address) if dask_address and pending else None
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        header = {"magbench_checkpoint": CHECKPOINT_VERSION, "campaign": campaign.definition(), "command": command}
+        if growing:  # the stored runs, signed again under the grown campaign's definition
+            checkpoint = Checkpoint(ckpt_path, header)
+            by_key = {task_key(t): t for t in tasks}
+            for key, row in (done or {}).items():
+                checkpoint.add(by_key[key], row)
+        else:
+            checkpoint = Checkpoint(ckpt_path, header, done)
+    except BaseException:
+        if client is not None:
+            with suppress(Exception):
+                client.close(timeout=5)
+        raise
     todo = [t for t in tasks if task_key(t) not in checkpoint.done]
     n_resumed = len(tasks) - len(todo)
     t0 = time.perf_counter()
     interrupted = None
     try:
-        execute(todo, jobs=jobs, dask_address=dask_address, progress=progress, on_row=checkpoint.add,
+        execute(todo, jobs=jobs, dask_address=client, progress=progress, on_row=checkpoint.add,
                 n_done=n_resumed, pool=pool)
     except KeyboardInterrupt as exc:
         interrupted = exc
@@ -899,6 +923,8 @@ def _complete_tables(out: Path) -> pd.DataFrame | None:
     try:
         man = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
+        return None
+    if not isinstance(man, dict):  # damaged: not known to be complete (a list had been an AttributeError)
         return None
     if not (man.get("complete", True) and (out / "runs.csv").is_file()) or runs_table_problem(out / "runs.csv"):
         return None  # a damaged runs.csv is not a finished campaign's table: rebuilt from the checkpoint, or refused

@@ -45,7 +45,14 @@ from magbench.benchmarks.runner import run_one
 from magbench.benchmarks.tables import to_terminal, warm_latex
 from magbench.calibrators import available, make
 from magbench.calibrators.artifacts import EXTENSIONS as EXPORT_EXTENSIONS
-from magbench.calibrators.artifacts import apply_problems, apply_to_csv, export, export_path, load_calibration
+from magbench.calibrators.artifacts import (
+    apply_problems,
+    apply_to_csv,
+    export,
+    export_offset_problem,
+    export_path,
+    load_calibration,
+)
 from magbench.calibrators.registry import plugin_errors
 from magbench.errors import InputError, with_file_lines
 from magbench.paper import ARCSEC_PER_RAD
@@ -120,13 +127,19 @@ def _add_reference_options(p: argparse.ArgumentParser) -> None:
                    help="reference magnitude from the IGRF-14 model at this place and date")
 
 
+_BOTH_REFERENCES = "--field and --igrf both give the reference magnitude: give one of them"
+"""Both given is refused: --igrf had been ignored beside --field, unread (a malformed --igrf too)."""
+
+
 def _reference_from_args(args) -> float | None:
-    """--field, else --igrf (CONTRACT section 2 order, after the file's own f_ref column)."""
+    """--field, else --igrf (CONTRACT section 2 order, after the file's own f_ref column); both given is refused."""
+    if args.field is not None and args.igrf is not None:
+        raise InputError(_BOTH_REFERENCES)
     if args.field is not None:
         if not (math.isfinite(args.field) and args.field > 0):
             raise InputError(f"--field must be a positive number of nT, got {args.field}")
         return args.field
-    if args.igrf:
+    if args.igrf is not None:  # '' had been no --igrf, silently
         parts = args.igrf.split(",")
         if len(parts) != 4:
             raise InputError(f"--igrf wants LAT,LON,ALT_KM,YYYY-MM-DD, got {args.igrf!r}")
@@ -304,6 +317,8 @@ def cmd_simulate(args) -> int:
     scenario = get_scenario(args.scenario)
     check_output(args.out, force=args.force, what="--out file")  # the name as given: '' is no file (Path('') is '.')
     out = Path(args.out)
+    if args.truth is not None and not args.truth.strip():  # '' had written no truth, silently
+        raise InputError("the --truth file name is empty: give a file name, or leave --truth out")
     if args.truth and (Path(args.truth).resolve() == out.resolve()
                        or (out.exists() and Path(args.truth).exists() and os.path.samefile(out, args.truth))):
         raise InputError(f"--out and --truth name the same file ({out}, by inode): the truth would overwrite the data")
@@ -397,8 +412,13 @@ and slows several-fold on a busy one (2e6 rows on a loaded 2-core host: 8-15 s w
 def cmd_calibrate(args) -> int:
 
     params = _parse_params(args.param)
-    if args.algorithm:
+    if args.algorithm is not None:  # '' had been no algorithm at all, silently: the default one ran
+        if "algorithm" in params:  # --param algorithm=Y beside --algorithm X had silently run X
+            raise InputError(f"--algorithm {args.algorithm} and --param algorithm={params['algorithm']} both set the "
+                             "NLopt algorithm: give it once")
         params["algorithm"] = args.algorithm
+    if args.field is not None and args.igrf is not None:  # before 'auto' is turned into no --field below
+        raise InputError(_BOTH_REFERENCES)
     if args.blas_threads:
         from threadpoolctl import threadpool_limits
 
@@ -424,6 +444,9 @@ def cmd_calibrate(args) -> int:
         raise InputError(f"calibration rejected ({cli_words(result.rejections[0])}); not saved to {target}: a {fmt} "
                          "file cannot say it was rejected, and whatever reads it would take it for a good one; save it "
                          "as magbench JSON (--export json), which keeps the rejection")
+    beyond = export_offset_problem(result.calibration(), fmt) if target is not None else None
+    if beyond is not None and beyond[0] and (result.accepted or args.accept_any):  # before any line: exit 2 is one
+        raise InputError(f"{beyond[1]}; not saved to {target} (--export json or matlab keeps it)")
     obj = result.as_dict()
     obj["input_sha256"] = data.meta.get("file_sha256")  # the bytes the readings were parsed from
     ref = result.reference
@@ -438,8 +461,12 @@ def cmd_calibrate(args) -> int:
     lines = _calibration_lines(result, len(data))
     saved = None
     if target is not None and (result.accepted or args.accept_any):
-        saved = export(result.calibration(), target, fmt, force=args.force, inputs=[args.file])
+        saved = export(result.calibration(), target, fmt, force=args.force, inputs=[args.file], warn=False)
         lines.append(f"  saved {fmt} calibration to {saved}")
+        if beyond is not None:  # offsets the flight controller takes with a setting changed, or a warning of its own
+            sys.stderr.write(f"magbench: warning: {beyond[1]}\n")
+            obj["warnings"] = obj["warnings"] + [beyond[1]]
+            lines.append(f"  warning: {beyond[1]}")
     obj["saved"] = str(saved) if saved else None
     if result.accepted:
         _emit(args, obj, "\n".join(lines))
@@ -603,10 +630,17 @@ def cmd_compare(args) -> int:
                          "the figures, which --no-figures leaves out: give one or the other")
     campaign, out = _campaign_from_args(args)
     command = "magbench " + shlex.join(args._argv)
-    with campaign_lock(out, command):  # one campaign per folder; held until the report is written
-        if not (args.force or args.resume) and any(p.name != LOCK for p in out.iterdir()):
-            raise InputError(f"{out} was filled by another process meanwhile; refusing to overwrite it")
-        return _compare_locked(args, campaign, out, command)
+    created = not out.exists()
+    try:
+        with campaign_lock(out, command):  # one campaign per folder; held until the report is written
+            if not (args.force or args.resume) and any(p.name != LOCK for p in out.iterdir()):
+                raise InputError(f"{out} was filled by another process meanwhile; refusing to overwrite it")
+            return _compare_locked(args, campaign, out, command)
+    except BaseException:
+        if created:  # the folder the lock made, left empty (a Dask scheduler out of reach): not left behind
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only an empty one
+        raise
 
 
 def _campaign_complete(out: Path) -> bool:
@@ -755,7 +789,7 @@ def cmd_diagnose(args) -> int:
 
 def cmd_report(args) -> int:
     from magbench.benchmarks.figures import make_figures
-    from magbench.benchmarks.report import write_report
+    from magbench.benchmarks.report import MANIFEST_UNKNOWNS, read_manifest, write_report
 
     d = Path(args.dir)
     if not (d / "runs.csv").is_file():
@@ -764,6 +798,8 @@ def cmd_report(args) -> int:
     if problem:
         raise InputError(f"{problem}; running its campaign again with --resume rebuilds the tables from its "
                          f"{CHECKPOINT}, when it has one")
+    if read_manifest(d / "manifest.json") is None:  # a damaged one: refused (InputError) before the figures
+        sys.stderr.write(f"magbench: warning: {d / 'manifest.json'} is missing: {MANIFEST_UNKNOWNS}\n")
     images: dict = {}
     progress = not args.json and not args.quiet
     written = make_figures(d, formats=tuple(args.format or ()), dpi=args.dpi, images=images, progress=progress,

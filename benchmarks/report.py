@@ -37,6 +37,8 @@ from magbench.benchmarks.tables import (
     write_output,
     written_summary,
 )
+from magbench.errors import InputError
+from magbench.safeio import os_reason
 from magbench.simulate.scenarios import get_scenario
 
 TEMPLATES = Path(__file__).with_name("templates")
@@ -135,13 +137,37 @@ table.manifest th{white-space:normal;overflow-wrap:anywhere}
 # ---------------------------------------------------------------------------------------------- data
 
 
-def _read_manifest(path: Path) -> dict:
-    """The manifest as a dict; empty if missing or not a JSON object."""
+def read_manifest(path: Path) -> dict | None:
+    """The campaign's manifest.json as a dict, None when there is none.  One that is there but damaged (cut
+    short, not UTF-8, not JSON, or JSON that is not an object) is an ``InputError`` naming it: the report takes
+    the campaign's completeness, root seed, trials and skipped runs from it, and had read such a file as empty,
+    printing 'root seed ?' and no word of a campaign that was incomplete."""
+    path = Path(path)
+    if not path.exists() and not path.is_symlink():
+        return None
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return {}
-    return data if isinstance(data, dict) else {}
+        data = json.loads(path.read_bytes().decode("utf-8"))
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {os_reason(exc)}") from None
+    except UnicodeDecodeError:
+        why = "not UTF-8 text"
+    except json.JSONDecodeError as exc:
+        why = "empty" if not exc.doc.strip() else f"not JSON: {exc.msg}, line {exc.lineno}"
+    except (ValueError, RecursionError) as exc:
+        why = f"not JSON ({type(exc).__name__})"
+    else:
+        if isinstance(data, dict):
+            return data
+        why = f"JSON {type(data).__name__}, not an object"
+    checkpoint = path.parent / "runs.partial.jsonl"
+    mend = (f"its compare command run again with --resume rewrites it from {checkpoint.name}" if checkpoint.is_file()
+            else "restore it, or run the campaign again")
+    raise InputError(f"{path} is damaged ({why}): the report takes the campaign's completeness, root seed and "
+                     f"skipped runs from it; {mend}")
+
+
+MANIFEST_UNKNOWNS = "whether the campaign is complete, its root seed and its skipped runs are not known"
+"""What a campaign folder without a manifest leaves unsaid: the report's warning and ``magbench report``'s line."""
 
 
 def _flatten(obj: object, prefix: str = "") -> list[tuple[str, str]]:
@@ -402,12 +428,13 @@ def render_report(campaign_dir: str | Path, images: dict | None = None, progress
 
     campaign_dir = Path(campaign_dir)
     fig_dir = campaign_dir / "figures"
+    read = read_manifest(campaign_dir / "manifest.json")  # a damaged one refused before any figure is drawn
     if images is None:
         images = {}
         make_figures(campaign_dir, formats=(), images=images, progress=progress)
     runs = _read_runs(campaign_dir)
     summary = _summary(campaign_dir, runs)
-    manifest = _read_manifest(campaign_dir / "manifest.json")
+    manifest = read if read is not None else {}
     cols = _columns(summary)
     accept = "accept_rate" in summary
     styles = campaign_styles(campaign_dir, list(runs.get("configuration", [])))  # the figures' one style map
@@ -435,7 +462,7 @@ def render_report(campaign_dir: str | Path, images: dict | None = None, progress
     lede = (f"{len(runs)} runs: {len(names)} scenario{'s' if len(names) != 1 else ''} × {len(configs)} "
             f"calibrator configuration{'s' if len(configs) != 1 else ''} × {manifest.get('trials', trials)} trials"
             f"{f', {n_failed} failed' if n_failed else ''}; root seed {manifest.get('root_seed', '?')}.")
-    warnings = []
+    warnings = [] if read is not None else [f"No manifest.json: {MANIFEST_UNKNOWNS}."]
     if manifest.get("complete") is False:
         warnings.append(f"The campaign is incomplete: {manifest.get('n_missing', '?')} runs are missing "
                         "(compare ... --resume completes it).")

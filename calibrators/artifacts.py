@@ -83,7 +83,7 @@ from magbench import __version__
 from magbench.calibrators.acceptance import reference_problems
 from magbench.calibrators.core.problem import PHYSICAL_BOX
 from magbench.errors import InputError, with_file_lines
-from magbench.safeio import InputBytes, as_path, atomic_output, atomic_write, check_output, read_input
+from magbench.safeio import InputBytes, as_path, atomic_output, atomic_write, check_output, one_line, read_input
 from magbench.simulate.dataset import UNIT_FACTORS_NT, _header, _parse_head, newline_lines, read_csv
 from magbench.simulate.sensor import FREE, MODELS, NEUTRAL, NINE_NAMES, ErrorParams, readings_array
 
@@ -491,8 +491,29 @@ def _from_magcal(d: dict, where: str, field_nT=None) -> Calibration:
     except np.linalg.LinAlgError:
         raise InputError(f"{where}: A^T A is not positive definite") from None
     reference = {"median_nT": expmfs, "source": "magcal expmfs"} if expmfs is not None else {}
+    accepted, rejections = _magcal_verdict(d, where)
     return Calibration(model="nine", matrix=m, offset_nT=tuple(b), params=params, reference=reference,
-                       method="magcal", origin="matlab")
+                       method="magcal", origin="matlab", accepted=accepted, rejections=rejections)
+
+
+def _magcal_verdict(d: dict, where: str) -> tuple[bool, tuple]:
+    """(accepted, rejections) of a magcal-style file that says whether it was accepted (``"accepted": false`` and
+    its ``"rejections"``, as magbench's own JSON says it): ``apply`` then refuses it as it refuses magbench's own
+    rejected calibrations (it had been applied silently).  Without the entry it is accepted (MATLAB's magcal
+    says nothing of it); one that is not true or false is refused, as the schema's own ``accepted`` is."""
+    value = d.get("accepted", True)
+    if isinstance(value, np.ndarray) and value.size == 1 and value.dtype.kind in "biu" and value.item() in (0, 1):
+        value = bool(value.item())  # a .mat file's logical (or 0/1) scalar
+    if not isinstance(value, bool):
+        raise InputError(f"{where}: entry 'accepted' must be true or false, got {str(value)[:40]!r}")
+    reasons = d.get("rejections") or ()
+    if isinstance(reasons, str):
+        reasons = (reasons,)
+    elif isinstance(reasons, np.ndarray) and reasons.dtype.kind in "US":  # a .mat file's char array
+        reasons = tuple(str(r).strip() for r in reasons.ravel())
+    if not isinstance(reasons, (list, tuple)) or not all(isinstance(r, str) for r in reasons):
+        raise InputError(f"{where}: entry 'rejections' must be a list of strings")
+    return value, tuple(reasons)
 
 
 def load_calibration(path, source: InputBytes | None = None) -> Calibration:
@@ -533,12 +554,6 @@ MAX_CONDITION = 100.0
 0.5 rad) has at most about 8; beyond 100 the calibration collapses a direction."""
 DETERMINANT_RANGE = (1e-2, 1e2)
 """|det M| of a physical sensor lies in about 0.05..8 (scales 0.5..2): outside 0.01..100 it is not one."""
-
-
-def one_line(text) -> str:
-    """``text`` for a '#' comment line of a written file: its control characters (a line break in a calibration's
-    method name, or in its file's name, had written a metadata line of its own, '# units: uT') as escapes."""
-    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
 
 
 def apply_problems(cal: Calibration) -> list[str]:
@@ -592,6 +607,50 @@ def _unphysical(cal: Calibration) -> list[str]:
     return out
 
 
+ARDUPILOT_OFFS_MAX_DEFAULT_MG = 1800.0
+"""ArduPilot's default COMPASS_OFFS_MAX (``AP_COMPASS_OFFSETS_MAX_DEFAULT``, libraries/AP_Compass/AP_Compass.cpp):
+the pre-arm check (``AP_Arming::compass_checks``: ``offsets.length() > _compass.get_offsets_max()``, 'Compass
+offsets too high') refuses to arm with a COMPASS_OFS vector longer than it, and the onboard calibrator
+(``CompassCalibrator::fit_acceptable``) refuses a fit with an axis beyond it.  (COMPASS_OFS_X/Y/Z's own
+``@Range: -400 400`` is the ground station's advice, not enforced.)"""
+ARDUPILOT_OFFS_MAX_LIMIT_MG = 3000.0
+"""The largest COMPASS_OFFS_MAX can be set to (its ``@Range: 500 3000``, AP_Compass.cpp): offsets longer than this
+fail the pre-arm check whatever the setting."""
+PX4_MAG_MAX_OFFSET_G = 1.3
+"""PX4's ``MAG_MAX_OFFSET_LEN`` (src/modules/commander/mag_calibration.cpp): an offset beyond 1.3 G on an axis gets
+'Warning: mag with large offsets' from PX4's own calibration ('the maximum measurement range is ~1.9 Ga, the earth
+field is ~0.6 Ga, so an offset larger than ~1.3 Ga means the mag will saturate in some directions'); PX4 stores
+it all the same."""
+
+
+def export_offset_problem(cal: Calibration, fmt: str) -> tuple[bool, str] | None:
+    """(refused, why) when ``cal``'s offsets lie beyond what the flight controller of ``fmt`` takes, else None:
+    ArduPilot's COMPASS_OFS longer than the largest COMPASS_OFFS_MAX (refused: no setting lets the vehicle arm)
+    or than its default (a warning: COMPASS_OFFS_MAX must be raised); a PX4 CAL_MAG0_*OFF beyond
+    ``PX4_MAG_MAX_OFFSET_G`` (a warning, as PX4's own calibration gives).  They had been written without a word."""
+    if fmt == "ardupilot":
+        ofs = np.array([cal.ardupilot()[f"COMPASS_OFS_{a}"] for a in "XYZ"])
+        length = float(np.linalg.norm(ofs))
+        axes = ", ".join(f"{a} {v:.0f}" for a, v in zip("XYZ", ofs))
+        if length > ARDUPILOT_OFFS_MAX_LIMIT_MG:
+            return True, (f"COMPASS_OFS would be {length:.0f} mG long ({axes}), beyond the largest COMPASS_OFFS_MAX "
+                          f"ArduPilot takes ({ARDUPILOT_OFFS_MAX_LIMIT_MG:.0f} mG): its pre-arm check ('Compass offsets "
+                          "too high') refuses it whatever the setting")
+        if length > ARDUPILOT_OFFS_MAX_DEFAULT_MG:
+            return False, (f"COMPASS_OFS is {length:.0f} mG long ({axes}), beyond ArduPilot's default "
+                           f"COMPASS_OFFS_MAX of {ARDUPILOT_OFFS_MAX_DEFAULT_MG:.0f} mG: its pre-arm check ('Compass "
+                           f"offsets too high') refuses to arm until COMPASS_OFFS_MAX (at most "
+                           f"{ARDUPILOT_OFFS_MAX_LIMIT_MG:.0f}) is raised")
+    elif fmt == "px4":
+        off = np.array(cal.offset_nT) / NT_PER_GAUSS
+        wide = [f"CAL_MAG0_{a}OFF {v:.3g} G" for a, v in zip("XYZ", off) if abs(v) > PX4_MAG_MAX_OFFSET_G]
+        if wide:
+            verb = "is" if len(wide) == 1 else "are"
+            return False, (f"{', '.join(wide)} {verb} beyond the {PX4_MAG_MAX_OFFSET_G:g} G at which PX4's own "
+                           "calibration warns of large offsets (the sensor saturates in some directions)")
+    return None
+
+
 def export_path(path, fmt: str) -> Path:
     """PATH with the format's extension added when it has none (json .json, matlab .mat, ardupilot .param,
     px4 .params)."""
@@ -637,11 +696,21 @@ def export_text(cal: Calibration, fmt: str, path: Path) -> str | None:
     return "\n".join(lines) + "\n"
 
 
-def export(cal: Calibration, path, fmt: str = "json", force: bool = False, inputs=()) -> Path:
+def export(cal: Calibration, path, fmt: str = "json", force: bool = False, inputs=(), warn: bool = True) -> Path:
     """Write ``cal`` to PATH (extension added when it has none) in ``fmt``, atomically (a temporary file in
     the same folder, renamed); refuses to overwrite an existing file unless ``force``, and any of
-    ``inputs`` (paths or ``InputBytes``, compared by inode) even with it.  Returns the path written."""
+    ``inputs`` (paths or ``InputBytes``, compared by inode) even with it.  Offsets beyond what the flight
+    controller takes (``export_offset_problem``) are refused, or, when it takes them with a setting changed or a
+    warning of its own, warned of (``warnings.warn``; not with ``warn=False``, whose caller says it).  Returns the
+    path written."""
     path = check_output(export_path(path, fmt), inputs, force)
+    problem = export_offset_problem(cal, fmt)
+    if problem is not None and problem[0]:
+        raise InputError(f"{problem[1]}; not saved to {path} (--export json or matlab keeps it)")
+    if problem is not None and warn:
+        import warnings
+
+        warnings.warn(problem[1], UserWarning, stacklevel=2)
     text = export_text(cal, fmt, path)
     if text is not None:
         return atomic_write(path, text, inputs, force)

@@ -52,6 +52,13 @@ def _kind(mode: int) -> str:
     return "not a regular file"
 
 
+def one_line(text) -> str:
+    """``text`` for a '#' comment line of a written file: its control characters (a line break in a calibration's
+    method name, or in its file's name, had written a metadata line of its own, '# units: uT'; so had one in a
+    dataset's metadata value) as escapes.  Used by ``apply``'s ``# calibration:`` line and ``Dataset.to_csv``."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+
+
 def os_reason(exc: OSError) -> str:
     """The reason of an ``OSError`` in words ('Permission denied', 'No space left on device')."""
     return exc.strerror or (errno.errorcode.get(exc.errno, "") if exc.errno else "") or type(exc).__name__

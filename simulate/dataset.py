@@ -23,7 +23,7 @@ FIELD_COLUMNS = ("bx", "by", "bz", "f_ref", "f_meas", "f_meas_before", "f_meas_a
 
 
 from magbench.errors import InputError  # noqa: E402  (re-exported: magbench.simulate.InputError)
-from magbench.safeio import InputBytes, as_path, atomic_write, check_output, read_input  # noqa: E402
+from magbench.safeio import InputBytes, as_path, atomic_write, check_output, one_line, read_input  # noqa: E402
 
 
 def real_array(values, what: str, not_numbers: str | None = None) -> np.ndarray:
@@ -171,8 +171,8 @@ class Dataset:
         if self.heading_deg is not None:
             cols["heading_deg"] = self.heading_deg
         buf = io.StringIO()
-        for key, value in self.meta.items():
-            buf.write(f"# {key}: {value}\n")
+        for key, value in self.meta.items():  # a line break in a key or value had forged a line of its own
+            buf.write(f"# {one_line(key)}: {one_line(value)}\n")
         buf.write(",".join(cols) + "\n")
         # every column is float64 (``__post_init__``); a NaN as an empty field, as pandas writes it
         text = [[float_format % v if v == v else "" for v in np.asarray(a, dtype=float).tolist()] for a in cols.values()]
