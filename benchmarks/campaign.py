@@ -855,6 +855,10 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
                 client.close(timeout=5)
         raise
     todo = [t for t in tasks if task_key(t) not in checkpoint.done]
+    if client is not None and not todo:  # nothing left for it (``execute`` closes the client it is given otherwise)
+        with suppress(Exception):
+            client.close(timeout=5)
+        client = None
     n_resumed = len(tasks) - len(todo)
     t0 = time.perf_counter()
     interrupted = None

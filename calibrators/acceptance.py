@@ -802,10 +802,12 @@ def _nearest_directions(readings: np.ndarray, excluded, scale: np.ndarray | None
     were left to choose from, without which a row's nearest are not meaningful).  ``scale`` (one per reading): the
     nearest by the distance between the directions times it (``magnitude_scale``), not by direction alone."""
     u = readings / np.maximum(np.sqrt(np.einsum("ij,ij->i", readings, readings)), 1e-300)[:, None]
-    half = None
+    half, excluded_value = None, _EXCLUDED
     if scale is not None:  # -|a - b|^2 / 2 = a.b - |b|^2 / 2 - |a|^2 / 2: a row's own last term changes no choice
         u = u * np.asarray(scale, dtype=float)[:, None]
         half = 0.5 * np.einsum("ij,ij->i", u, u)
+        # below every a.b - |b|^2 / 2 (at least -1.5 max |b|^2), as _EXCLUDED is below every cosine
+        excluded_value = -1.0 - 3.0 * float(half.max(initial=0.0))
     m = u.shape[0]
     nearest = np.empty((m, KNN_NEIGHBOURS), dtype=np.int64)
     enough = np.empty(m, dtype=bool)
@@ -817,18 +819,19 @@ def _nearest_directions(readings: np.ndarray, excluded, scale: np.ndarray | None
         # the excluded get a similarity below any cosine: chosen only where too few are left (``enough`` says so)
         if excluded is None:
             b = sims.shape[0]
-            sims[np.arange(b), np.arange(start, start + b)] = _EXCLUDED
+            sims[np.arange(b), np.arange(start, start + b)] = excluded_value
             enough[block] = m - 1 >= KNN_NEIGHBOURS
         else:
             near = excluded(block, m)
-            sims[near] = _EXCLUDED
+            sims[near] = excluded_value
             enough[block] = m - np.count_nonzero(near, axis=1) >= KNN_NEIGHBOURS
         nearest[block] = _most_similar(sims, KNN_NEIGHBOURS)
     return nearest, enough
 
 
 _EXCLUDED = -2.0
-"""The similarity given to excluded pairs in ``_nearest_directions``: below every cosine, above ``-inf`` (taken)."""
+"""The similarity given to excluded pairs in ``_nearest_directions``: below every cosine, above ``-inf`` (taken); by
+field vector (``scale``), below every a.b - |b|^2 / 2 instead."""
 
 
 def _most_similar(sims: np.ndarray, k: int) -> np.ndarray:

@@ -502,15 +502,19 @@ def _magcal_verdict(d: dict, where: str) -> tuple[bool, tuple]:
     rejected calibrations (it had been applied silently).  Without the entry it is accepted (MATLAB's magcal
     says nothing of it); one that is not true or false is refused, as the schema's own ``accepted`` is."""
     value = d.get("accepted", True)
-    if isinstance(value, np.ndarray) and value.size == 1 and value.dtype.kind in "biu" and value.item() in (0, 1):
-        value = bool(value.item())  # a .mat file's logical (or 0/1) scalar
+    if (isinstance(value, np.ndarray) and value.size == 1 and value.dtype.kind in "biuf"
+            and value.item() in (0, 1)):
+        value = bool(value.item())  # a .mat file's logical, or a 0/1 scalar (MATLAB's doubles included)
     if not isinstance(value, bool):
         raise InputError(f"{where}: entry 'accepted' must be true or false, got {str(value)[:40]!r}")
-    reasons = d.get("rejections") or ()
-    if isinstance(reasons, str):
+    reasons = d.get("rejections")
+    if reasons is None or (isinstance(reasons, (np.ndarray, list, tuple)) and len(np.ravel(reasons)) == 0):
+        reasons = ()
+    elif isinstance(reasons, str):
         reasons = (reasons,)
-    elif isinstance(reasons, np.ndarray) and reasons.dtype.kind in "US":  # a .mat file's char array
-        reasons = tuple(str(r).strip() for r in reasons.ravel())
+    elif isinstance(reasons, np.ndarray) and reasons.dtype.kind in "USO":  # a .mat file's char or cell array
+        flat = [r.item() if isinstance(r, np.ndarray) and r.size == 1 else r for r in reasons.ravel()]
+        reasons = tuple(str(r).strip() if isinstance(r, (str, np.str_)) else r for r in flat)
     if not isinstance(reasons, (list, tuple)) or not all(isinstance(r, str) for r in reasons):
         raise InputError(f"{where}: entry 'rejections' must be a list of strings")
     return value, tuple(reasons)

@@ -281,9 +281,10 @@ def triangular_factor(a: np.ndarray, scratch: bool = False) -> np.ndarray:
     """``np.linalg.qr(a, mode="r")`` of a float64 matrix (m, n): the upper triangular (min(m, n), n) factor, from one
     call of LAPACK's ``dgeqrf`` (SciPy's wrapper, loaded with every fit), the Householder reflections that numpy's
     ``qr`` makes too (the same numbers here, ``tests/test_acceptance_lean.py``), without numpy's wrapper, which took
-    half of the call's time on the (300, 10-22) designs of every fit's checks (58 against 31 us on 300 x 10).  Empty
-    or non-finite input, or a failed call, goes to numpy's ``qr``.  ``scratch``: ``a`` may be overwritten (a design
-    built for this call in column order is then factored where it lies, not copied)."""
+    half of the call's time on the (300, 10-22) designs of every fit's checks (58 against 31 us on 300 x 10).  Input
+    that is not a non-empty float64 matrix, a failed call, or a NaN reaching the first pivot goes to numpy's ``qr``
+    (NaN or infinite entries elsewhere are factored as numpy's ``qr`` factors them: into NaN).  ``scratch``: ``a``
+    may be overwritten (a design built for this call in column order is then factored where it lies, not copied)."""
     if not (isinstance(a, np.ndarray) and a.ndim == 2 and a.dtype == np.float64 and a.size):
         return np.asarray(np.linalg.qr(a, mode="r"))
     from scipy.linalg.lapack import dgeqrf

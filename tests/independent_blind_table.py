@@ -502,7 +502,11 @@ def main() -> None:
     args = ap.parse_args()
     g = args.generator
     if args.rescore:
+        if args.out is None:
+            ap.error("--rescore scores the table at --out again: give --out")
         rows = rescored(rows_of(args.out), g)
+        if rows:  # the table's own cases, whatever --start and --cases say
+            args.start, args.cases = rows[0]["index"], rows[-1]["index"] - rows[0]["index"] + 1
     else:
         rows = run(range(args.start, args.start + args.cases), args.jobs, generator=g)
     out = render(rows, g, args.start, args.cases, args.split)

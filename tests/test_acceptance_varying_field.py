@@ -82,3 +82,47 @@ def test_a_steady_reference_keeps_the_neighbours_by_direction():
     # a constant scale leaves the nearest by direction unchanged (the same distances, shifted)
     same = acceptance.attitude_neighbours(raw, scale=np.ones(400))
     assert same is not None and np.array_equal(plain[1], same[1])
+
+
+def test_scaled_neighbours_never_take_an_excluded_pair_while_others_are_left():
+    """By field vector the similarities reach below -2 (|a|, |b| up to 2 here): an excluded pair (the row itself, a
+    sample near in time) must still rank below every real one.  The same search with the row's own index excluded
+    only, against a brute-force nearest by distance."""
+    rng = np.random.default_rng(7)
+    raw = rng.normal(size=(200, 3))
+    scale = np.concatenate([np.full(100, 0.5), np.full(100, 2.0)])  # a field that quadruples
+    nearest, enough = acceptance._nearest_directions(raw, None, scale)
+    points = raw / np.linalg.norm(raw, axis=1)[:, None] * scale[:, None]
+    dist = np.linalg.norm(points[:, None] - points[None], axis=2)
+    np.fill_diagonal(dist, np.inf)
+    brute = np.sort(np.argsort(dist, axis=1, kind="stable")[:, :acceptance.KNN_NEIGHBOURS], axis=1)
+    assert enough.all() and not (nearest == np.arange(200)[:, None]).any()
+    assert np.array_equal(nearest, brute)
+    # where only far rows are left (a revisit search that excludes most), the far ones are chosen, not excluded ones:
+    # row 0 points along +x at twice the field, the only rows it may take along -x at twice the field (a.b - |b|^2/2
+    # of -6), the rest excluded
+    pts = np.zeros((40, 3))
+    pts[:, 0] = 1.0
+    pts[30:, 0] = -1.0
+    big = np.full(40, 2.0)
+
+    def only_the_far(block: slice, m: int) -> np.ndarray:
+        near = np.ones((len(range(m)[block]), m), dtype=bool)
+        near[:, 30:] = False
+        return near
+
+    chosen, enough = acceptance._nearest_directions(pts, only_the_far, big)
+    assert enough[0] and set(chosen[0]) <= set(range(30, 40))
+
+
+def test_scaled_neighbours_among_some_rows_are_those_of_the_rows_alone():
+    """``attitude_neighbours(raw, among, scale)`` (a record that repeats some readings) takes each row's scale with it."""
+    rng = np.random.default_rng(8)
+    raw = rng.normal(size=(300, 3)) * 5e4
+    scale = np.linspace(0.6, 1.4, 300)
+    among = rng.permutation(300)[:200]
+    rows, nearest = acceptance.attitude_neighbours(raw, among, scale=scale)
+    kept = np.sort(among)
+    alone = acceptance.attitude_neighbours(raw[kept], scale=scale[kept])
+    assert alone is not None and np.array_equal(np.asarray(rows), kept[alone[0]])
+    assert np.array_equal(nearest, alone[1])

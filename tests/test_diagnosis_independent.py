@@ -8,7 +8,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from independent_blind_table import run, table  # noqa: E402
+from independent_blind_table import render, rows_of, run, table  # noqa: E402
 from independent_forward import OUTSIDE, make_case, paper_p, rotation  # noqa: E402
 from independent_scoring import parse, score  # noqa: E402
 
@@ -111,3 +111,21 @@ def test_where_places_a_switch_on_in_time():
         span = c.t_s[-1] - c.t_s[0]
         located += step is not None and abs(step["time_s"] - c.notes["switch_on_s"]) <= 0.02 * span
     assert len(cases) == 3 and located >= 2
+
+
+def test_a_table_read_back_renders_the_same(tmp_path):
+    """``--rescore`` reads a table's verdicts back (``rows_of``): an ``a|b`` in the verdict and in the wrong names,
+    escaped in the Markdown, and every other cell come back as written, so that rendering them again gives the same
+    table; ``named`` is counted from the verdict's single names (an ``a|b``'s is the case's to say: ``rescored``)."""
+    rows = [{"index": 0, "category": "single", "schedule": "walk", "present": "lag", "outside": "", "verdict": "lag",
+             "wrong": "", "named": 1, "n_present": 1, "score": 1.0},
+            {"index": 1, "category": "outside", "schedule": "car", "present": "", "outside": "relay",
+             "verdict": "offset_drift|temperature+unexplained", "wrong": "offset_drift|temperature", "named": 0,
+             "n_present": 0, "score": 0.0},
+            {"index": 2, "category": "pair", "schedule": "car", "present": "lag+outliers", "outside": "",
+             "verdict": "outliers+unexplained", "wrong": "", "named": 1, "n_present": 2, "score": 0.5}]
+    path = tmp_path / "t.md"
+    path.write_text(render(rows, 1, 0, 3, ""), encoding="utf-8")
+    back = rows_of(path)
+    assert back == rows
+    assert render(back, 1, 0, 3, "") == path.read_text(encoding="utf-8")

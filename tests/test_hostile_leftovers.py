@@ -161,6 +161,17 @@ def test_a_mat_magcal_file_says_it_was_rejected_too(tmp_path):
     savemat(tmp_path / "ok.mat", {"A": np.eye(3), "b": np.array([[152.0, -218.0, 85.0]])})
     assert "residual 40 times the noise" in apply_problems(load_calibration(tmp_path / "r.mat"))[0]
     assert apply_problems(load_calibration(tmp_path / "ok.mat")) == []
+    # two rejections (a char array), none (an empty array), a cell array, MATLAB's double 0 for false: each read,
+    # none an internal error
+    both = ["residual 40 times the noise", "offset beyond the box"]
+    for name, extra in (("two", {"rejections": both}), ("none", {"rejections": np.array([])}),
+                        ("cell", {"rejections": np.array(both, dtype=object)}), ("double", {"accepted": 0.0})):
+        savemat(tmp_path / f"{name}.mat", {"A": np.eye(3), "b": np.array([[152.0, -218.0, 85.0]]), "accepted": False,
+                                           **extra})
+        cal = load_calibration(tmp_path / f"{name}.mat")
+        assert cal.accepted is False and apply_problems(cal)
+    assert load_calibration(tmp_path / "two.mat").rejections == tuple(both)
+    assert load_calibration(tmp_path / "cell.mat").rejections == tuple(both)
 
 
 @pytest.mark.parametrize("value", ["x\n# units: uT", "x\r# field_nT: 60000", "x\u2028# temp_unit: F", "x\x1b[2J"])
