@@ -278,22 +278,31 @@ the design is taken as of full rank (the QR's residual); at or below it, ``np.li
 
 
 def triangular_factor(a: np.ndarray, scratch: bool = False) -> np.ndarray:
-    """``np.linalg.qr(a, mode="r")`` of a float64 matrix (m, n): the upper triangular (min(m, n), n) factor, from one
-    call of LAPACK's ``dgeqrf`` (SciPy's wrapper, loaded with every fit), the Householder reflections that numpy's
-    ``qr`` makes too (the same numbers here, ``tests/test_acceptance_lean.py``), without numpy's wrapper, which took
-    half of the call's time on the (300, 10-22) designs of every fit's checks (58 against 31 us on 300 x 10).  Input
-    that is not a non-empty float64 matrix, a failed call, or a NaN reaching the first pivot goes to numpy's ``qr``
-    (NaN or infinite entries elsewhere are factored as numpy's ``qr`` factors them: into NaN).  ``scratch``: ``a``
-    may be overwritten (a design built for this call in column order is then factored where it lies, not copied)."""
-    if not (isinstance(a, np.ndarray) and a.ndim == 2 and a.dtype == np.float64 and a.size):
+    """``np.linalg.qr(a, mode="r")`` of a float64 matrix (m, n): the upper triangular (min(m, n), n) factor, from the
+    gufunc numpy's ``qr`` calls (LAPACK's Householder QR, under the same floating-point settings: the same numbers,
+    ``tests/test_acceptance_lean.py``), without the wrapper's conversions and checks, a fifth to a quarter of the
+    call on the (300, 10-22) designs of every fit's checks.  (SciPy's ``dgeqrf`` is faster still, but importing
+    ``scipy.linalg`` costs a one-off ``calibrate`` 0.27 s.)  Input that is not a non-empty float64 matrix, or a numpy
+    without the gufunc, goes to numpy's ``qr``.  ``scratch``: ``a`` may be overwritten (a design built for this call
+    is then factored where it lies, not copied)."""
+    if (_qr_r_raw is None or not (isinstance(a, np.ndarray) and a.ndim == 2 and a.dtype == np.float64 and a.size)):
         return np.asarray(np.linalg.qr(a, mode="r"))
-    from scipy.linalg.lapack import dgeqrf
+    work = a if scratch and a.flags.writeable else a.copy()
+    with np.errstate(call=_qr_did_not_converge, invalid="call", over="ignore", divide="ignore", under="ignore"):
+        _qr_r_raw(work, signature="d->d")
+    return np.triu(work[:min(work.shape)])
 
-    scratch = scratch and a.flags.f_contiguous
-    factor, _, _, info = dgeqrf(a, overwrite_a=scratch)
-    if not scratch and (info != 0 or not np.isfinite(factor[0, 0])):  # (a scratch design is gone: its NaNs kept)
-        return np.asarray(np.linalg.qr(a, mode="r"))
-    return np.triu(factor[:min(a.shape)])
+
+def _qr_did_not_converge(err, flag):
+    raise np.linalg.LinAlgError("Incorrect argument found while performing QR factorization")
+
+
+try:  # numpy's private gufunc behind np.linalg.qr (``triangular_factor``)
+    from numpy.linalg import _umath_linalg
+
+    _qr_r_raw = getattr(_umath_linalg, "qr_r_raw", None)
+except ImportError:  # pragma: no cover - a numpy without it: np.linalg.qr itself
+    _qr_r_raw = None
 
 
 def residual_sum_of_squares(design: np.ndarray, y: np.ndarray, rcond: float) -> float:
