@@ -610,6 +610,16 @@ class Checkpoint:
             self._file.close()
 
 
+def stored_manifest(out: Path) -> dict | None:
+    """``out``'s manifest.json as a JSON object; None when it holds none (not UTF-8, not JSON, a list or a number:
+    damaged).  A file that cannot be read raises its ``OSError``; a missing one its ``FileNotFoundError``."""
+    try:
+        man = json.loads((Path(out) / "manifest.json").read_text(encoding="utf-8"))
+    except ValueError:
+        return None
+    return man if isinstance(man, dict) else None
+
+
 def stored_definition(out: Path) -> tuple[dict | None, str]:
     """The definition of the campaign held in ``out`` (checkpoint header, else manifest) and its source."""
     out = Path(out)
@@ -620,11 +630,8 @@ def stored_definition(out: Path) -> tuple[dict | None, str]:
         raise CheckpointCorrupt(f"cannot resume: the first line of {out / CHECKPOINT} is not a magbench checkpoint "
                                 "header (the file is corrupt or not ours); use --force to start over")
     if (out / "manifest.json").is_file():
-        try:
-            man = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
-        except ValueError:
-            return None, "manifest.json"
-        if not isinstance(man, dict):  # a list or a number: no campaign (``"campaign" in 5`` had been a TypeError)
+        man = stored_manifest(out)
+        if man is None:  # damaged: no campaign (a list's ``"campaign" in 5`` had been a TypeError)
             return None, "manifest.json"
         if "campaign" in man:
             return man["campaign"], "manifest.json"
@@ -836,9 +843,9 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
                              "use --force to start over")
         elif out.is_dir() and any(out.iterdir()):
             raise InputError(f"cannot resume: {out} holds no campaign (no readable {CHECKPOINT} or manifest.json)")
-    pending = [t for t in tasks if task_key(t) not in (done or {})]
+    todo = [t for t in tasks if task_key(t) not in (done or {})]  # the checkpoint below holds ``done``'s runs
     # the scheduler is reached before anything is written (an unreachable one had left a checkpoint of no runs behind)
-    client = connect_dask(dask_address) if dask_address and pending else None
+    client = connect_dask(dask_address) if dask_address and todo else None
     try:
         out.mkdir(parents=True, exist_ok=True)
         header = {"magbench_checkpoint": CHECKPOINT_VERSION, "campaign": campaign.definition(), "command": command}
@@ -854,11 +861,6 @@ def run_campaign(campaign: Campaign, out_dir, jobs: int = 1, dask_address: str |
             with suppress(Exception):
                 client.close(timeout=5)
         raise
-    todo = [t for t in tasks if task_key(t) not in checkpoint.done]
-    if client is not None and not todo:  # nothing left for it (``execute`` closes the client it is given otherwise)
-        with suppress(Exception):
-            client.close(timeout=5)
-        client = None
     n_resumed = len(tasks) - len(todo)
     t0 = time.perf_counter()
     interrupted = None
@@ -925,10 +927,10 @@ FLAG_COLUMNS = ("success", "accepted")
 def _complete_tables(out: Path) -> pd.DataFrame | None:
     """runs.csv of a finished campaign (manifest says complete), marked ``already_complete``; else None."""
     try:
-        man = json.loads((out / "manifest.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        man = stored_manifest(out)
+    except OSError:
         return None
-    if not isinstance(man, dict):  # damaged: not known to be complete (a list had been an AttributeError)
+    if man is None:  # damaged: not known to be complete (a list had been an AttributeError)
         return None
     if not (man.get("complete", True) and (out / "runs.csv").is_file()) or runs_table_problem(out / "runs.csv"):
         return None  # a damaged runs.csv is not a finished campaign's table: rebuilt from the checkpoint, or refused

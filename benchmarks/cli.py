@@ -37,6 +37,7 @@ from magbench.benchmarks.campaign import (
     runs_table_problem,
     start_workers,
     stop_workers,
+    stored_manifest,
 )
 from magbench.benchmarks.gradiometer_cli import add_gradiometer_command
 from magbench.benchmarks.metrics import evaluations_label
@@ -646,9 +647,10 @@ def cmd_compare(args) -> int:
 def _campaign_complete(out: Path) -> bool:
     """Whether ``out`` holds a campaign its manifest calls complete (a damaged manifest: not known, so no)."""
     try:
-        return json.loads((out / "manifest.json").read_text(encoding="utf-8")).get("complete") is True
-    except (OSError, ValueError, AttributeError):
+        man = stored_manifest(out)
+    except OSError:
         return False
+    return man is not None and man.get("complete") is True
 
 
 def _compare_locked(args, campaign, out: Path, command: str) -> int:
