@@ -649,6 +649,7 @@ class Diagnosis:
                       + attitude_confounds(evidence, slow))
         confounded += self._body_or_scalar(named, confounded)
         confounded += self._lag_on_laps(named, confounded)
+        confounded += self._nonlinearity_on_laps(named, confounded)
         if only_smooth_temperature(temp_r2, beyond):  # the temperature's own signature fails
             paired = {pair["alternatives"][0] for pair in confounded}
             for row in evidence:
@@ -813,6 +814,30 @@ class Diagnosis:
                  "separate_by": "pass the same attitudes at different rates (change the speed between laps, or the "
                                 "turntable's rate), or tilt the sensor through more directions so that the nonlinearity "
                                 "can be tested"}]
+
+    def _nonlinearity_on_laps(self, named: list[str], confounded: list[dict]) -> list[dict]:
+        """``_lag_on_laps`` the other way round: a nonlinearity named on nearly planar attitudes (``_planar_screen``),
+        no lag named, where every attitude is revisited at the same rate of change: a time shift's columns are then a
+        function of the attitude, so what the nonlinearity removes a lag could remove as well; said
+        ``nonlinearity|lag``.  Round 30: on the third generator's car circuits, lags that had been ``lag|nonlinearity``
+        came back ``nonlinearity`` once it was tested there."""
+        lag, nonlinearity = LagEffect.name, NonlinearityEffect.name
+        d = self.columns
+        if (self.spread >= MIN_SPREAD_FOR_ATTITUDE_SHAPED or nonlinearity not in named or lag in named
+                or lag in self.untested or d.t_s is None
+                or any(nonlinearity in c["alternatives"] or lag in c["alternatives"] for c in confounded)):
+            return []
+        share = revisit_rate_share(d.raw_nT, d.t_s, d.extra.get("draw_dt"))
+        if share is None or share >= LAP_RATE_SHARE:
+            return []
+        return [{"alternatives": [nonlinearity, lag], "named": True,
+                 "evidence": {"revisit_rate_share": share,
+                              "statement": f"every attitude is revisited at the same rate of change (the revisits' rates "
+                                           f"differ by {100 * share:.2g} % of the rate, below {100 * LAP_RATE_SHARE:g} %) on "
+                                           "nearly planar attitudes: a time shift's structure follows the attitude, as a "
+                                           "nonlinearity's does"},
+                 "separate_by": "pass the same attitudes at different rates (change the speed between laps, or the "
+                                "turntable's rate), or tilt the sensor through more directions"}]
 
     def _level_drift(self, name: str, other: str) -> dict:
         """On attitudes that cannot determine the base model alone (``degenerate``: a level vehicle turning about its
