@@ -802,18 +802,23 @@ class Diagnosis:
         if (lag not in named or nonlinearity in named or nonlinearity not in self.untested
                 or d.t_s is None or any(c["alternatives"][0] == lag for c in confounded)):
             return []
+        return self._on_laps([lag, nonlinearity], "and the nonlinearity could not be tested: a time shift's structure "
+                             "follows the attitude, as a nonlinearity's would", " so that the nonlinearity can be tested")
+
+    def _on_laps(self, alternatives: list[str], why: str, tilt: str) -> list[dict]:
+        """The lag and the nonlinearity said as alternatives (``_lag_on_laps``, ``_nonlinearity_on_laps``) where every
+        attitude is revisited at the same rate of change (``revisit_rate_share`` below LAP_RATE_SHARE); else none."""
+        d = self.columns
         share = revisit_rate_share(d.raw_nT, d.t_s, d.extra.get("draw_dt"))
         if share is None or share >= LAP_RATE_SHARE:
             return []
-        return [{"alternatives": [lag, nonlinearity], "named": True,
+        return [{"alternatives": alternatives, "named": True,
                  "evidence": {"revisit_rate_share": share,
                               "statement": f"every attitude is revisited at the same rate of change (the revisits' rates "
                                            f"differ by {100 * share:.2g} % of the rate, below {100 * LAP_RATE_SHARE:g} %) "
-                                           "and the nonlinearity could not be tested: a time shift's structure follows "
-                                           "the attitude, as a nonlinearity's would"},
+                                           + why},
                  "separate_by": "pass the same attitudes at different rates (change the speed between laps, or the "
-                                "turntable's rate), or tilt the sensor through more directions so that the nonlinearity "
-                                "can be tested"}]
+                                "turntable's rate), or tilt the sensor through more directions" + tilt}]
 
     def _nonlinearity_on_laps(self, named: list[str], confounded: list[dict]) -> list[dict]:
         """``_lag_on_laps`` the other way round: a nonlinearity named on nearly planar attitudes (``_planar_screen``),
@@ -827,17 +832,8 @@ class Diagnosis:
                 or lag in self.untested or d.t_s is None
                 or any(nonlinearity in c["alternatives"] or lag in c["alternatives"] for c in confounded)):
             return []
-        share = revisit_rate_share(d.raw_nT, d.t_s, d.extra.get("draw_dt"))
-        if share is None or share >= LAP_RATE_SHARE:
-            return []
-        return [{"alternatives": [nonlinearity, lag], "named": True,
-                 "evidence": {"revisit_rate_share": share,
-                              "statement": f"every attitude is revisited at the same rate of change (the revisits' rates "
-                                           f"differ by {100 * share:.2g} % of the rate, below {100 * LAP_RATE_SHARE:g} %) on "
-                                           "nearly planar attitudes: a time shift's structure follows the attitude, as a "
-                                           "nonlinearity's does"},
-                 "separate_by": "pass the same attitudes at different rates (change the speed between laps, or the "
-                                "turntable's rate), or tilt the sensor through more directions"}]
+        return self._on_laps([nonlinearity, lag], "on nearly planar attitudes: a time shift's structure follows the "
+                             "attitude, as a nonlinearity's does", "")
 
     def _level_drift(self, name: str, other: str) -> dict:
         """On attitudes that cannot determine the base model alone (``degenerate``: a level vehicle turning about its
