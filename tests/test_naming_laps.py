@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -23,17 +24,31 @@ def _diagnose(case):
                     gravity=case.gravity)
 
 
-def test_a_nonlinearity_on_laps_of_a_car_circuit_is_not_named_a_lag_alone(monkeypatch):
-    """The third generator's case 76: a nonlinearity on a level car lapping a circuit (the nonlinearity cannot be
-    tested there).  The verdict says `lag|nonlinearity`, with the revisits' rate share as evidence.  Negative
-    control: without the rule the same record is named `lag` (a wrong name)."""
+def test_a_nonlinearity_on_laps_of_a_car_circuit_is_not_named_alone():
+    """The third generator's case 76: a nonlinearity on a level car lapping a circuit.  Before round 30 the
+    nonlinearity could not be tested there and a lag took its place (``lag|nonlinearity``); now it is tested on the
+    nearly planar path, and said ``nonlinearity|lag`` (every attitude revisited at one rate), with the revisits' rate
+    share as evidence.  Negative control: without the rule the same record is named ``nonlinearity`` alone."""
     case = independent_forward3.make_case(76, 2026)
     out = _diagnose(case)
-    assert out["verdict"].split("+")[0] == "lag|nonlinearity"
-    entry = next(c for c in out["confounded"] if c["alternatives"] == ["lag", "nonlinearity"])
+    assert out["verdict"].split("+")[0] == "nonlinearity|lag"
+    entry = next(c for c in out["confounded"] if c["alternatives"] == ["nonlinearity", "lag"])
     assert entry["evidence"]["revisit_rate_share"] < 0.05 and "speed" in entry["separate_by"]
-    monkeypatch.setattr(vector_module, "LAP_RATE_SHARE", 0.0)
-    assert _diagnose(case)["verdict"].split("+")[0] == "lag"
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(vector_module, "LAP_RATE_SHARE", 0.0)
+        assert _diagnose(case)["verdict"].split("+")[0] == "nonlinearity"
+
+
+def test_a_lag_on_laps_where_the_nonlinearity_is_untested_is_said_with_it():
+    """The third generator's case 4105: a lag on a car circuit whose path the nonlinearity's screen refuses; the lag is
+    said ``lag|nonlinearity`` (``_lag_on_laps``).  Negative control: without the rule, ``lag`` alone."""
+    case = independent_forward3.make_case(4105, 2026)
+    out = _diagnose(case)
+    assert "nonlinearity" in out["not_tested"]
+    assert out["verdict"].split("+")[0] == "lag|nonlinearity"
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(vector_module, "LAP_RATE_SHARE", 0.0)
+        assert _diagnose(case)["verdict"].split("+")[0] == "lag"
 
 
 def test_a_lag_on_a_figure_eight_flown_by_hand_is_still_named():

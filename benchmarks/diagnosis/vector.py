@@ -441,6 +441,7 @@ class Diagnosis:
                 "it say")
         if rem["remainder_significant"]:  # made significant by a rule above after all: the note does not apply
             rem.pop("remainder_beside_named", None)
+            order, selected = self._planar_unexplained(order, selected, entries, naming, confounded)
         mdn = min_detectable_nT(floor, n)
         powered = mdn <= POWER_MAX_OF_FLOOR * floor
         alternatives = {c["alternatives"][0]: "|".join(c["alternatives"]) for c in confounded if c.get("named", True)}
@@ -1141,6 +1142,29 @@ class Diagnosis:
                               f"a remainder of z {rem['remainder_z']:.3g} is left (at most "
                               f"{REMAINDER_Z_BESIDE_NAMED:g}): it takes part of a structure it does not describe")
         return [nm for nm in named if nm not in shaped]
+
+    def _planar_unexplained(self, order: list[str], selected: list[str], entries: list[dict], naming: dict,
+                            confounded: list[dict]) -> tuple[list[str], list[str]]:
+        """``_planar_whole`` once the remainder is final: on nearly planar attitudes an attitude-shaped effect is not
+        named beside a remainder the verdict calls unexplained, whichever rule made it so (a floor no magnetometer
+        has, a residual that follows the neighbours: a dead axis at random attitudes had been
+        ``nonlinearity+unexplained``)."""
+        shaped = [nm for nm in order if nm in ATTITUDE_SHAPED]
+        if self.spread >= MIN_SPREAD_FOR_ATTITUDE_SHAPED or not shaped:
+            return order, selected
+        for e in entries:
+            if e["name"] in shaped:
+                e["selected"] = False
+        for row in naming["evidence"]:
+            if row["name"] in shaped:
+                row["named"] = False
+                row["why"] = (f"the directions span {100 * self.spread:.0f} % out of their main plane, where its columns "
+                              "are functions of the heading as any structure that follows the heading is, and the "
+                              "remainder beside it is unexplained: it takes part of a structure it does not describe")
+        for c in confounded:
+            if c["alternatives"][0] in shaped:
+                c["named"] = False
+        return [nm for nm in order if nm not in shaped], [nm for nm in selected if nm not in shaped]
 
     def _planar_screen(self, effects_ok: list, untested: dict, x9: np.ndarray, r_all: np.ndarray, unit: np.ndarray,
                        prior_scale: float | None) -> list:
