@@ -198,14 +198,14 @@ def planar_reason(spread: float) -> str:
             f"{100 * MIN_SPREAD_FOR_ATTITUDE_SHAPED:.0f} % needed to tell it from the base model)")
 
 
-def testable(base: str, d: Columns, unit: np.ndarray, n_base: int, k: int,
-             min_spread: float = MIN_SPREAD_FOR_ATTITUDE_SHAPED) -> tuple[list, dict, dict]:
-    """(effects the data can test, {name: why not tested}, {name: why not applicable}); ``min_spread``: the spread an
-    attitude-shaped effect needs (below MIN_SPREAD_FOR_ATTITUDE_SHAPED the caller decides, ``planar_reason``)."""
+def testable(base: str, d: Columns, unit: np.ndarray, n_base: int, k: int) -> tuple[list, dict, dict]:
+    """(effects the data can test, {name: why not tested}, {name: why not applicable}).  An attitude-shaped effect on
+    directions spanning less than MIN_SPREAD_FOR_ATTITUDE_SHAPED out of their main plane is left to the caller's
+    screen (``Diagnosis._planar_screen``, ``planar_reason``)."""
     n = len(d)
     n_train = n * (k - 1) // k
     cover = coverage_pct(unit)
-    spread, distinct = spread_ratio(unit), distinct_directions(unit)
+    distinct = distinct_directions(unit)
     ok, untested, not_applicable = [], {}, {}
     for cls in library_effects():
         if base in cls.included_in:
@@ -220,9 +220,6 @@ def testable(base: str, d: Columns, unit: np.ndarray, n_base: int, k: int,
             continue
         if cls.name in ATTITUDE_SHAPED and cover < MIN_COVERAGE_PCT:
             untested[cls.name] = f"attitude coverage {cover:.0f} % of the sphere (at least {MIN_COVERAGE_PCT:.0f} % needed)"
-            continue
-        if cls.name in ATTITUDE_SHAPED and spread < min_spread:
-            untested[cls.name] = planar_reason(spread)
             continue
         need_dirs = DISTINCT_PER_PARAMETER * (n_base + len(cls.fit_params))
         if cls.name in ATTITUDE_SHAPED and distinct < need_dirs:

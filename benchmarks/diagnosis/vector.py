@@ -364,7 +364,7 @@ class Diagnosis:
         self.unit = unit
         self.progress.step("base calibration")
         n_base = len(BASE_FREE[self.base])
-        effects_ok, untested, not_applicable = testable(self.base, d, unit, n_base, k, min_spread=0.0)
+        effects_ok, untested, not_applicable = testable(self.base, d, unit, n_base, k)
         effects_ok = self._planar_screen(effects_ok, untested, x9, r_all, unit, prior_scale if implausible else None)
         self.untested = untested
         field = float(np.median(d.f_ref_nT))
@@ -1134,14 +1134,18 @@ class Diagnosis:
         rem = remainder_of(named)
         if rem["remainder_z"] <= REMAINDER_Z_BESIDE_NAMED:
             return named
+        self._unname_planar(evidence, shaped, f"beside it a remainder of z {rem['remainder_z']:.3g} is left (at most "
+                            f"{REMAINDER_Z_BESIDE_NAMED:g})", planar_remainder_z=rem["remainder_z"])
+        return [nm for nm in named if nm not in shaped]
+
+    def _unname_planar(self, evidence: list[dict], shaped: list[str], left: str, **extra) -> None:
+        """The evidence rows of ``shaped`` marked not named on a nearly planar path, ``left`` saying what is left."""
         for row in evidence:
             if row["name"] in shaped:
-                row["named"], row["planar_remainder_z"] = False, rem["remainder_z"]
+                row.update(extra, named=False)
                 row["why"] = (f"the directions span {100 * self.spread:.0f} % out of their main plane, where its columns "
-                              "are functions of the heading as any structure that follows the heading is, and beside it "
-                              f"a remainder of z {rem['remainder_z']:.3g} is left (at most "
-                              f"{REMAINDER_Z_BESIDE_NAMED:g}): it takes part of a structure it does not describe")
-        return [nm for nm in named if nm not in shaped]
+                              f"are functions of the heading as any structure that follows the heading is, and {left}: "
+                              "it takes part of a structure it does not describe")
 
     def _planar_unexplained(self, order: list[str], selected: list[str], entries: list[dict], naming: dict,
                             confounded: list[dict]) -> tuple[list[str], list[str]]:
@@ -1155,12 +1159,7 @@ class Diagnosis:
         for e in entries:
             if e["name"] in shaped:
                 e["selected"] = False
-        for row in naming["evidence"]:
-            if row["name"] in shaped:
-                row["named"] = False
-                row["why"] = (f"the directions span {100 * self.spread:.0f} % out of their main plane, where its columns "
-                              "are functions of the heading as any structure that follows the heading is, and the "
-                              "remainder beside it is unexplained: it takes part of a structure it does not describe")
+        self._unname_planar(naming["evidence"], shaped, "the remainder beside it is unexplained")
         for c in confounded:
             if c["alternatives"][0] in shaped:
                 c["named"] = False
