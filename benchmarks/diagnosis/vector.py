@@ -1156,9 +1156,9 @@ class Diagnosis:
         shaped = [nm for nm in order if nm in ATTITUDE_SHAPED]
         if self.spread >= MIN_SPREAD_FOR_ATTITUDE_SHAPED or not shaped:
             return order, selected
-        for e in entries:
-            if e["name"] in shaped:
-                e["selected"] = False
+        for e in entries:  # an entry's "significant" is its "selected" (``_entry``): both go, or reproduce's summary
+            if e["name"] in shaped:  # (the first significant entry) would still report the effect unnamed here
+                e["selected"] = e["significant"] = False
         self._unname_planar(naming["evidence"], shaped, "the remainder beside it is unexplained")
         for c in confounded:
             if c["alternatives"][0] in shaped:
