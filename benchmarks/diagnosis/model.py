@@ -181,8 +181,11 @@ class ExtendedModel:
         u0 = d.raw_nT - self.o0
         return [cls.fit_columns(u0, d, self.norm) for cls, _ in self.col_effects]
 
-    def residual_jacobian(self, x: np.ndarray, sl, cols=None) -> tuple[np.ndarray, np.ndarray]:
-        """r (m,) and J (m, p) of the rows ``sl`` at x."""
+    def residual_jacobian(self, x: np.ndarray, sl, cols=None, free=None) -> tuple[np.ndarray, np.ndarray]:
+        """r (m,) and J (m, p) of the rows ``sl`` at x; with ``free`` (sorted parameter indices), J's columns
+        ``free`` alone, (m, len(free)): the same numbers as ``J[:, free]`` (each column is computed on its own; an
+        effect none of whose parameters is free is skipped), for the fits that use no other (``_normal_equations``)
+        and for residuals alone (``free=[]``)."""
         d = self.d.take(sl)
         cols = self.columns(sl) if cols is None else cols
         x9 = x[:9]
@@ -194,28 +197,46 @@ class ExtendedModel:
         b = v @ m_mat.T
         nb = np.linalg.norm(b, axis=1)
         r = nb - d.f_ref_nT
+        if free is not None and not len(free):
+            for (cls, i0), (_g, h) in zip(self.col_effects, cols):
+                if h is not None:
+                    r = r - h @ x[i0:i0 + len(cls.fit_params)]
+            return r, np.empty((len(r), 0))
+        wanted = range(self.p) if free is None else free
+        at = {j: c for c, j in enumerate(wanted)}  # parameter index -> column of the returned J
         bh = b / nb[:, None]
         w = bh @ m_mat  # b^T M, (m, 3)
-        jac = np.empty((len(r), self.p))
+        # column-major when subset, as ``J[:, free]`` is: the products a caller forms with it (J^T J, J^T r) then take
+        # the same BLAS path and give the same bits
+        jac = np.empty((len(r), len(at)), order="C" if free is None else "F")
         p_mat = paper_matrix(*x9[:3])
         for k, dp in enumerate(_dp(x9)):
-            jac[:, k] = np.einsum("ni,ni->n", bh, v @ (dp * (1.0 / x9[3:6])[None, :]).T)
+            if k in at:
+                jac[:, at[k]] = np.einsum("ni,ni->n", bh, v @ (dp * (1.0 / x9[3:6])[None, :]).T)
         for a in range(3):  # d M / d k_a = -P[:, a] / k_a^2 in column a
-            jac[:, 3 + a] = -(bh @ p_mat[:, a]) * v[:, a] / x9[3 + a] ** 2
-        jac[:, 6:9] = -w
+            if 3 + a in at:
+                jac[:, at[3 + a]] = -(bh @ p_mat[:, a]) * v[:, a] / x9[3 + a] ** 2
+        for a in range(3):
+            if 6 + a in at:
+                jac[:, at[6 + a]] = -w[:, a]
         for (cls, i0), (g, h) in zip(self.col_effects, cols):
             k = len(cls.fit_params)
+            if h is not None:
+                r = r - h @ x[i0:i0 + k]
+            mine = [(j - i0, at[j]) for j in range(i0, i0 + k) if j in at]
+            if not mine:
+                continue
             col = np.zeros((len(r), k))
             if g is not None:
                 col -= np.einsum("na,nak->nk", w, g)
             if h is not None:
-                r = r - h @ x[i0:i0 + k]
                 col -= h
-            jac[:, i0:i0 + k] = col
+            for j, c in mine:
+                jac[:, c] = col[:, j]
         return r, jac
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
-        return np.concatenate([self.residual_jacobian(x, sl)[0] for sl in self.blocks()])
+        return np.concatenate([self.residual_jacobian(x, sl, free=[])[0] for sl in self.blocks()])
 
     # -- the full fit ---------------------------------------------------------------------------
     def free_indices(self, names) -> list[int]:
@@ -243,10 +264,9 @@ class ExtendedModel:
         bvec = np.zeros(len(free))
         sse = 0.0
         for sl, cols in blocks:
-            r, jac = self.residual_jacobian(x, sl, cols)
+            r, jf = self.residual_jacobian(x, sl, cols, free)
             if keep is not None:
-                r, jac = r[keep[sl]], jac[keep[sl]]
-            jf = jac[:, free]
+                r, jf = r[keep[sl]], np.asfortranarray(jf[keep[sl]])
             a += jf.T @ jf
             bvec += jf.T @ r
             sse += float(r @ r)
@@ -300,7 +320,7 @@ class ExtendedModel:
         x = x_start.copy()  # trimmed from the start: an untrimmed first fit with many free parameters bends
         spikes = None  # towards spikes of thousands of nT and leaves a scatter that hides them
         for _ in range(TRIM_ROUNDS):
-            r = np.concatenate([self.residual_jacobian(x, sl, cols)[0] for sl, cols in blocks])
+            r = np.concatenate([self.residual_jacobian(x, sl, cols, [])[0] for sl, cols in blocks])
             new = np.zeros(n, bool)
             new[sub] = OutlierEffect.spike_mask(r)
             if spikes is not None and (np.array_equal(new, spikes) or (~new[sub]).sum() < 2 * len(free)):

@@ -912,7 +912,7 @@ class Diagnosis:
         for model in (self.model, model2):
             blocks = model._fit_blocks(rows)
             x = model.fit(self.tangent.x, free, blocks=blocks)
-            out.append(np.concatenate([model.residual_jacobian(x, sl, cols)[0] for sl, cols in blocks]))
+            out.append(np.concatenate([model.residual_jacobian(x, sl, cols, [])[0] for sl, cols in blocks]))
         return float(paired_z(out[1], out[0]))
 
     def _within_holds(self, evidence: list[dict], named: list[str], heldout) -> list[str]:
