@@ -192,8 +192,9 @@ class ExtendedModel:
         m_mat, o = base_correction(x9)
         v = d.raw_nT - o
         for (cls, i0), (g, _h) in zip(self.col_effects, cols):
-            if g is not None:
-                v = v - g @ x[i0:i0 + len(cls.fit_params)]
+            part = x[i0:i0 + len(cls.fit_params)]
+            if g is not None and part.any():  # an effect at zero moves nothing (v - 0 is v, to the bit)
+                v = v - g @ part
         b = v @ m_mat.T
         nb = np.linalg.norm(b, axis=1)
         r = nb - d.f_ref_nT
