@@ -267,7 +267,7 @@ class ExtendedModel:
         for sl, cols in blocks:
             r, jf = self.residual_jacobian(x, sl, cols, free)
             if keep is not None:
-                r, jf = r[keep[sl]], np.asfortranarray(jf[keep[sl]])
+                r, jf = r[keep[sl]], np.compress(keep[sl], jf.T, axis=1).T  # column-major still, in one copy
             a += jf.T @ jf
             bvec += jf.T @ r
             sse += float(r @ r)
