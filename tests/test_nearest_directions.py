@@ -161,3 +161,36 @@ def test_a_record_without_times_is_judged_without_scipys_spatial_import(n, reps,
     out = subprocess.run([sys.executable, "-c", ONE_OFF.format(n=n, reps=reps)], capture_output=True, text=True,
                          check=True)
     assert out.stdout.split() == ["False", str(imported)]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_revisit_mask_is_every_pair_closer_in_time_than_the_separation_or_in_one_hold(seed, monkeypatch):
+    """The mask ``revisit_neighbours`` hands ``_nearest_directions`` (a band of columns found by searchsorted on the
+    increasing positions) is the definition computed pair by pair: |position_i - position_j| < separation, or both
+    rows in one hold; records longer than KNN_ROWS (a systematic sample) and shorter, in several blocks."""
+    from magbench.calibrators import acceptance
+    from magbench.numerics import systematic_rows
+
+    rng = np.random.default_rng(seed)
+    n, separation = int(rng.integers(300, 7000)), int(rng.integers(1, 80))
+    raw = rng.normal(size=(n, 3)) * 5e4
+    order = rng.permutation(n)
+    holds = rng.integers(0, 5, n) if seed % 2 else None
+    handed = []
+    real = acceptance._nearest_directions
+
+    def spy(readings, excluded, scale=None):
+        handed.append(excluded)
+        return real(readings, excluded, scale)
+
+    monkeypatch.setattr(acceptance, "_nearest_directions", spy)
+    acceptance.revisit_neighbours(raw, order, separation, holds)
+    (excluded,) = handed
+    position = np.arange(n)[systematic_rows(n, acceptance.KNN_ROWS)]
+    hold = None if holds is None else holds[order[position]]
+    for start in range(0, len(position), acceptance.KNN_BLOCK):
+        block = slice(start, start + acceptance.KNN_BLOCK)
+        expected = np.abs(position[block, None] - position[None, :]) < separation
+        if hold is not None:
+            expected |= hold[block, None] == hold[None, :]
+        assert np.array_equal(excluded(block, len(position)), expected)
