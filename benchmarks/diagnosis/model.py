@@ -198,11 +198,6 @@ class ExtendedModel:
         b = v @ m_mat.T
         nb = np.linalg.norm(b, axis=1)
         r = nb - d.f_ref_nT
-        if free is not None and not len(free):
-            for (cls, i0), (_g, h) in zip(self.col_effects, cols):
-                if h is not None:
-                    r = r - h @ x[i0:i0 + len(cls.fit_params)]
-            return r, np.empty((len(r), 0))
         wanted = range(self.p) if free is None else free
         at = {j: c for c, j in enumerate(wanted)}  # parameter index -> column of the returned J
         bh = b / nb[:, None]
@@ -214,10 +209,9 @@ class ExtendedModel:
         for k, dp in enumerate(_dp(x9)):
             if k in at:
                 jac[:, at[k]] = np.einsum("ni,ni->n", bh, v @ (dp * (1.0 / x9[3:6])[None, :]).T)
-        for a in range(3):  # d M / d k_a = -P[:, a] / k_a^2 in column a
-            if 3 + a in at:
-                jac[:, at[3 + a]] = -(bh @ p_mat[:, a]) * v[:, a] / x9[3 + a] ** 2
         for a in range(3):
+            if 3 + a in at:  # d M / d k_a = -P[:, a] / k_a^2 in column a
+                jac[:, at[3 + a]] = -(bh @ p_mat[:, a]) * v[:, a] / x9[3 + a] ** 2
             if 6 + a in at:
                 jac[:, at[6 + a]] = -w[:, a]
         for (cls, i0), (g, h) in zip(self.col_effects, cols):
