@@ -437,6 +437,9 @@ class Effect:
     robust: ClassVar[bool] = False  # True: the effect is a set of samples explained away (spikes)
     fit_params: ClassVar[tuple[str, ...]] = ()  # extra parameters of the fitted form
     heading_harmonics: ClassVar[tuple[int, ...]] = ()  # cycles per revolution on a level turntable
+    prepare_leaves_out_base_spikes: ClassVar[bool] = False
+    """True: ``prepare`` leaves out the base residual's own spikes (``OutlierEffect.spike_mask(r_base)``) beside the
+    ``spikes`` it is given, so ``spikes`` among them change nothing it computes (the diagnosis then prepares it once)."""
 
     def as_dict(self) -> dict:
         return {"name": self.name, **{k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}}
@@ -617,6 +620,7 @@ class TemperatureEffect(Effect):
 
     name: ClassVar[str] = "temperature"
     needs: ClassVar[tuple[str, ...]] = ("temp",)
+    prepare_leaves_out_base_spikes: ClassVar[bool] = True
     optional: ClassVar[tuple[str, ...]] = ("t",)
     fit_params: ClassVar[tuple[str, ...]] = ("oTx_nT_per_C", "oTy_nT_per_C", "oTz_nT_per_C",
                                              "kTx_ppm_per_C", "kTy_ppm_per_C", "kTz_ppm_per_C",
@@ -967,6 +971,7 @@ class LagEffect(Effect):
 
     name: ClassVar[str] = "lag"
     needs: ClassVar[tuple[str, ...]] = ("t",)
+    prepare_leaves_out_base_spikes: ClassVar[bool] = True
     fit_params: ClassVar[tuple[str, ...]] = ("lag_x_s", "lag_y_s", "lag_z_s", "lag2_x_s2", "lag2_y_s2", "lag2_z_s2")
     """lag_j and the second-order terms lag_j^2 (fitted freely, so the form stays linear): a shift of a
     smooth signal is x(t - s) = x - s x' + s^2 x'' / 2 + ..."""

@@ -384,10 +384,12 @@ class Diagnosis:
         fl = self._model_floor(fl, model, x_every, n_every, spikes)
         floor, floor_se = fl["noise_floor_nT"], fl["floor_se_nT"]
         self.floor_se = floor_se
-        # derived inputs (thermal time constant, derivatives) again, the spikes left out: every ``prepare`` leaves out
-        # the base residual's own spikes and these, so where these are among them it would compute what it did
-        if (spikes & ~OutlierEffect.spike_mask(r_all)).any():
-            self.effect_info = {cls.name: cls.prepare(d, self.norm, r_all, unit, spikes) for cls in effects_ok}
+        if spikes.any():  # derived inputs (thermal time constant, derivatives) again, the spikes left out; an effect
+            # whose prepare leaves out the base residual's own spikes already keeps what it has when these are among them
+            beyond = bool((spikes & ~OutlierEffect.spike_mask(r_all)).any())
+            self.effect_info = {cls.name: cls.prepare(d, self.norm, r_all, unit, spikes)
+                                if beyond or not cls.prepare_leaves_out_base_spikes else self.effect_info[cls.name]
+                                for cls in effects_ok}
             model.info = self.effect_info
         selected, current, trail, base_res, rms_base, x_lin = self._passes(x_lin, every, spikes, r_all, floor)
         selected, current, naming, confounded = self._name(selected, current, every, base_res, floor, floor_se, n)
